@@ -1,0 +1,31 @@
+# Two commands on a fresh machine:  `make run`  (a real DSAGE run)  and  `make test`.
+PY ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: venv run test bench clean
+
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PY) -m venv $(VENV)
+	$(BIN)/pip install --upgrade --quiet pip
+	# torch first: the pinned CPU build is on disk; an unpinned torch would pull a multi-GB CUDA build.
+	$(BIN)/pip install --quiet torch==2.13.0
+	$(BIN)/pip install --quiet -e '.[mario,dev]'
+	# mario-gpt ships the Mario AI jar and the human levels; its own deps (transformers) are not needed.
+	$(BIN)/pip install --quiet --no-deps mario-gpt==0.1.3
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+run: $(STAMP)
+	$(BIN)/dsage-ray run experiments/configs/maze_dsage.toml --preset cpu
+
+test: $(STAMP)
+	RAY_AUTH_MODE=disabled $(BIN)/python -m pytest -q
+
+bench: $(STAMP)
+	for b in benchmarks/bench_*.py; do $(BIN)/python $$b || exit 1; done
+
+clean:
+	rm -rf $(VENV)

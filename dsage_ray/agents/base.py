@@ -1,0 +1,75 @@
+"""The one policy interface every agent implements.
+
+Evaluations run many episodes at once, so the interface is batched: observations for ``n``
+active episodes and their recurrent state go in, ``n`` actions come out. Episodes that finish
+leave the batch (:meth:`Agent.select_state`), which keeps later steps cheap.
+"""
+
+from __future__ import annotations
+
+import abc
+from typing import Any
+
+import numpy as np
+
+#: Batched MiniGrid observations: ``image`` ``(n, 5, 5, 3)`` uint8 and ``direction`` ``(n,)`` int64.
+Observation = dict[str, np.ndarray]
+#: Whatever an agent carries between steps (LSTM ``(h, c)``, nothing, ...); opaque to callers.
+AgentState = Any
+
+
+class AgentError(ValueError):
+    """An agent spec or checkpoint that cannot be loaded; the message says why."""
+
+
+class Agent(abc.ABC):
+    """A batched, possibly recurrent, possibly stochastic policy."""
+
+    #: Human-readable identity (the spec it was loaded from).
+    spec: str = ""
+
+    @abc.abstractmethod
+    def initial_state(self, batch_size: int) -> AgentState:
+        """State for ``batch_size`` fresh episodes."""
+
+    @abc.abstractmethod
+    def act(self, obs: Observation, state: AgentState, rng: np.random.Generator) -> tuple[np.ndarray, AgentState]:
+        """Actions ``(n,)`` int64 for the ``n`` episodes in ``obs``, and the next state.
+
+        All randomness must come from ``rng`` so that an evaluation is reproducible from its seed.
+        """
+
+    def reset(self, state: AgentState, mask: np.ndarray) -> AgentState:
+        """Returns ``state`` with the episodes where ``mask`` is true reset to their initial state."""
+        fresh = self.initial_state(len(mask))
+        return _tree_where(mask, fresh, state)
+
+    def select_state(self, state: AgentState, index: np.ndarray) -> AgentState:
+        """Keeps only the episodes at ``index`` (the ones still running)."""
+        return _tree_map(lambda x: x[index], state)
+
+
+def _tree_map(fn, tree):
+    if tree is None:
+        return None
+    if isinstance(tree, (tuple, list)):
+        return type(tree)(_tree_map(fn, t) for t in tree)
+    if isinstance(tree, dict):
+        return {k: _tree_map(fn, v) for k, v in tree.items()}
+    return fn(tree)
+
+
+def _tree_where(mask: np.ndarray, fresh, old):
+    if old is None:
+        return None
+    if isinstance(old, (tuple, list)):
+        return type(old)(_tree_where(mask, f, o) for f, o in zip(fresh, old))
+    if isinstance(old, dict):
+        return {k: _tree_where(mask, fresh[k], old[k]) for k in old}
+    if isinstance(old, np.ndarray):
+        m = mask.reshape((-1,) + (1,) * (old.ndim - 1))
+        return np.where(m, fresh, old)
+    import torch  # tensors: only agents backed by torch reach here
+
+    m = torch.as_tensor(mask, device=old.device).reshape((-1,) + (1,) * (old.dim() - 1))
+    return torch.where(m, fresh.to(old.device), old)

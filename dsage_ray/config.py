@@ -1,0 +1,426 @@
+"""One typed, serialisable config object per run.
+
+A :class:`RunConfig` is a tree of dataclasses. Its flat form uses dotted keys
+(``"surrogate.epochs"``), which map 1:1 onto ``tune.grid_search`` axes and ``--set`` overrides.
+
+Resolution order when building a config: dataclass defaults → the domain's *preset* → the
+*variant* → explicit keys. ``preset`` and ``variant`` are ordinary fields, so a Tune grid over
+``variant`` is an ablation grid.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import tomllib
+import types
+import typing
+from pathlib import Path
+from typing import Any, Literal, Mapping
+
+import numpy as np
+
+
+class ConfigError(ValueError):
+    """An invalid config; the message names the offending key."""
+
+
+@dataclasses.dataclass
+class MazeConfig:
+    """The Maze domain (SPEC §2)."""
+
+    agent: str = "builtin:wall_follower"
+    episodes: int = 50
+    height: int = 16
+    width: int = 16
+    see_through_walls: bool = True
+    #: ``validity`` (paper), ``failure_rate`` or ``regret`` (audits).
+    objective: str = "validity"
+    measures: tuple[str, ...] = ("num_walls", "mean_path_length")
+    #: Cells per measure; ``0`` means "one cell per integer value" (the paper's 256×162 uses 256 and 162).
+    archive_dims: tuple[int, ...] = (256, 162)
+    #: ``()`` means the natural range of each measure.
+    measure_ranges: tuple[tuple[float, float], ...] = ()
+
+
+@dataclasses.dataclass
+class MarioConfig:
+    """The Mario domain (SPEC §3)."""
+
+    runs: int = 5
+    timer: int = 20
+    astar_iterations: int = 1000
+    episode_timeout_s: float = 60.0
+    generator: str = "builtin"
+    measures: tuple[str, ...] = ("sky_tiles", "mean_jumps")
+    archive_dims: tuple[int, ...] = (150, 100)
+    measure_ranges: tuple[tuple[float, float], ...] = ((0.0, 150.0), (0.0, 100.0))
+
+
+@dataclasses.dataclass
+class SurrogateConfig:
+    """The deep surrogate model (SPEC §4)."""
+
+    #: ``two_stage`` (ancillary occupancy), ``one_stage`` (no ancillary data) or ``none`` (plain QD).
+    kind: str = "two_stage"
+    epochs: int = 200
+    batch_size: int = 64
+    lr: float = 1e-3
+    betas: tuple[float, float] = (0.9, 0.999)
+    occupancy_weight: float = 10.0
+    train_window: int = 20_000
+    predict_batch_size: int = 4096
+    device: str = "auto"
+
+
+@dataclasses.dataclass
+class QDConfig:
+    """The QD optimizer used on the surrogate (inner loop) or directly (baselines)."""
+
+    #: ``map_elites`` (discrete bitmaps), ``cma_me`` (continuous latents) or ``random`` (DR).
+    emitter: str = "map_elites"
+    num_emitters: int = 5
+    batch_size: int = 30
+    #: MAP-Elites: cells mutated per offspring; batches of uniform random solutions before mutating.
+    mutation_cells: int = 10
+    initial_random_batches: int = 4
+    #: CMA-ME.
+    sigma0: float = 0.2
+    ranker: str = "2imp"
+    #: Inner-loop iterations (N_exploit) per outer iteration.
+    exploit_iterations: int = 10_000
+
+
+@dataclasses.dataclass
+class SelectionConfig:
+    """Which surrogate elites get a real evaluation."""
+
+    #: ``downsample``, ``random`` or ``full``.
+    method: str = "downsample"
+    #: Downsampling block in archive cells per measure.
+    block: tuple[int, ...] = (8, 6)
+    #: ``random``: how many elites to pick.
+    count: int = 432
+
+
+@dataclasses.dataclass
+class RunConfig:
+    """Everything one DSAGE run needs; serialisable to JSON/TOML and back."""
+
+    name: str = "dsage"
+    domain: str = "maze"
+    variant: str = "dsage"
+    preset: str = "paper"
+    seed: int = 0
+    #: Total real evaluations.
+    budget: int = 100_000
+    #: Random solutions evaluated in outer iteration 1.
+    n_rand: int = 100
+    #: Outer iterations between checkpoints / TensorBoard images.
+    checkpoint_every: int = 1
+    image_every: int = 5
+    maze: MazeConfig = dataclasses.field(default_factory=MazeConfig)
+    mario: MarioConfig = dataclasses.field(default_factory=MarioConfig)
+    surrogate: SurrogateConfig = dataclasses.field(default_factory=SurrogateConfig)
+    qd: QDConfig = dataclasses.field(default_factory=QDConfig)
+    selection: SelectionConfig = dataclasses.field(default_factory=SelectionConfig)
+
+    # ----------------------------------------------------------------------------------- building
+
+    @classmethod
+    def build(cls, values: Mapping[str, Any] | None = None, **kwargs: Any) -> "RunConfig":
+        """Builds a validated config from flat (dotted) or nested values plus keyword overrides."""
+        explicit = flatten(dict(values or {}))
+        explicit.update(flatten(kwargs))
+        base = cls()
+        _assign(base, {k: explicit[k] for k in ("domain", "preset", "variant") if k in explicit})
+        layered: dict[str, Any] = {}
+        preset_table = PRESETS.get(base.domain, {})
+        if base.preset not in preset_table:
+            raise ConfigError(f"preset: unknown preset {base.preset!r} for domain {base.domain!r} "
+                              f"(known: {sorted(preset_table)})")
+        layered.update(preset_table[base.preset])
+        variant_table = VARIANTS.get(base.domain, {})
+        if base.variant not in variant_table:
+            raise ConfigError(f"variant: unknown variant {base.variant!r} for domain {base.domain!r} "
+                              f"(known: {sorted(variant_table)})")
+        layered.update(variant_table[base.variant])
+        layered.update(explicit)
+        config = cls()
+        _assign(config, layered)
+        config.validate()
+        return config
+
+    @classmethod
+    def from_file(cls, path: str | Path, overrides: Mapping[str, Any] | None = None) -> "RunConfig":
+        """Reads a TOML or JSON config file, then applies dotted ``overrides``."""
+        path = Path(path)
+        try:
+            text = path.read_text()
+        except OSError as exc:
+            raise ConfigError(f"cannot read config file {path}: {exc.strerror}") from None
+        try:
+            data = json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
+        except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
+            raise ConfigError(f"{path}: not valid {'JSON' if path.suffix == '.json' else 'TOML'}: {exc}") from None
+        values = flatten(data)
+        values.update(flatten(dict(overrides or {})))
+        return cls.build(values)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Nested plain-Python form (lists for tuples), JSON/TOML friendly."""
+        return json.loads(json.dumps(dataclasses.asdict(self)))
+
+    def to_flat(self) -> dict[str, Any]:
+        """Dotted-key form, e.g. for ``tune.Tuner(param_space=...)``."""
+        return flatten(self.to_dict())
+
+    def replace(self, **dotted: Any) -> "RunConfig":
+        values = self.to_flat()
+        values.update({k.replace("__", "."): v for k, v in dotted.items()})
+        return RunConfig.build(values)
+
+    # --------------------------------------------------------------------------------- validation
+
+    @property
+    def domain_config(self) -> MazeConfig | MarioConfig:
+        return getattr(self, self.domain)
+
+    @property
+    def uses_surrogate(self) -> bool:
+        return self.surrogate.kind != "none"
+
+    def validate(self) -> None:
+        """Raises :class:`ConfigError` naming the first key with an impossible value."""
+        def need(cond: bool, key: str, why: str) -> None:
+            if not cond:
+                raise ConfigError(f"{key}: {why} (got {_get(self, key)!r})")
+
+        need(self.domain in ("maze", "mario"), "domain", "must be 'maze' or 'mario'")
+        need(self.budget >= 1, "budget", "must be positive")
+        need(self.n_rand >= 1, "n_rand", "must be positive")
+        need(self.budget >= self.n_rand or not self.uses_surrogate, "budget",
+             f"must be at least n_rand={self.n_rand} (the first outer iteration evaluates n_rand solutions)")
+        need(self.checkpoint_every >= 1, "checkpoint_every", "must be positive")
+        need(self.image_every >= 1, "image_every", "must be positive")
+        need(self.surrogate.kind in ("two_stage", "one_stage", "none"), "surrogate.kind",
+             "must be 'two_stage', 'one_stage' or 'none'")
+        for key in ("epochs", "batch_size", "train_window", "predict_batch_size"):
+            need(getattr(self.surrogate, key) >= 1, f"surrogate.{key}", "must be positive")
+        need(self.surrogate.lr > 0, "surrogate.lr", "must be positive")
+        need(self.qd.emitter in ("map_elites", "cma_me", "random"), "qd.emitter",
+             "must be 'map_elites', 'cma_me' or 'random'")
+        for key in ("num_emitters", "batch_size", "exploit_iterations", "mutation_cells"):
+            need(getattr(self.qd, key) >= 1, f"qd.{key}", "must be positive")
+        need(self.qd.sigma0 > 0, "qd.sigma0", "must be positive")
+        need(self.selection.method in ("downsample", "random", "full"), "selection.method",
+             "must be 'downsample', 'random' or 'full'")
+        need(self.selection.count >= 1, "selection.count", "must be positive")
+        dom = self.domain_config
+        prefix = self.domain
+        need(len(dom.measures) >= 1, f"{prefix}.measures", "needs at least one measure")
+        need(len(dom.archive_dims) == len(dom.measures), f"{prefix}.archive_dims",
+             f"needs one entry per measure ({len(dom.measures)})")
+        need(all(d >= 1 for d in dom.archive_dims), f"{prefix}.archive_dims", "cells per measure must be positive")
+        if dom.measure_ranges:
+            need(len(dom.measure_ranges) == len(dom.measures), f"{prefix}.measure_ranges",
+                 f"needs one (low, high) pair per measure ({len(dom.measures)})")
+            need(all(len(r) == 2 and r[0] < r[1] for r in dom.measure_ranges), f"{prefix}.measure_ranges",
+                 "each range must be (low, high) with low < high")
+        need(len(self.selection.block) == len(dom.measures), "selection.block",
+             f"needs one block size per measure ({len(dom.measures)})")
+        need(all(b >= 1 for b in self.selection.block), "selection.block", "block sizes must be positive")
+        if isinstance(dom, MazeConfig):
+            need(dom.episodes >= 1, "maze.episodes", "must be positive")
+            need(dom.height >= 2 and dom.width >= 2, "maze.height", "maze must be at least 2x2")
+            need(dom.objective in ("validity", "failure_rate", "regret"), "maze.objective",
+                 "must be 'validity', 'failure_rate' or 'regret'")
+        else:
+            need(dom.runs >= 1, "mario.runs", "must be positive")
+            need(dom.timer >= 1, "mario.timer", "must be positive")
+            need(dom.astar_iterations >= 0, "mario.astar_iterations", "must be >= 0 (0: stock wall-clock timer)")
+
+
+# ------------------------------------------------------------------------------- presets, variants
+
+#: Per-domain presets: ``paper`` reproduces the paper's numbers; ``cpu`` finishes well under an hour
+#: on 2 cores; ``tiny`` is for tests and smoke runs.
+PRESETS: dict[str, dict[str, dict[str, Any]]] = {
+    "maze": {
+        "paper": {},
+        "cpu": {
+            "budget": 2_000,
+            "n_rand": 100,
+            "maze.episodes": 50,
+            "surrogate.epochs": 20,
+            "surrogate.train_window": 20_000,
+            "qd.exploit_iterations": 200,
+            "selection.count": 100,
+        },
+        "tiny": {
+            "budget": 150,
+            "n_rand": 50,
+            "maze.episodes": 5,
+            "surrogate.epochs": 2,
+            "qd.exploit_iterations": 5,
+            "selection.count": 20,
+        },
+    },
+    "mario": {
+        "paper": {
+            "n_rand": 100,
+            "qd.emitter": "cma_me",
+            "qd.num_emitters": 1,
+            "qd.batch_size": 30,
+            "selection.block": (5, 5),
+            "selection.count": 250,
+            "surrogate.train_window": 20_000,
+        },
+        "cpu": {
+            "budget": 500,
+            "n_rand": 50,
+            "qd.emitter": "cma_me",
+            "qd.num_emitters": 1,
+            "mario.runs": 2,
+            "surrogate.epochs": 20,
+            "qd.exploit_iterations": 200,
+            "selection.block": (5, 5),
+            "selection.count": 50,
+        },
+        "tiny": {
+            "budget": 12,
+            "n_rand": 6,
+            "qd.emitter": "cma_me",
+            "qd.num_emitters": 1,
+            "qd.batch_size": 4,
+            "mario.runs": 1,
+            "mario.timer": 5,
+            "surrogate.epochs": 2,
+            "qd.exploit_iterations": 3,
+            "selection.block": (30, 20),
+            "selection.count": 6,
+        },
+    },
+}
+
+_COMMON_VARIANTS: dict[str, dict[str, Any]] = {
+    "dsage": {"surrogate.kind": "two_stage", "selection.method": "downsample"},
+    "dsage_only_anc": {"surrogate.kind": "two_stage", "selection.method": "full"},
+    "dsage_only_down": {"surrogate.kind": "one_stage", "selection.method": "downsample"},
+    "dsage_basic": {"surrogate.kind": "one_stage", "selection.method": "full"},
+    "dsage_rsample": {"surrogate.kind": "two_stage", "selection.method": "random"},
+}
+
+#: Paper variants as data: each is a set of keys, never a code branch.
+VARIANTS: dict[str, dict[str, dict[str, Any]]] = {
+    "maze": {
+        **_COMMON_VARIANTS,
+        "map_elites": {"surrogate.kind": "none", "qd.emitter": "map_elites", "qd.num_emitters": 5, "qd.batch_size": 30},
+        "dr": {"surrogate.kind": "none", "qd.emitter": "random", "qd.num_emitters": 5, "qd.batch_size": 30},
+    },
+    "mario": {
+        **_COMMON_VARIANTS,
+        "cma_me": {"surrogate.kind": "none", "qd.emitter": "cma_me", "qd.num_emitters": 5, "qd.batch_size": 30},
+        "dr": {"surrogate.kind": "none", "qd.emitter": "random", "qd.num_emitters": 5, "qd.batch_size": 30},
+    },
+}
+
+
+# ---------------------------------------------------------------------------------------- helpers
+
+def flatten(values: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """``{"a": {"b": 1}}`` → ``{"a.b": 1}``; already-dotted keys pass through."""
+    flat: dict[str, Any] = {}
+    for key, value in values.items():
+        dotted = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            flat.update(flatten(value, dotted + "."))
+        else:
+            flat[dotted] = value
+    return flat
+
+
+def _get(obj: Any, dotted: str) -> Any:
+    for part in dotted.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+def _assign(config: Any, flat: Mapping[str, Any]) -> None:
+    for dotted, value in flat.items():
+        *parents, leaf = dotted.split(".")
+        target = config
+        for i, part in enumerate(parents):
+            if not dataclasses.is_dataclass(target) or part not in _field_types(type(target)):
+                raise ConfigError(f"{'.'.join(parents[:i + 1])}: unknown config section")
+            target = getattr(target, part)
+        hints = _field_types(type(target)) if dataclasses.is_dataclass(target) else {}
+        if leaf not in hints or dataclasses.is_dataclass(hints[leaf]):
+            raise ConfigError(f"{dotted}: unknown config key")
+        setattr(target, leaf, _coerce(dotted, value, hints[leaf]))
+
+
+def _field_types(cls: type) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
+
+
+def _coerce(key: str, value: Any, annotation: Any) -> Any:
+    """Checks ``value`` against a field annotation, converting lists to tuples and ints to floats."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    origin = typing.get_origin(annotation)
+    args = typing.get_args(annotation)
+    if origin in (typing.Union, types.UnionType):
+        for option in args:
+            try:
+                return _coerce(key, value, option)
+            except ConfigError:
+                continue
+        raise ConfigError(f"{key}: expected {annotation}, got {value!r}")
+    if annotation is type(None):
+        if value is None:
+            return None
+        raise ConfigError(f"{key}: expected None, got {value!r}")
+    if origin is tuple:
+        if not isinstance(value, (list, tuple)):
+            raise ConfigError(f"{key}: expected a list, got {value!r}")
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_coerce(key, v, args[0]) for v in value)
+        if len(args) != len(value):
+            raise ConfigError(f"{key}: expected {len(args)} values, got {len(value)}")
+        return tuple(_coerce(key, v, a) for v, a in zip(value, args))
+    if origin is Literal:
+        if value in args:
+            return value
+        raise ConfigError(f"{key}: expected one of {args}, got {value!r}")
+    if annotation is bool:
+        if isinstance(value, bool):
+            return value
+        raise ConfigError(f"{key}: expected true/false, got {value!r}")
+    if annotation is int:
+        if isinstance(value, int) and not isinstance(value, bool):
+            return value
+        if isinstance(value, float) and value.is_integer():
+            return int(value)
+        raise ConfigError(f"{key}: expected an integer, got {value!r}")
+    if annotation is float:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            return float(value)
+        raise ConfigError(f"{key}: expected a number, got {value!r}")
+    if annotation is str:
+        if isinstance(value, str):
+            return value
+        raise ConfigError(f"{key}: expected a string, got {value!r}")
+    return value
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """Parses ``key=value`` from the command line; the value is read as TOML, else kept as a string."""
+    if "=" not in text:
+        raise ConfigError(f"--set {text!r}: expected key=value")
+    key, raw = (part.strip() for part in text.split("=", 1))
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return key, value
