@@ -104,6 +104,22 @@ class SelectionConfig:
 
 
 @dataclasses.dataclass
+class RayConfig:
+    """How a run uses Ray (ignored by the in-process runner): simulator actors and the trial's resources."""
+
+    #: Simulator actors in the pool (``0``: evaluate in the trial process itself).
+    num_workers: int = 2
+    #: Logical CPUs each simulator actor reserves (its placement-group bundle).
+    cpus_per_worker: float = 0.5
+    #: Logical CPUs the trial itself reserves (surrogate training and the inner loop).
+    trial_cpus: float = 1.0
+    #: Solutions per pool task; 1 spreads uneven episodes best, larger amortises round trips.
+    chunk_size: int = 1
+    #: Seconds to wait for the simulators' resources before failing instead of hanging.
+    placement_timeout_s: float = 120.0
+
+
+@dataclasses.dataclass
 class RunConfig:
     """Everything one DSAGE run needs; serialisable to JSON/TOML and back."""
 
@@ -124,6 +140,7 @@ class RunConfig:
     surrogate: SurrogateConfig = dataclasses.field(default_factory=SurrogateConfig)
     qd: QDConfig = dataclasses.field(default_factory=QDConfig)
     selection: SelectionConfig = dataclasses.field(default_factory=SelectionConfig)
+    ray: RayConfig = dataclasses.field(default_factory=RayConfig)
 
     # ----------------------------------------------------------------------------------- building
 
@@ -216,6 +233,11 @@ class RunConfig:
         need(self.selection.method in ("downsample", "random", "full"), "selection.method",
              "must be 'downsample', 'random' or 'full'")
         need(self.selection.count >= 1, "selection.count", "must be positive")
+        need(self.ray.num_workers >= 0, "ray.num_workers", "must be >= 0")
+        need(self.ray.cpus_per_worker > 0, "ray.cpus_per_worker", "must be positive")
+        need(self.ray.trial_cpus > 0, "ray.trial_cpus", "must be positive")
+        need(self.ray.chunk_size >= 1, "ray.chunk_size", "must be positive")
+        need(self.ray.placement_timeout_s > 0, "ray.placement_timeout_s", "must be positive")
         dom = self.domain_config
         prefix = self.domain
         need(len(dom.measures) >= 1, f"{prefix}.measures", "needs at least one measure")
