@@ -79,6 +79,9 @@ class Domain(Protocol):
     def evaluate(self, solution: Solution, seed: int) -> EvaluationResult:
         """Simulates the domain's agent on one level; deterministic for a given seed."""
 
+    def render(self, solution: Solution, occupancy: np.ndarray | None) -> bytes:
+        """A PNG of the level, with the occupancy overlaid when given."""
+
 
 #: Evaluates a batch of solutions, one seed each, returning results in submission order.
 Evaluator = Callable[[Solutions, Sequence[int]], list[EvaluationResult]]

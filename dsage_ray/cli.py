@@ -1,0 +1,125 @@
+"""``dsage-ray``: the command-line interface (thin: it parses, then calls the library)."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import time
+from pathlib import Path
+
+#: Modules that register sub-commands; each exposes ``add_subparser(subparsers)``.
+_COMMAND_MODULES = (
+    "dsage_ray.domains.maze.cli",
+    "dsage_ray.domains.mario.cli",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="dsage-ray", description=__doc__.split(":")[0])
+    subparsers = parser.add_subparsers(dest="command", required=True)
+    _add_run(subparsers)
+    for module_name in _COMMAND_MODULES:
+        try:
+            module = importlib.import_module(module_name)
+        except ImportError as exc:
+            # A domain whose optional dependencies are missing simply has no sub-command.
+            if exc.name and exc.name.startswith("dsage_ray"):
+                continue
+            raise
+        module.add_subparser(subparsers)
+    return parser
+
+
+def add_config_arguments(parser: argparse.ArgumentParser) -> None:
+    """The config arguments every run-like command shares."""
+    parser.add_argument("--preset", help="preset of the domain (paper, cpu, tiny, ...)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a config key, e.g. --set budget=2000 --set surrogate.epochs=50")
+
+
+def load_run_config(args: argparse.Namespace, path: str | None):
+    from dsage_ray.config import RunConfig, parse_override
+
+    overrides = dict(parse_override(item) for item in args.overrides)
+    if args.preset:
+        overrides["preset"] = args.preset
+    return RunConfig.from_file(path, overrides) if path else RunConfig.build(overrides)
+
+
+def _add_run(subparsers) -> None:
+    parser = subparsers.add_parser("run", help="run DSAGE (or a baseline) from a config file")
+    parser.add_argument("config", help="a TOML/JSON config, e.g. experiments/configs/maze_dsage.toml")
+    add_config_arguments(parser)
+    parser.add_argument("--out", help="run folder (default: tb_logs/<name>-<time>)")
+    parser.add_argument("--resume", action="store_true", help="continue from the run folder's last checkpoint")
+    parser.add_argument("--local", action="store_true", help="run in this process, without Ray")
+    parser.add_argument("--workers", type=int, help="simulator actors (sets ray.num_workers)")
+    parser.add_argument("--address", help="join an existing Ray cluster (default: RAY_ADDRESS or a local one)")
+    parser.set_defaults(handler=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    config = load_run_config(args, args.config)
+    if args.workers is not None:
+        config = config.replace(**{"ray.num_workers": args.workers})
+    out = Path(args.out) if args.out else Path("tb_logs") / f"{config.name}-{time.strftime('%Y%m%d-%H%M%S')}"
+    if args.local:
+        run_dir = run_locally(config, out_dir=out, resume=args.resume)
+    else:
+        from dsage_ray.ray.cli import run_with_tune
+
+        run_dir = run_with_tune(config, workers=config.ray.num_workers, address=args.address,
+                                resume=args.resume, out_dir=out)
+    print(f"run folder: {run_dir}")
+    return 0
+
+
+def run_locally(config, *, out_dir: Path, resume: bool = False) -> Path:
+    """Runs DSAGE in this process with progress bars, checkpoints and the run folder's outputs."""
+    from tqdm import tqdm
+
+    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
+    from dsage_ray.core.runner import DSAGE
+
+    bars: dict[str, tqdm] = {}
+
+    def progress(phase: str, done: int, total: int) -> None:
+        bar = bars.get(phase)
+        if bar is None or bar.total != total or done < bar.n:
+            if bar is not None:
+                bar.close()
+            bar = bars[phase] = tqdm(total=total, desc=phase, leave=phase == "evaluate", dynamic_ncols=True)
+        bar.update(done - bar.n)
+
+    runner = DSAGE(config=config, progress=progress)
+    checkpoint = out_dir / CHECKPOINT_NAME
+    if resume:
+        runner.load_state_dict(load_checkpoint(checkpoint))
+        print(f"resumed at {runner.evals} evaluations, outer iteration {runner.outer_iteration}")
+    while not runner.done:
+        metrics = runner.step()
+        if runner.outer_iteration % config.checkpoint_every == 0 or runner.done:
+            save_checkpoint(runner.state_dict(), checkpoint)
+        tqdm.write(f"iter {runner.outer_iteration:4d}  evals {int(metrics['evals']):6d}  "
+                   f"qd_score {metrics['qd_score']:9.1f}  coverage {metrics['coverage']:.3f}")
+    for bar in bars.values():
+        bar.close()
+    runner.write_outputs(out_dir)
+    return out_dir
+
+
+def main(argv: list[str] | None = None) -> int:
+    from dsage_ray.config import ConfigError
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.handler(args) or 0)
+    except (ConfigError, FileNotFoundError, ValueError) as exc:
+        print(f"dsage-ray: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

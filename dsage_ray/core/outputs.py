@@ -1,0 +1,115 @@
+"""What a run leaves in its folder: metrics, the ground-truth archive, a heatmap, a few elites."""
+
+from __future__ import annotations
+
+import io
+import json
+import shutil
+import tempfile
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from dsage_ray.io import atomic_write_bytes, atomic_write_json, atomic_write_text
+
+if TYPE_CHECKING:
+    from dsage_ray.core.runner import DSAGE
+
+
+def heatmap_png(archive, *, title: str = "", measure_names: tuple[str, ...] = ()) -> bytes:
+    """The ground-truth archive as a PNG heatmap of objective values."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from ribs.visualize import grid_archive_heatmap
+
+    fig, ax = plt.subplots(figsize=(6, 4.5), dpi=100)
+    grid_archive_heatmap(archive, ax=ax, cmap="viridis")
+    if len(measure_names) >= 2:
+        ax.set_xlabel(measure_names[0])
+        ax.set_ylabel(measure_names[1])
+    ax.set_title(title or f"{len(archive)} elites")
+    fig.tight_layout()
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png")
+    plt.close(fig)
+    return buffer.getvalue()
+
+
+def heatmap_image(archive, **kwargs) -> np.ndarray:
+    """The heatmap as an ``(H, W, 3)`` uint8 array, e.g. for TensorBoard."""
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(heatmap_png(archive, **kwargs))).convert("RGB"))
+
+
+def scatter_png(predicted: np.ndarray, true: np.ndarray, measure_names: tuple[str, ...]) -> bytes:
+    """Predicted vs. true measures of the batch just evaluated (the paper's Fig. 9)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(measure_names), figsize=(4 * len(measure_names), 4), dpi=100, squeeze=False)
+    for j, (ax, name) in enumerate(zip(axes[0], measure_names)):
+        ax.scatter(true[:, j], predicted[:, j], s=6, alpha=0.6)
+        low, high = float(min(true[:, j].min(), predicted[:, j].min())), float(max(true[:, j].max(), predicted[:, j].max()))
+        ax.plot([low, high], [low, high], "k--", linewidth=0.8)
+        ax.set_xlabel(f"true {name}")
+        ax.set_ylabel(f"predicted {name}")
+    fig.tight_layout()
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png")
+    plt.close(fig)
+    return buffer.getvalue()
+
+
+def spread_elites(archive, count: int) -> list[int]:
+    """Indices (into ``archive.data()``) of up to ``count`` elites spread along the first measure."""
+    data = archive.data()
+    n = len(data["objective"])
+    if n == 0:
+        return []
+    order = np.argsort(data["measures"][:, 0], kind="stable")
+    picks = np.unique(np.linspace(0, n - 1, num=min(count, n)).round().astype(int))
+    return [int(order[p]) for p in picks]
+
+
+def write_outputs(runner: "DSAGE", run_dir: str | Path, *, num_elites: int = 6) -> Path:
+    """Writes the run folder; every file is written atomically, the elites folder swapped in whole."""
+    from dsage_ray.qd.archives import archive_to_dataframe
+
+    run_dir = Path(run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    domain = runner.domain
+    atomic_write_json(run_dir / "config.json", runner.config.to_dict())
+    atomic_write_json(run_dir / "metrics.json", runner.history)
+    atomic_write_json(run_dir / "failures.json", runner.failures)
+    atomic_write_text(run_dir / "archive.csv", archive_to_dataframe(runner.archive).to_csv(index=False))
+    atomic_write_bytes(
+        run_dir / "heatmap.png",
+        heatmap_png(runner.archive, title=f"{runner.config.name}: {runner.evals} evaluations",
+                    measure_names=domain.measure_names),
+    )
+    render = getattr(domain, "render", None)
+    if render is not None:
+        data = runner.archive.data()
+        staging = Path(tempfile.mkdtemp(prefix=".elites.", dir=run_dir))
+        summary = []
+        for rank, index in enumerate(spread_elites(runner.archive, num_elites)):
+            name = f"elite_{rank:02d}.png"
+            solution = data["solution"][index]
+            (staging / name).write_bytes(render(solution, data["occupancy"][index]))
+            summary.append({
+                "file": name,
+                "objective": float(data["objective"][index]),
+                "measures": dict(zip(domain.measure_names, map(float, data["measures"][index]))),
+            })
+        (staging / "elites.json").write_text(json.dumps(summary, indent=2))
+        final = run_dir / "elites"
+        if final.exists():
+            shutil.rmtree(final)
+        staging.rename(final)
+    return run_dir

@@ -1,0 +1,308 @@
+"""The DSAGE outer loop (the paper's Algorithm 1), with every variant selected by config.
+
+One :meth:`DSAGE.step` is one outer iteration:
+
+1. *Model improvement*: train the surrogate on the most recent evaluations (its weights and Adam
+   state persist across iterations).
+2. *Model exploitation*: a fresh surrogate archive and fresh emitters run ``qd.exploit_iterations``
+   ask → predict → tell iterations against the surrogate.
+3. *Selection*: downsample / random / full picks from the surrogate archive.
+4. *Agent simulation*: the picks are evaluated for real and enter the ground-truth archive and the
+   dataset.
+
+The first iteration evaluates ``n_rand`` random solutions instead. Without a surrogate
+(``surrogate.kind = "none"``) a step is one ask/evaluate/tell of the QD optimizer on the
+ground-truth archive: MAP-Elites, CMA-ME or, with the random emitter, domain randomisation.
+
+Nothing here imports Ray: the domain and the evaluator are injected.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from typing import Any, Callable
+
+import numpy as np
+
+from dsage_ray.config import RunConfig
+from dsage_ray.core.evaluation import InProcessEvaluator, evaluate_with_retry
+from dsage_ray.core.metrics import mean_absolute_errors
+from dsage_ray.domains import build_domain
+from dsage_ray.qd.archives import archive_stats, make_archive
+from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
+from dsage_ray.qd.selection import select_solutions
+from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
+
+#: Called with (phase, done, total) while a step runs; the CLI turns it into progress bars.
+ProgressCallback = Callable[[str, int, int], None]
+
+
+class DSAGE:
+    """One DSAGE run (or one of its baselines), advanced an outer iteration at a time.
+
+    Args:
+        config: The run's config.
+        evaluator: Evaluates solutions for real; defaults to evaluating in this process.
+        domain: The domain; defaults to ``build_domain(config)``.
+        progress: Optional progress callback.
+    """
+
+    def __init__(
+        self,
+        *,
+        config: RunConfig,
+        evaluator: Evaluator | None = None,
+        domain: Domain | None = None,
+        progress: ProgressCallback | None = None,
+    ) -> None:
+        config.validate()
+        self.config = config
+        self.domain = domain if domain is not None else build_domain(config)
+        self.evaluator = evaluator if evaluator is not None else InProcessEvaluator(domain=self.domain)
+        self.progress = progress
+        self._seeds = np.random.SeedSequence(config.seed)
+        # Independent streams so that, e.g., a different inner-loop length never shifts the
+        # evaluation seeds.
+        streams = self._seeds.spawn(3)
+        self.rng = np.random.default_rng(streams[0])
+        self._eval_seed_root = int(streams[1].generate_state(1)[0])
+        self._qd_seed_root = streams[2]
+
+        self.archive = self._make_archive(with_occupancy=True, seed=self._next_qd_seed())
+        self.evals = 0
+        self.outer_iteration = 0
+        self.history: list[dict[str, float]] = []
+        self.failures: list[dict[str, Any]] = []
+        #: ``(predicted_measures, true_measures)`` for the batch evaluated last (Fig. 9 scatter).
+        self.last_predictions: tuple[np.ndarray, np.ndarray] | None = None
+
+        self.surrogate = None
+        self.dataset = None
+        self.scheduler = None
+        if config.uses_surrogate:
+            from dsage_ray.surrogate import Surrogate, SurrogateDataset
+
+            sample = self.domain.encode(self.domain.random_solutions(1, np.random.default_rng(0)))
+            self.surrogate = Surrogate(
+                kind=config.surrogate.kind,
+                input_channels=sample.shape[1],
+                input_shape=tuple(sample.shape[2:]),
+                occupancy_shape=self.domain.occupancy_shape,
+                num_measures=len(self.domain.measure_names),
+                config=config.surrogate,
+                seed=int(self._next_qd_seed()),
+            )
+            self.dataset = SurrogateDataset()
+        else:
+            self.scheduler = make_scheduler(
+                self.archive,
+                config=config.qd,
+                solution_dim=self.domain.solution_dim,
+                random_solutions=self.domain.random_solutions,
+                seed=self._next_qd_seed(),
+            )
+
+    # ------------------------------------------------------------------------------------ loop
+
+    @property
+    def done(self) -> bool:
+        return self.evals >= self.config.budget
+
+    @property
+    def ground_truth_archive(self):
+        return self.archive
+
+    def run(self) -> list[dict[str, float]]:
+        """Steps until the budget is spent; returns the per-iteration metrics."""
+        while not self.done:
+            self.step()
+        return self.history
+
+    def step(self) -> dict[str, float]:
+        """Runs one outer iteration and returns its metrics."""
+        if self.done:
+            raise RuntimeError(f"the evaluation budget ({self.config.budget}) is spent")
+        times: dict[str, float] = {}
+        metrics: dict[str, float] = {}
+        started = time.perf_counter()
+
+        if self.scheduler is not None:
+            solutions = self.scheduler.ask()
+        elif self.outer_iteration == 0:
+            solutions = self.domain.random_solutions(self.config.n_rand, self.rng)
+        else:
+            tic = time.perf_counter()
+            metrics.update({f"surrogate_{k}": v for k, v in self.surrogate.train(self.dataset).items()})
+            times["train"] = time.perf_counter() - tic
+            tic = time.perf_counter()
+            surrogate_archive = self._exploit()
+            times["exploit"] = time.perf_counter() - tic
+            tic = time.perf_counter()
+            solutions = select_solutions(
+                surrogate_archive,
+                method=self.config.selection.method,
+                block=self.config.selection.block,
+                count=self.config.selection.count,
+                rng=self.rng,
+            )
+            times["select"] = time.perf_counter() - tic
+            metrics["surrogate_archive_size"] = float(len(surrogate_archive))
+
+        full_batch = len(solutions)
+        solutions = solutions[: self.config.budget - self.evals]
+        predicted = None
+        if self.surrogate is not None and self.outer_iteration > 0 and len(solutions):
+            predicted = self.surrogate.predict(self.domain.encode(solutions))
+
+        tic = time.perf_counter()
+        results = self._evaluate(solutions)
+        times["evaluate"] = time.perf_counter() - tic
+
+        ok = [i for i, r in enumerate(results) if not r.failed]
+        objective = np.array([results[i].objective for i in ok], dtype=np.float64)
+        measures = np.array([results[i].measures for i in ok], dtype=np.float64).reshape(len(ok), -1)
+        occupancy = np.array([results[i].occupancy for i in ok], dtype=np.float32).reshape(
+            (len(ok),) + tuple(self.domain.occupancy_shape)
+        )
+        new_cells = self._count_new_cells(measures)
+        if self.scheduler is not None and len(ok) == full_batch:
+            # The emitters need the whole batch they asked for; tell() also adds to the archive.
+            self.scheduler.tell(objective, measures, occupancy=occupancy)
+        elif len(ok):
+            self.archive.add(solutions[ok], objective, measures, occupancy=occupancy)
+        if self.dataset is not None and len(ok):
+            self.dataset.append(
+                levels=self.domain.encode(solutions[ok]),
+                objective=objective,
+                measures=measures,
+                occupancy=occupancy,
+            )
+        if predicted is not None and len(ok):
+            metrics.update(
+                mean_absolute_errors(
+                    predicted_objective=predicted.objective[ok],
+                    predicted_measures=predicted.measures[ok],
+                    predicted_occupancy=None if predicted.occupancy is None else predicted.occupancy[ok],
+                    objective=objective,
+                    measures=measures,
+                    occupancy=occupancy,
+                    measure_names=self.domain.measure_names,
+                )
+            )
+            self.last_predictions = (predicted.measures[ok], measures)
+
+        self.evals += len(solutions)
+        self.outer_iteration += 1
+        times["total"] = time.perf_counter() - started
+        metrics.update(archive_stats(self.archive))
+        metrics.update(
+            outer_iteration=float(self.outer_iteration),
+            evals=float(self.evals),
+            evaluated_this_iteration=float(len(solutions)),
+            failed_evals=float(len(self.failures)),
+            new_cell_share=float(new_cells) / max(len(solutions), 1),
+        )
+        metrics.update({f"time_{k}": v for k, v in times.items()})
+        self.history.append(metrics)
+        return metrics
+
+    # -------------------------------------------------------------------------------- phases
+
+    def _exploit(self):
+        archive = self._make_archive(with_occupancy=False, seed=self._next_qd_seed())
+        scheduler = make_scheduler(
+            archive,
+            config=self.config.qd,
+            solution_dim=self.domain.solution_dim,
+            random_solutions=self.domain.random_solutions,
+            seed=self._next_qd_seed(),
+        )
+
+        def predict(solutions: Solutions):
+            prediction = self.surrogate.predict(self.domain.encode(solutions))
+            return prediction.objective, prediction.measures, {}
+
+        progress = None
+        if self.progress is not None:
+            total = self.config.qd.exploit_iterations
+            progress = lambda done: self.progress("exploit", done, total)  # noqa: E731
+        run_inner_loop(scheduler, predict, self.config.qd.exploit_iterations, progress=progress)
+        return archive
+
+    def _count_new_cells(self, measures: np.ndarray) -> int:
+        """How many of these results land in a ground-truth cell that was empty before the batch."""
+        if len(measures) == 0:
+            return 0
+        occupied, _ = self.archive.retrieve(measures)
+        return int(np.sum(~occupied))
+
+    def _evaluate(self, solutions: Solutions) -> list[EvaluationResult]:
+        seeds = [self._eval_seed(self.evals + i) for i in range(len(solutions))]
+        results = evaluate_with_retry(self.evaluator, solutions, seeds)
+        for i, result in enumerate(results):
+            if result.failed:
+                self.failures.append({"eval_index": self.evals + i, "seed": seeds[i], "error": result.error,
+                                      "solution": np.asarray(solutions[i]).tolist()})
+        if self.progress is not None:
+            self.progress("evaluate", self.evals + len(solutions), self.config.budget)
+        return results
+
+    def _eval_seed(self, eval_index: int) -> int:
+        """Evaluation ``i``'s seed depends only on the run seed and ``i``, never on who evaluates it."""
+        return int(np.random.SeedSequence([self._eval_seed_root, eval_index]).generate_state(1)[0])
+
+    def _next_qd_seed(self) -> int:
+        return int(self._qd_seed_root.spawn(1)[0].generate_state(1)[0])
+
+    def _make_archive(self, *, with_occupancy: bool, seed: int):
+        return make_archive(
+            solution_dim=self.domain.solution_dim,
+            dims=self.domain.archive_dims,
+            ranges=self.domain.measure_ranges,
+            occupancy_shape=self.domain.occupancy_shape if with_occupancy else None,
+            seed=seed,
+        )
+
+    def write_outputs(self, run_dir) -> None:
+        """Writes metrics.json, archive.csv, heatmap.png and a few elites into ``run_dir``."""
+        from dsage_ray.core.outputs import write_outputs
+
+        write_outputs(self, run_dir)
+
+    # ---------------------------------------------------------------------------------- state
+
+    def state_dict(self) -> dict[str, Any]:
+        """Everything needed to continue this run exactly: picklable, no live handles."""
+        return copy.deepcopy({
+            "config": self.config.to_dict(),
+            "evals": self.evals,
+            "outer_iteration": self.outer_iteration,
+            "history": self.history,
+            "failures": self.failures,
+            "rng": self.rng.bit_generator.state,
+            "qd_seed_root": self._qd_seed_root,
+            "archive": self.archive,
+            "scheduler": self.scheduler,
+            "surrogate": None if self.surrogate is None else self.surrogate.state_dict(),
+            "dataset": None if self.dataset is None else self.dataset.state_dict(),
+            "last_predictions": self.last_predictions,
+        })
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        saved = RunConfig.build(state["config"])
+        if saved.to_dict() != self.config.to_dict():
+            raise ValueError("checkpoint was written by a run with a different config")
+        state = copy.deepcopy(state)
+        self.evals = state["evals"]
+        self.outer_iteration = state["outer_iteration"]
+        self.history = state["history"]
+        self.failures = state["failures"]
+        self.rng.bit_generator.state = state["rng"]
+        self._qd_seed_root = state["qd_seed_root"]
+        self.archive = state["archive"]
+        self.scheduler = state["scheduler"]
+        if self.surrogate is not None:
+            self.surrogate.load_state_dict(state["surrogate"])
+            self.dataset.load_state_dict(state["dataset"])
+        self.last_predictions = state["last_predictions"]
