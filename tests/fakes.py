@@ -1,0 +1,66 @@
+"""Small deterministic stand-ins for a domain, so the algorithm can be tested without simulators."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dsage_ray.types import EvaluationResult
+
+
+class BitmapDomain:
+    """An 8×8 wall bitmap whose "agent" is a pure function of the level and the seed.
+
+    Objective: share of empty cells in the first row. Measures: number of walls and number of
+    walls in the top half. Occupancy: empty cells, scaled by a seed-dependent factor, so that
+    the surrogate has a learnable ancillary target.
+
+    Args:
+        fail_on: Evaluations whose solution sums to one of these values raise (fault injection).
+        fail_once: Raise only the first time such a solution is seen.
+    """
+
+    name = "bitmap"
+    solution_dim = 64
+    measure_names = ("num_walls", "top_walls")
+    measure_ranges = ((0.0, 64.0), (0.0, 32.0))
+    archive_dims = (16, 8)
+    occupancy_shape = (8, 8)
+    encoding_channels = 2
+
+    def __init__(self, *, fail_on: tuple[int, ...] = (), fail_once: bool = True) -> None:
+        self.fail_on = set(fail_on)
+        self.fail_once = fail_once
+        self.calls = 0
+        self._failed: set[bytes] = set()
+
+    def random_solutions(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        return rng.integers(0, 2, size=(n, self.solution_dim)).astype(np.float32)
+
+    def encode(self, solutions: np.ndarray) -> np.ndarray:
+        walls = np.asarray(solutions, dtype=np.float32).reshape(-1, 8, 8)
+        return np.stack([1.0 - walls, walls], axis=1)
+
+    def evaluate(self, solution: np.ndarray, seed: int) -> EvaluationResult:
+        self.calls += 1
+        walls = np.asarray(solution).reshape(8, 8) > 0.5
+        key = walls.tobytes()
+        if int(walls.sum()) in self.fail_on and not (self.fail_once and key in self._failed):
+            self._failed.add(key)
+            raise RuntimeError(f"injected failure for a level with {int(walls.sum())} walls")
+        jitter = np.random.default_rng(seed).uniform(0.9, 1.1)
+        return EvaluationResult(
+            objective=float(1.0 - walls[0].mean()),
+            measures=np.array([walls.sum(), walls[:4].sum()], dtype=np.float64),
+            occupancy=((~walls) * jitter).astype(np.float32),
+            info={"seed": seed},
+        )
+
+    def render(self, solution: np.ndarray, occupancy: np.ndarray | None) -> bytes:
+        import io
+
+        from PIL import Image
+
+        image = Image.fromarray((np.asarray(solution).reshape(8, 8) * 255).astype(np.uint8))
+        buffer = io.BytesIO()
+        image.save(buffer, format="PNG")
+        return buffer.getvalue()
