@@ -1,0 +1,33 @@
+"""Quality diversity on pyribs 0.12: archives, emitters, schedulers and solution selection."""
+
+from dsage_ray.qd.archives import (
+    OCCUPANCY_FIELD,
+    archive_stats,
+    archive_to_dataframe,
+    dump_state,
+    load_state,
+    make_archive,
+)
+from dsage_ray.qd.emitters import MapElitesBitmapEmitter, RandomEmitter
+from dsage_ray.qd.optimizer import InnerLoopTimings, emitter_seeds, make_emitters, make_scheduler, run_inner_loop
+from dsage_ray.qd.selection import SELECTION_METHODS, block_ids, gather_elites, select_solutions
+
+__all__ = [
+    "OCCUPANCY_FIELD",
+    "SELECTION_METHODS",
+    "InnerLoopTimings",
+    "MapElitesBitmapEmitter",
+    "RandomEmitter",
+    "archive_stats",
+    "archive_to_dataframe",
+    "block_ids",
+    "dump_state",
+    "emitter_seeds",
+    "gather_elites",
+    "load_state",
+    "make_archive",
+    "make_emitters",
+    "make_scheduler",
+    "run_inner_loop",
+    "select_solutions",
+]

@@ -1,0 +1,102 @@
+"""Which surrogate elites get a real evaluation: downsample, random or full (SPEC §1)."""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+from ribs.archives import GridArchive
+
+SELECTION_METHODS = ("downsample", "random", "full")
+
+
+def select_solutions(
+    archive: GridArchive,
+    *,
+    method: str,
+    block: Sequence[int],
+    count: int,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """Picks elites of ``archive`` for real evaluation.
+
+    - ``downsample``: the cell grid is cut into blocks of ``block`` cells per measure (edge blocks may
+      be smaller when a block size does not divide the grid), and one occupied elite is chosen
+      uniformly at random per occupied block.
+    - ``random``: ``count`` elites uniformly without replacement (all of them if fewer).
+    - ``full``: every elite.
+
+    The result depends only on the archive's contents and ``rng``, not on the order in which elites
+    were inserted.
+
+    Args:
+        archive: The (surrogate) archive.
+        method: ``downsample``, ``random`` or ``full``.
+        block: Cells per block along each measure (``downsample`` only).
+        count: Elites to pick (``random`` only).
+        rng: Source of randomness; ``full`` does not draw from it.
+
+    Returns:
+        Sorted integer archive indices of the chosen elites; read their data with :func:`gather_elites`.
+
+    Raises:
+        ValueError: Unknown method, or ``block`` not one positive entry per measure.
+    """
+    indices = np.sort(np.asarray(archive.data("index"), dtype=np.int64))
+    if method == "full":
+        return indices
+    if method == "random":
+        if count < 0:
+            raise ValueError(f"count must be >= 0 (got {count})")
+        picked = rng.choice(len(indices), size=min(count, len(indices)), replace=False)
+        return np.sort(indices[picked])
+    if method == "downsample":
+        return indices[_one_per_block(archive, indices, block, rng)]
+    raise ValueError(f"selection.method: unknown method {method!r} (known: {', '.join(SELECTION_METHODS)})")
+
+
+def block_ids(archive: GridArchive, indices: np.ndarray, block: Sequence[int]) -> np.ndarray:
+    """Flat id of the downsampling block that holds each archive index.
+
+    Raises:
+        ValueError: ``block`` is not one positive entry per measure.
+    """
+    block = np.asarray(block, dtype=np.int64)
+    if block.shape != (archive.measure_dim,) or np.any(block < 1):
+        raise ValueError(f"block must be {archive.measure_dim} positive cell counts (got {block.tolist()})")
+    grid_shape = -(-np.asarray(archive.dims, dtype=np.int64) // block)  # ceil division
+    block_coords = archive.int_to_grid_index(indices).astype(np.int64) // block
+    return np.ravel_multi_index(tuple(block_coords.T), tuple(grid_shape))
+
+
+def _one_per_block(
+    archive: GridArchive, indices: np.ndarray, block: Sequence[int], rng: np.random.Generator
+) -> np.ndarray:
+    """Positions into ``indices`` (sorted) of one uniformly chosen elite per occupied block."""
+    blocks = block_ids(archive, indices, block)
+    if len(indices) == 0:
+        return np.empty(0, dtype=np.int64)
+    # Each elite gets an i.i.d. uniform key; the smallest key in a block is a uniform pick within it.
+    keys = rng.random(len(indices))
+    order = np.lexsort((keys, blocks))
+    first_of_block = np.r_[True, blocks[order][1:] != blocks[order][:-1]]
+    return np.sort(order[first_of_block])
+
+
+def gather_elites(archive: GridArchive, indices: np.ndarray) -> dict[str, np.ndarray]:
+    """Every field (solution, objective, measures, extras, index) of the elites at ``indices``, in that order.
+
+    Raises:
+        KeyError: An index is not occupied.
+    """
+    data = archive.data()
+    occupied = np.asarray(data["index"], dtype=np.int64)
+    order = np.argsort(occupied)
+    indices = np.asarray(indices, dtype=np.int64)
+    pos = np.searchsorted(occupied[order], indices)
+    found = pos < len(occupied)
+    found[found] = occupied[order][pos[found]] == indices[found]
+    if not np.all(found):
+        raise KeyError(f"archive cells not occupied: {indices[~found][:10].tolist()}")
+    rows = order[pos]
+    return {name: values[rows] for name, values in data.items()}

@@ -1,0 +1,112 @@
+import numpy as np
+import pytest
+from ribs.emitters import EvolutionStrategyEmitter
+
+from dsage_ray.config import QDConfig
+from dsage_ray.qd import (
+    MapElitesBitmapEmitter,
+    RandomEmitter,
+    archive_stats,
+    dump_state,
+    emitter_seeds,
+    load_state,
+    make_scheduler,
+    run_inner_loop,
+)
+from tests.qd.helpers import DIM, bitmap_predict, bitmap_sampler, latent_predict, make_bitmap_archive, make_latent_archive
+
+KINDS = {
+    "map_elites": (MapElitesBitmapEmitter, make_bitmap_archive, bitmap_predict),
+    "cma_me": (EvolutionStrategyEmitter, make_latent_archive, latent_predict),
+    "random": (RandomEmitter, make_bitmap_archive, bitmap_predict),
+}
+
+
+def _scheduler(kind, seed=0, archive_seed=3):
+    cls, make, predict = KINDS[kind]
+    config = QDConfig(emitter=kind, num_emitters=3, batch_size=4, mutation_cells=2, initial_random_batches=1)
+    archive = make(seed=archive_seed)
+    return make_scheduler(archive, config=config, solution_dim=DIM, random_solutions=bitmap_sampler, seed=seed), predict
+
+
+@pytest.mark.parametrize("kind", sorted(KINDS))
+def test_scheduler_ask_tell_fills_archive(kind):
+    scheduler, predict = _scheduler(kind)
+    assert len(scheduler.emitters) == 3
+    assert all(type(e) is KINDS[kind][0] for e in scheduler.emitters)
+    ticks = []
+    timings = run_inner_loop(scheduler, predict, iterations=6, progress=ticks.append)
+    assert ticks == [1] * 6
+    assert timings.iterations == 6 and timings.solutions == 6 * 3 * 4
+    assert timings.ask_s > 0 and timings.tell_s > 0 and timings.overhead_ms_per_iteration > 0
+    stats = archive_stats(scheduler.archive)
+    assert stats["num_elites"] > 1
+    assert stats["num_elites"] == len(scheduler.archive)
+
+
+@pytest.mark.parametrize("kind", sorted(KINDS))
+def test_scheduler_is_deterministic_and_seed_dependent(kind):
+    def asks(seed):
+        scheduler, predict = _scheduler(kind, seed=seed)
+        run_inner_loop(scheduler, predict, iterations=4)
+        return scheduler.ask()
+
+    np.testing.assert_array_equal(asks(1), asks(1))
+    assert not np.array_equal(asks(1), asks(2))
+
+
+def test_emitters_get_distinct_seeds():
+    scheduler, _ = _scheduler("random", seed=0)
+    first = [e.ask() for e in scheduler.emitters]
+    assert not np.array_equal(first[0], first[1])
+    seeds = emitter_seeds(0, 5)
+    assert len(set(seeds)) == 5 and seeds == emitter_seeds(0, 5)
+    assert emitter_seeds(None, 2) == [None, None]
+
+
+def test_cma_me_settings():
+    config = QDConfig(emitter="cma_me", num_emitters=1, batch_size=7, sigma0=0.3)
+    scheduler = make_scheduler(make_latent_archive(), config=config, solution_dim=DIM,
+                               random_solutions=bitmap_sampler, seed=0)
+    (emitter,) = scheduler.emitters
+    np.testing.assert_array_equal(emitter.x0, np.zeros(DIM))
+    assert emitter.batch_size == 7
+    assert scheduler.ask().shape == (7, DIM)
+
+
+def test_make_scheduler_rejects_bad_input():
+    with pytest.raises(ValueError, match="unknown emitter"):
+        make_scheduler(make_bitmap_archive(), config=QDConfig(emitter="nope"), solution_dim=DIM,
+                       random_solutions=bitmap_sampler, seed=0)
+    with pytest.raises(ValueError, match="solution_dim"):
+        make_scheduler(make_bitmap_archive(), config=QDConfig(), solution_dim=DIM + 1,
+                       random_solutions=bitmap_sampler, seed=0)
+
+
+@pytest.mark.parametrize("kind", sorted(KINDS))
+def test_state_round_trip_gives_identical_subsequent_asks(kind):
+    scheduler, predict = _scheduler(kind)
+    # Past the initial random batches and, for CMA-ME, long enough for restarts (which draw from the
+    # archive's RNG) to happen.
+    run_inner_loop(scheduler, predict, iterations=30)
+    restored = load_state(dump_state(scheduler))
+    # The restored emitters share the restored archive, not a copy each.
+    assert all(e.archive is restored.archive for e in restored.emitters)
+    assert restored.archive is not scheduler.archive
+    for _ in range(30):
+        a, b = scheduler.ask(), restored.ask()
+        np.testing.assert_array_equal(a, b)
+        scheduler.tell(*predict(a)[:2], **predict(a)[2])
+        restored.tell(*predict(b)[:2], **predict(b)[2])
+    assert archive_stats(scheduler.archive) == archive_stats(restored.archive)
+    if kind == "cma_me":
+        assert sum(e.restarts for e in scheduler.emitters) > 0
+
+
+def test_load_state_rejects_other_pyribs_version(monkeypatch):
+    import ribs
+
+    data = dump_state(make_bitmap_archive())
+    monkeypatch.setattr(ribs, "__version__", "0.0.0")
+    with pytest.raises(ValueError, match="pyribs"):
+        load_state(data)
