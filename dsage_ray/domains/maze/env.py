@@ -1,0 +1,83 @@
+"""The reference MiniGrid 3.2 environment for a Maze level, as the ACCEL agent was trained on (SPEC §2).
+
+Evaluations use the faster :class:`~dsage_ray.domains.maze.simulator.BatchedMazeSimulator`; this
+class is the ground truth the simulator is tested against, and what ``gymnasium.make`` returns.
+"""
+
+from __future__ import annotations
+
+import gymnasium
+from minigrid.core.grid import Grid
+from minigrid.core.mission import MissionSpace
+from minigrid.core.world_object import Goal, Wall
+from minigrid.minigrid_env import MiniGridEnv
+
+from dsage_ray.domains.maze.level import MazeLevel
+
+#: The gymnasium id; registered when :mod:`dsage_ray.domains.maze` is imported.
+ENV_ID = "dsage_ray/Maze-v0"
+MISSION = "get to the green goal square"
+
+
+def _mission() -> str:
+    return MISSION
+
+
+class MazeEnv(MiniGridEnv):
+    """One Maze level as a MiniGrid environment.
+
+    The grid is the level's interior plus a border wall; the agent starts on the level's start
+    with a heading drawn from the env's ``np_random``, the goal object sits on the level's goal.
+    Seven actions (0 left, 1 right, 2 forward, 3–6 no-ops that still use a step); reward
+    ``1 − 0.9·steps/max_steps`` on entering the goal.
+
+    Args:
+        level: A valid level.
+        see_through_walls: False applies MiniGrid's occlusion mask to observations.
+        agent_view_size: Side of the egocentric view (odd, ≥ 3).
+        max_steps: Episode step limit; default ``level.max_steps`` (``2·(H+2)·(W+2)``).
+        render_mode: ``None``, ``"rgb_array"`` or ``"human"``.
+
+    Raises:
+        ValueError: The level is invalid (no connected start and goal).
+    """
+
+    def __init__(
+        self,
+        level: MazeLevel,
+        *,
+        see_through_walls: bool = True,
+        agent_view_size: int = 5,
+        max_steps: int | None = None,
+        render_mode: str | None = None,
+    ):
+        if not level.valid:
+            raise ValueError("MazeEnv needs a valid level (a start and a goal connected to each other)")
+        self.level = level
+        super().__init__(
+            mission_space=MissionSpace(mission_func=_mission),
+            width=level.width + 2,
+            height=level.height + 2,
+            max_steps=int(max_steps if max_steps is not None else level.max_steps),
+            see_through_walls=see_through_walls,
+            agent_view_size=agent_view_size,
+            render_mode=render_mode,
+        )
+
+    def _gen_grid(self, width: int, height: int) -> None:
+        self.grid = Grid(width, height)
+        self.grid.wall_rect(0, 0, width, height)
+        for row, col in zip(*self.level.walls.nonzero()):
+            self.grid.set(int(col) + 1, int(row) + 1, Wall())
+        goal_row, goal_col = self.level.goal
+        self.put_obj(Goal(), goal_col + 1, goal_row + 1)
+        start_row, start_col = self.level.start
+        self.agent_pos = (start_col + 1, start_row + 1)
+        self.agent_dir = self._rand_int(0, 4)
+        self.mission = MISSION
+
+
+def register_env() -> None:
+    """Registers :data:`ENV_ID` with gymnasium (idempotent)."""
+    if ENV_ID not in gymnasium.registry:
+        gymnasium.register(id=ENV_ID, entry_point="dsage_ray.domains.maze.env:MazeEnv")
