@@ -1,0 +1,188 @@
+"""The DSAGE surrogate networks (SPEC §4, paper appendix "Deep Surrogate Model").
+
+Inputs are one-hot levels ``(n, channels, size, size)`` with ``size`` a power of two ≥ 8, so that the
+measure predictor's stride-2 convolutions reach exactly 4×4. Domains whose levels are not such a
+square (Mario's 16×56, a 10×12 maze) are padded by the caller with :func:`pad_to_power_of_two`; the
+level then sits in the top-left corner, which is where the occupancy grid is read back from.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+#: Negative slope of every LeakyReLU in the surrogate (the paper's value).
+LEAKY_SLOPE = 0.2
+#: Channels of the first convolution of both predictors.
+BASE_CHANNELS = 64
+#: The measure predictor downsamples until this spatial size, then flattens.
+FINAL_SIZE = 4
+
+
+class ModelOutput(NamedTuple):
+    """What a surrogate network predicts for a batch of ``n`` levels.
+
+    Attributes:
+        objective: Shape ``(n,)``.
+        measures: Shape ``(n, num_measures)``.
+        occupancy: Shape ``(n, H, W)`` (the domain's occupancy shape), or ``None`` for a one-stage model.
+    """
+
+    objective: torch.Tensor
+    measures: torch.Tensor
+    occupancy: torch.Tensor | None
+
+
+def pad_to_power_of_two(encoded: np.ndarray, pad_channel: int = 0) -> np.ndarray:
+    """Pads one-hot levels to the smallest square power-of-two grid (at least 8×8) that holds them.
+
+    The level keeps its top-left corner; each padding cell is one-hot in ``pad_channel`` (Mario pads
+    with channel 0, the empty tile, as its GAN was trained).
+
+    Args:
+        encoded: One-hot levels, shape ``(n, channels, height, width)``.
+        pad_channel: The channel set to 1 on padding cells.
+
+    Returns:
+        float32 array of shape ``(n, channels, size, size)``; ``encoded`` itself (as float32) when it
+        already has that shape.
+    """
+    n, channels, height, width = encoded.shape
+    if not 0 <= pad_channel < channels:
+        raise ValueError(f"pad_channel {pad_channel} is not one of the {channels} channels")
+    size = max(8, 1 << (max(height, width) - 1).bit_length())
+    encoded = np.asarray(encoded, dtype=np.float32)
+    if (height, width) == (size, size):
+        return encoded
+    padded = np.zeros((n, channels, size, size), dtype=np.float32)
+    padded[:, pad_channel] = 1.0
+    padded[:, :, :height, :width] = encoded
+    return padded
+
+
+def _check_input_size(input_size: int) -> None:
+    if input_size < 8 or input_size & (input_size - 1):
+        raise ValueError(f"input size must be a power of two >= 8 (pad with pad_to_power_of_two), got {input_size}")
+
+
+class ResidualBlock(nn.Module):
+    """conv3×3–BN–ReLU–conv3×3–BN, plus the identity, then ReLU (He et al., 2016)."""
+
+    def __init__(self, *, channels: int) -> None:
+        super().__init__()
+        # No conv biases: the BatchNorm right after each conv has its own shift.
+        self.conv1 = nn.Conv2d(channels, channels, kernel_size=3, padding=1, bias=False)
+        self.bn1 = nn.BatchNorm2d(channels)
+        self.conv2 = nn.Conv2d(channels, channels, kernel_size=3, padding=1, bias=False)
+        self.bn2 = nn.BatchNorm2d(channels)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        out = F.relu(self.bn1(self.conv1(x)))
+        out = self.bn2(self.conv2(out))
+        return F.relu(out + x)
+
+
+class OccupancyPredictor(nn.Module):
+    """Predicts the occupancy grid (expected agent visits per cell) on the input grid.
+
+    Conv3×3(→64) + LeakyReLU(0.2), two residual blocks, Conv1×1(→1). Every layer keeps the spatial
+    size, so the output is aligned cell-for-cell with the input level.
+    """
+
+    def __init__(self, *, input_channels: int, hidden_channels: int = BASE_CHANNELS) -> None:
+        super().__init__()
+        self.net = nn.Sequential(
+            nn.Conv2d(input_channels, hidden_channels, kernel_size=3, padding=1),
+            nn.LeakyReLU(LEAKY_SLOPE),
+            ResidualBlock(channels=hidden_channels),
+            ResidualBlock(channels=hidden_channels),
+            nn.Conv2d(hidden_channels, 1, kernel_size=1),
+        )
+
+    def forward(self, levels: torch.Tensor) -> torch.Tensor:
+        """Maps ``(n, C, S, S)`` levels to ``(n, S, S)`` occupancy."""
+        return self.net(levels).squeeze(1)
+
+
+class MeasurePredictor(nn.Module):
+    """Predicts the objective and the measures from a (possibly occupancy-augmented) level.
+
+    Conv4×4 stride 2 (→64) + LeakyReLU(0.2), then Conv4×4 stride 2 doubling the channels, each with
+    BatchNorm + LeakyReLU, until the grid is 4×4; flatten; one linear head per output.
+    """
+
+    def __init__(self, *, input_channels: int, input_size: int, num_measures: int) -> None:
+        super().__init__()
+        _check_input_size(input_size)
+        layers: list[nn.Module] = [
+            nn.Conv2d(input_channels, BASE_CHANNELS, kernel_size=4, stride=2, padding=1),
+            nn.LeakyReLU(LEAKY_SLOPE),
+        ]
+        channels, size = BASE_CHANNELS, input_size // 2
+        while size > FINAL_SIZE:
+            layers += [
+                nn.Conv2d(channels, 2 * channels, kernel_size=4, stride=2, padding=1, bias=False),
+                nn.BatchNorm2d(2 * channels),
+                nn.LeakyReLU(LEAKY_SLOPE),
+            ]
+            channels, size = 2 * channels, size // 2
+        layers.append(nn.Flatten())
+        self.features = nn.Sequential(*layers)
+        # Row i of this weight is head i (objective, then each measure): the same parameters and
+        # initialisation as 1 + num_measures separate nn.Linear(features, 1), in one matmul.
+        self.heads = nn.Linear(channels * FINAL_SIZE * FINAL_SIZE, 1 + num_measures)
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Returns objective ``(n,)`` and measures ``(n, num_measures)``."""
+        out = self.heads(self.features(x))
+        return out[:, 0], out[:, 1:]
+
+
+class TwoStageModel(nn.Module):
+    """DSAGE's model: predicted occupancy, stacked with the level, feeds the measure predictor.
+
+    Args:
+        input_channels: Channels of the one-hot level.
+        input_size: Side of the (square, power-of-two) input grid.
+        occupancy_shape: ``(H, W)`` of the domain's occupancy grid, read from the top-left of the input grid.
+        num_measures: Number of measure heads.
+    """
+
+    def __init__(self, *, input_channels: int, input_size: int, occupancy_shape: tuple[int, int],
+                 num_measures: int) -> None:
+        super().__init__()
+        _check_input_size(input_size)
+        height, width = occupancy_shape
+        if not (0 < height <= input_size and 0 < width <= input_size):
+            raise ValueError(f"occupancy shape {occupancy_shape} does not fit the {input_size}x{input_size} input")
+        self.occupancy_shape = (height, width)
+        self.input_size = input_size
+        self.occupancy_predictor = OccupancyPredictor(input_channels=input_channels)
+        self.measure_predictor = MeasurePredictor(input_channels=input_channels + 1, input_size=input_size,
+                                                  num_measures=num_measures)
+
+    def forward(self, levels: torch.Tensor) -> ModelOutput:
+        height, width = self.occupancy_shape
+        occupancy = self.occupancy_predictor(levels)[:, :height, :width]
+        # The measure predictor sees exactly the supervised occupancy, with zeros on the padding
+        # (whose predictions are never trained and would only add noise).
+        full = F.pad(occupancy, (0, self.input_size - width, 0, self.input_size - height))
+        objective, measures = self.measure_predictor(torch.cat([levels, full.unsqueeze(1)], dim=1))
+        return ModelOutput(objective, measures, occupancy)
+
+
+class OneStageModel(nn.Module):
+    """The ablation without ancillary data: the measure predictor on the one-hot level alone."""
+
+    def __init__(self, *, input_channels: int, input_size: int, num_measures: int) -> None:
+        super().__init__()
+        self.measure_predictor = MeasurePredictor(input_channels=input_channels, input_size=input_size,
+                                                  num_measures=num_measures)
+
+    def forward(self, levels: torch.Tensor) -> ModelOutput:
+        objective, measures = self.measure_predictor(levels)
+        return ModelOutput(objective, measures, None)

@@ -1,0 +1,209 @@
+"""Training and prediction around a surrogate network, with exact checkpoint/resume (SPEC §1, §4).
+
+The network and its ONE Adam optimizer live as long as the :class:`Surrogate`: DSAGE keeps
+training the same model every outer iteration and never re-initialises it. All randomness
+(initial weights, minibatch order) comes from ``seed`` through a dedicated generator, never the
+global torch RNG, so other code cannot perturb it and a resumed run trains exactly as an
+uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Sequence
+
+import numpy as np
+import torch
+from torch.nn import functional as F
+
+from dsage_ray.config import SurrogateConfig
+from dsage_ray.surrogate.dataset import SurrogateDataset, Targets
+from dsage_ray.surrogate.models import ModelOutput, OneStageModel, TwoStageModel
+from dsage_ray.types import EncodedLevels, EvaluationResult
+
+KINDS = ("two_stage", "one_stage")
+
+
+@dataclasses.dataclass
+class Prediction:
+    """Surrogate predictions for ``n`` levels (float32 numpy arrays).
+
+    Attributes:
+        objective: Shape ``(n,)``.
+        measures: Shape ``(n, num_measures)``.
+        occupancy: Shape ``(n, H, W)``; ``None`` for a one-stage model.
+    """
+
+    objective: np.ndarray
+    measures: np.ndarray
+    occupancy: np.ndarray | None
+
+
+def resolve_device(name: str) -> torch.device:
+    """``"auto"`` is CUDA when available, else CPU; anything else is passed to :class:`torch.device`."""
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    return torch.device(name)
+
+
+class Surrogate:
+    """The deep surrogate model of DSAGE: fit on real evaluations, predict for the inner QD loop.
+
+    Args:
+        kind: ``"two_stage"`` (predicts occupancy first, DSAGE) or ``"one_stage"`` (no ancillary data).
+        input_channels: Channels of the encoded levels.
+        input_shape: ``(size, size)`` of the encoded levels; a power of two ≥ 8 (see
+            :func:`~dsage_ray.surrogate.models.pad_to_power_of_two`).
+        occupancy_shape: ``(H, W)`` of the occupancy grid, the top-left corner of the input grid.
+        num_measures: Number of measures.
+        config: Training and prediction settings.
+        seed: Seeds the initial weights and the minibatch order.
+    """
+
+    def __init__(self, *, kind: str, input_channels: int, input_shape: tuple[int, int],
+                 occupancy_shape: tuple[int, int], num_measures: int, config: SurrogateConfig, seed: int) -> None:
+        if kind not in KINDS:
+            raise ValueError(f"surrogate kind must be one of {KINDS}, got {kind!r}")
+        size, width = input_shape
+        if size != width:
+            raise ValueError(f"input must be square (pad with pad_to_power_of_two), got {input_shape}")
+        self.kind = kind
+        self.config = config
+        self.input_channels = input_channels
+        self.input_shape = (size, size)
+        self.occupancy_shape = tuple(occupancy_shape)
+        self.num_measures = num_measures
+        self.device = resolve_device(config.device)
+        # Weights are drawn on the CPU inside a forked RNG: the same seed gives the same network on
+        # any device, and the global RNG stays untouched.
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(seed)
+            if kind == "two_stage":
+                model = TwoStageModel(input_channels=input_channels, input_size=size,
+                                      occupancy_shape=self.occupancy_shape, num_measures=num_measures)
+            else:
+                model = OneStageModel(input_channels=input_channels, input_size=size, num_measures=num_measures)
+        self.model = model.to(self.device)
+        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr, betas=tuple(config.betas))
+        self._shuffle_rng = torch.Generator().manual_seed(seed)
+
+    @property
+    def head_names(self) -> tuple[str, ...]:
+        """Names of the predicted quantities, as used in :meth:`train` and :meth:`mae` results."""
+        names = ("objective", *(f"measure_{i}" for i in range(self.num_measures)))
+        return (*names, "occupancy") if self.kind == "two_stage" else names
+
+    def make_dataset(self, **kwargs: Any) -> SurrogateDataset:
+        """An empty dataset whose shapes match this model; ``kwargs`` go to :class:`SurrogateDataset`."""
+        return SurrogateDataset(level_shape=(self.input_channels, *self.input_shape), num_measures=self.num_measures,
+                                occupancy_shape=self.occupancy_shape, **kwargs)
+
+    # ----------------------------------------------------------------------------------- training
+
+    def _losses(self, output: ModelOutput, objective: torch.Tensor, measures: torch.Tensor,
+                occupancy: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Returns the training loss and the per-head MSEs (``head_names`` order)."""
+        predicted = torch.cat([output.objective[:, None], output.measures], dim=1)
+        target = torch.cat([objective[:, None], measures], dim=1)
+        head_mse = F.mse_loss(predicted, target, reduction="none").mean(dim=0)
+        loss = head_mse.mean()
+        if output.occupancy is None:
+            return loss, head_mse
+        occupancy_mse = F.mse_loss(output.occupancy, occupancy)
+        return loss + self.config.occupancy_weight * occupancy_mse, torch.cat([head_mse, occupancy_mse[None]])
+
+    def train(self, dataset: SurrogateDataset) -> dict[str, float]:
+        """Fits the model for ``config.epochs`` epochs on the most recent ``config.train_window`` samples.
+
+        Returns:
+            The last epoch's sample-weighted mean MSE per head (``head_names``; occupancy unweighted)
+            and ``"total"``, the loss that was minimised.
+        """
+        window = dataset.recent(self.config.train_window)
+        n = len(window)
+        if n == 0:
+            raise ValueError("cannot train the surrogate on an empty dataset")
+        batch_size = self.config.batch_size
+        self.model.train()
+        for epoch in range(self.config.epochs):
+            order = torch.randperm(n, generator=self._shuffle_rng).numpy()
+            # Accumulated on the device: one host sync per call, not one per minibatch.
+            sums = torch.zeros(len(self.head_names) + 1, device=self.device)
+            for start in range(0, n, batch_size):
+                indices = order[start:start + batch_size]
+                levels, *targets = window.batch(indices, self.device)
+                loss, head_mse = self._losses(self.model(levels), *targets)
+                self.optimizer.zero_grad(set_to_none=True)
+                loss.backward()
+                self.optimizer.step()
+                if epoch == self.config.epochs - 1:
+                    sums += torch.cat([head_mse, loss[None]]).detach() * len(indices)
+        return dict(zip((*self.head_names, "total"), (sums / n).tolist()))
+
+    # --------------------------------------------------------------------------------- prediction
+
+    def predict(self, encoded: EncodedLevels) -> Prediction:
+        """Predicts for ``(n, input_channels, size, size)`` levels in chunks of ``config.predict_batch_size``."""
+        encoded = np.ascontiguousarray(encoded, dtype=np.float32)
+        expected = (self.input_channels, *self.input_shape)
+        if encoded.ndim != 4 or encoded.shape[1:] != expected:
+            raise ValueError(f"expected levels of shape (n, {', '.join(map(str, expected))}), got {encoded.shape}")
+        self.model.eval()
+        chunks: list[ModelOutput] = []
+        with torch.inference_mode():
+            for start in range(0, len(encoded), self.config.predict_batch_size):
+                levels = torch.from_numpy(encoded[start:start + self.config.predict_batch_size]).to(self.device)
+                chunks.append(self.model(levels))
+        if not chunks:
+            height, width = self.occupancy_shape
+            return Prediction(objective=np.zeros(0, np.float32), measures=np.zeros((0, self.num_measures), np.float32),
+                              occupancy=np.zeros((0, height, width), np.float32) if self.kind == "two_stage" else None)
+        fields = [None if parts[0] is None else torch.cat(parts).cpu().numpy() for parts in zip(*chunks)]
+        return Prediction(*fields)
+
+    def mae(self, encoded: EncodedLevels, results: Sequence[EvaluationResult]) -> dict[str, float]:
+        """Mean absolute error of the predictions against real results, per head (failed results skipped).
+
+        Returns:
+            ``{head: MAE}`` over ``head_names`` (occupancy: mean over cells and levels); empty when
+            every result failed.
+        """
+        targets = Targets.from_results(results, num_measures=self.num_measures, occupancy_shape=self.occupancy_shape)
+        if not targets.valid.any():
+            return {}
+        prediction = self.predict(np.asarray(encoded)[targets.valid])
+        errors = np.abs(prediction.measures - targets.measures).mean(axis=0)
+        mae = {"objective": float(np.abs(prediction.objective - targets.objective).mean()),
+               **{f"measure_{i}": float(e) for i, e in enumerate(errors)}}
+        if prediction.occupancy is not None:
+            mae["occupancy"] = float(np.abs(prediction.occupancy - targets.occupancy).mean())
+        return mae
+
+    # -------------------------------------------------------------------------------- checkpoints
+
+    def state_dict(self) -> dict[str, Any]:
+        """Model, optimizer and shuffling RNG, as CPU copies (later training does not alter them)."""
+        return {
+            "kind": self.kind,
+            "model": _cpu_copy(self.model.state_dict()),
+            "optimizer": _cpu_copy(self.optimizer.state_dict()),
+            "shuffle_rng": self._shuffle_rng.get_state(),
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        if state["kind"] != self.kind:
+            raise ValueError(f"checkpoint holds a {state['kind']} surrogate, this one is {self.kind}")
+        self.model.load_state_dict(state["model"])
+        # Adam moves its moment buffers onto the parameters' device itself.
+        self.optimizer.load_state_dict(state["optimizer"])
+        self._shuffle_rng.set_state(state["shuffle_rng"])
+
+
+def _cpu_copy(tree: Any) -> Any:
+    if isinstance(tree, torch.Tensor):
+        return tree.detach().to("cpu", copy=True)
+    if isinstance(tree, dict):
+        return type(tree)((k, _cpu_copy(v)) for k, v in tree.items())
+    if isinstance(tree, (list, tuple)):
+        return type(tree)(_cpu_copy(v) for v in tree)
+    return tree

@@ -1,0 +1,78 @@
+"""Shapes of the surrogate networks on Maze- and Mario-sized inputs, and input padding."""
+
+import numpy as np
+import pytest
+import torch
+
+from dsage_ray.surrogate.models import MeasurePredictor, OneStageModel, TwoStageModel, pad_to_power_of_two
+
+MAZE = dict(input_channels=5, input_size=16, occupancy_shape=(16, 16))
+MARIO = dict(input_channels=17, input_size=64, occupancy_shape=(16, 56))
+
+
+@pytest.mark.parametrize("domain", [MAZE, MARIO], ids=["maze", "mario"])
+def test_two_stage_shapes(domain):
+    model = TwoStageModel(**domain, num_measures=2).eval()
+    x = torch.zeros(3, domain["input_channels"], domain["input_size"], domain["input_size"])
+    with torch.inference_mode():
+        out = model(x)
+    assert out.objective.shape == (3,)
+    assert out.measures.shape == (3, 2)
+    assert out.occupancy.shape == (3, *domain["occupancy_shape"])
+
+
+@pytest.mark.parametrize("domain", [MAZE, MARIO], ids=["maze", "mario"])
+def test_one_stage_shapes(domain):
+    model = OneStageModel(input_channels=domain["input_channels"], input_size=domain["input_size"],
+                          num_measures=3).eval()
+    with torch.inference_mode():
+        out = model(torch.zeros(2, domain["input_channels"], domain["input_size"], domain["input_size"]))
+    assert out.objective.shape == (2,)
+    assert out.measures.shape == (2, 3)
+    assert out.occupancy is None
+
+
+@pytest.mark.parametrize("size, convs", [(8, 1), (16, 2), (64, 4)])
+def test_measure_predictor_downsamples_to_4x4(size, convs):
+    model = MeasurePredictor(input_channels=6, input_size=size, num_measures=2)
+    layers = [m for m in model.features if isinstance(m, torch.nn.Conv2d)]
+    assert len(layers) == convs
+    assert model.heads.in_features == layers[-1].out_channels * 16
+    assert model.heads.out_features == 3
+
+
+@pytest.mark.parametrize("size", [4, 12, 24])
+def test_rejects_sizes_that_are_not_powers_of_two(size):
+    with pytest.raises(ValueError, match="power of two"):
+        MeasurePredictor(input_channels=5, input_size=size, num_measures=2)
+
+
+def test_rejects_occupancy_larger_than_input():
+    with pytest.raises(ValueError, match="does not fit"):
+        TwoStageModel(input_channels=5, input_size=16, occupancy_shape=(16, 17), num_measures=2)
+
+
+def test_occupancy_is_the_top_left_of_the_input_grid():
+    model = TwoStageModel(input_channels=17, input_size=64, occupancy_shape=(16, 56), num_measures=2).eval()
+    x = torch.rand(2, 17, 64, 64)
+    with torch.inference_mode():
+        full = model.occupancy_predictor(x)
+        assert torch.equal(model(x).occupancy, full[:, :16, :56])
+
+
+def test_pad_to_power_of_two_keeps_level_top_left_and_marks_padding():
+    levels = np.eye(5, dtype=np.float32)[np.random.default_rng(0).integers(0, 5, (2, 10, 12))].transpose(0, 3, 1, 2)
+    padded = pad_to_power_of_two(levels, pad_channel=1)
+    assert padded.shape == (2, 5, 16, 16) and padded.dtype == np.float32
+    assert np.array_equal(padded[:, :, :10, :12], levels)
+    assert np.all(padded[:, 1, 10:, :] == 1) and np.all(padded[:, 1, :, 12:] == 1)
+    assert np.all(padded.sum(axis=1) == 1)  # still one-hot everywhere
+
+
+def test_pad_to_power_of_two_sizes():
+    assert pad_to_power_of_two(np.zeros((1, 17, 16, 56))).shape == (1, 17, 64, 64)
+    assert pad_to_power_of_two(np.zeros((1, 5, 3, 3))).shape == (1, 5, 8, 8)
+    same = np.zeros((1, 5, 16, 16), dtype=np.float32)
+    assert pad_to_power_of_two(same) is same
+    with pytest.raises(ValueError):
+        pad_to_power_of_two(same, pad_channel=5)
