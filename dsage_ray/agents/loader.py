@@ -1,0 +1,147 @@
+"""Agent specs: one string names a policy and how to load it.
+
+A spec is ``KIND:TARGET[?OPTION=VALUE&OPTION=VALUE...]``, for example::
+
+    builtin:random
+    builtin:wall_follower
+    dcd:../shared/models/accel_seed_1/model_20000.tar?heading_quirk=1&quirk_group=10
+    torchscript:policies/my_policy.pt
+
+The text after the last ``?`` holds the options (URL-query style); each kind documents its own, and an
+option a kind does not use is an error rather than silently ignored.
+
+Kinds live in a small registry that maps the prefix to a factory. The built-in kinds are registered by
+import path, so loading ``builtin:random`` never imports torch. A new kind (e.g. ``rllib:PATH``) is one
+:func:`register_agent_kind` call (or one line in :data:`_BUILTIN_KINDS`); no other loader changes.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pathlib
+from typing import Callable, Union
+
+from dsage_ray.agents.base import Agent, AgentError
+
+#: ``factory(target, options) -> Agent``; it reads its options through :class:`SpecOptions`.
+AgentFactory = Callable[[str, "SpecOptions"], Agent]
+
+#: Built-in kinds, as ``"module:function"`` so the module is imported only when the kind is used.
+_BUILTIN_KINDS: dict[str, str] = {
+    "builtin": "dsage_ray.agents.builtin:load_builtin_agent",
+    "dcd": "dsage_ray.agents.dcd:load_dcd_agent",
+    "torchscript": "dsage_ray.agents.torchscript:load_torchscript_agent",
+}
+_REGISTRY: dict[str, Union[str, AgentFactory]] = dict(_BUILTIN_KINDS)
+
+
+class SpecOptions:
+    """The ``?key=value&...`` options of a spec, read with type conversion and checked for leftovers."""
+
+    def __init__(self, *, spec: str, items: dict[str, str]) -> None:
+        self._spec = spec
+        self._items = dict(items)
+        self._used: set[str] = set()
+
+    def get_str(self, name: str, default: str) -> str:
+        self._used.add(name)
+        return self._items.get(name, default)
+
+    def get_int(self, name: str, default: int, *, minimum: int | None = None, maximum: int | None = None) -> int:
+        raw = self.get_str(name, str(default))
+        try:
+            value = int(raw)
+        except ValueError:
+            raise AgentError(f"agent spec {self._spec!r}: option {name}={raw!r} is not an integer") from None
+        if minimum is not None and value < minimum:
+            raise AgentError(f"agent spec {self._spec!r}: option {name}={value} must be >= {minimum}")
+        if maximum is not None and value > maximum:
+            raise AgentError(f"agent spec {self._spec!r}: option {name}={value} must be <= {maximum}")
+        return value
+
+    def get_bool(self, name: str, default: bool) -> bool:
+        raw = self.get_str(name, "1" if default else "0").lower()
+        if raw in ("1", "true", "yes", "on"):
+            return True
+        if raw in ("0", "false", "no", "off"):
+            return False
+        raise AgentError(f"agent spec {self._spec!r}: option {name}={raw!r} is not a boolean (use 0 or 1)")
+
+    def check_all_used(self) -> None:
+        unused = sorted(set(self._items) - self._used)
+        if unused:
+            raise AgentError(f"agent spec {self._spec!r}: unknown option(s) {', '.join(unused)}")
+
+
+def register_agent_kind(prefix: str, factory: Union[str, AgentFactory]) -> None:
+    """Makes ``PREFIX:TARGET`` specs load through ``factory`` (a callable or a ``"module:function"`` path)."""
+    if not prefix.isidentifier():
+        raise ValueError(f"agent kind prefix must be an identifier, got {prefix!r}")
+    _REGISTRY[prefix] = factory
+
+
+def parse_spec(spec: str) -> tuple[str, str, SpecOptions]:
+    """Splits ``KIND:TARGET?options`` into its parts; raises :class:`AgentError` on malformed specs."""
+    kind, sep, rest = spec.partition(":")
+    if not sep or not kind or not rest:
+        raise AgentError(f"agent spec {spec!r}: expected KIND:TARGET, e.g. builtin:random or dcd:PATH")
+    target, qsep, query = rest.rpartition("?") if "?" in rest else (rest, "", "")
+    items: dict[str, str] = {}
+    for pair in filter(None, query.split("&")):
+        key, eq, value = pair.partition("=")
+        if not eq or not key:
+            raise AgentError(f"agent spec {spec!r}: option {pair!r} is not KEY=VALUE")
+        if key in items:
+            raise AgentError(f"agent spec {spec!r}: option {key!r} given twice")
+        items[key] = value
+    if not target:
+        raise AgentError(f"agent spec {spec!r}: empty target after {kind}:")
+    return kind, target, SpecOptions(spec=spec, items=items)
+
+
+def load_agent(spec: str) -> Agent:
+    """Loads the agent a spec names.
+
+    Args:
+        spec: ``KIND:TARGET[?options]``; kinds: ``builtin``, ``dcd``, ``torchscript`` and any registered later.
+
+    Returns:
+        The agent, with ``agent.spec`` set to ``spec``.
+
+    Raises:
+        AgentError: Unknown kind, unknown option, or a target that cannot be loaded; the message is one line
+            naming the spec or file and the problem.
+    """
+    kind, target, options = parse_spec(spec)
+    if kind not in _REGISTRY:
+        known = ", ".join(sorted(_REGISTRY))
+        raise AgentError(f"agent spec {spec!r}: unknown kind {kind!r} (known: {known})")
+    agent = _resolve(_REGISTRY[kind])(target, options)
+    options.check_all_used()
+    agent.spec = spec
+    return agent
+
+
+def _resolve(factory: Union[str, AgentFactory]) -> AgentFactory:
+    if callable(factory):
+        return factory
+    module_name, _, attr = factory.partition(":")
+    return getattr(importlib.import_module(module_name), attr)
+
+
+def require_file(path: str, *, what: str) -> pathlib.Path:
+    """Returns ``path`` as a :class:`pathlib.Path` if it is a readable file, else raises :class:`AgentError`."""
+    p = pathlib.Path(path).expanduser()
+    if not p.exists():
+        raise AgentError(f"{what} {str(p)!r}: file not found")
+    if not p.is_file():
+        raise AgentError(f"{what} {str(p)!r}: not a regular file")
+    return p
+
+
+def describe_exception(exc: BaseException, *, limit: int = 160) -> str:
+    """``"Type: first line of the message"``, shortened: enough to say what went wrong in one line."""
+    lines = str(exc).strip().splitlines()
+    line = lines[0] if lines else ""
+    line = line if len(line) <= limit else line[: limit - 3] + "..."
+    return f"{type(exc).__name__}: {line}" if line else type(exc).__name__
