@@ -26,16 +26,19 @@ class MazeDomain:
     """
 
     name = "maze"
+    #: Bitmaps are 0/1: archives and datasets keep them as int8 (256 bytes per 16×16 elite).
+    solution_dtype = np.int8
 
     def __init__(self, *, config: MazeConfig):
         self.config = config
         self.height, self.width = config.height, config.width
         self.solution_dim = self.height * self.width
         self.measure_names = tuple(config.measures)
-        self._measures = [get_measure(name) for name in self.measure_names]
-        self._objective = get_objective(config.objective)
+        # Looked up now so a bad name fails at construction; kept by name so the domain pickles.
+        measures = [get_measure(name) for name in self.measure_names]
+        get_objective(config.objective)
         self.measure_ranges = tuple(tuple(map(float, r)) for r in config.measure_ranges) or tuple(
-            m.natural_range(self.height, self.width) for m in self._measures
+            m.natural_range(self.height, self.width) for m in measures
         )
         # 0 cells means one cell per integer value of the measure (e.g. 256 for 0..256 walls).
         self.archive_dims = tuple(
@@ -66,8 +69,8 @@ class MazeDomain:
         return MazeLevel.from_bitmap(bitmap)
 
     def random_solutions(self, n: int, rng: np.random.Generator) -> Solutions:
-        """``n`` uniformly random bitmaps as float64 0/1 rows."""
-        return rng.integers(0, 2, size=(n, self.solution_dim)).astype(np.float64)
+        """``n`` uniformly random bitmaps, 0/1 rows of :attr:`solution_dtype`."""
+        return rng.integers(0, 2, size=(n, self.solution_dim)).astype(self.solution_dtype)
 
     def encode(self, solutions: Solutions) -> EncodedLevels:
         return encode_levels(np.asarray(solutions).reshape(-1, self.solution_dim), self.height, self.width)
@@ -81,8 +84,8 @@ class MazeDomain:
     def evaluate(self, solution: Solution, seed: int) -> EvaluationResult:
         result = self.run(solution, seed)
         return EvaluationResult(
-            objective=float(self._objective(result)),
-            measures=np.array([m.fn(result) for m in self._measures], dtype=np.float64),
+            objective=float(get_objective(self.config.objective)(result)),
+            measures=np.array([get_measure(name).fn(result) for name in self.measure_names], dtype=np.float64),
             occupancy=result.occupancy,
             info={
                 key: value for key, value in result.to_dict().items()
@@ -90,3 +93,9 @@ class MazeDomain:
                            "optimal_path_length", "start", "goal", "valid", "explored_fraction", "repeated_visits")
             },
         )
+
+    def render(self, solution: Solution, occupancy: np.ndarray | None = None) -> bytes:
+        """A PNG of the level, with ``occupancy`` overlaid when given."""
+        from dsage_ray.domains.maze.render import render_level
+
+        return render_level(self.level(solution), occupancy)

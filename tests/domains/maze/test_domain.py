@@ -1,0 +1,80 @@
+import pickle
+
+import numpy as np
+import pytest
+
+import dsage_ray.agents
+from dsage_ray.config import MazeConfig
+from dsage_ray.domains.maze.domain import MazeDomain
+from dsage_ray.types import Domain
+
+from .conftest import UniformRandomAgent
+
+
+@pytest.fixture
+def loads(monkeypatch):
+    """Replaces the agent loader with one that counts calls and returns a test agent."""
+    calls = []
+
+    def fake_load_agent(spec):
+        calls.append(spec)
+        return UniformRandomAgent(3)
+
+    monkeypatch.setattr(dsage_ray.agents, "load_agent", fake_load_agent, raising=False)
+    return calls
+
+
+def test_protocol_attributes():
+    domain = MazeDomain(config=MazeConfig())
+    assert isinstance(domain, Domain)
+    assert domain.solution_dim == 256 and domain.occupancy_shape == (16, 16) and domain.encoding_channels == 5
+    assert domain.measure_names == ("num_walls", "mean_path_length")
+    assert domain.measure_ranges == ((0.0, 256.0), (0.0, 648.0))
+    assert domain.archive_dims == (256, 162)
+    custom = MazeDomain(config=MazeConfig(height=4, width=6, measures=("explored_fraction", "num_walls"),
+                                          archive_dims=(10, 0), measure_ranges=()))
+    assert custom.measure_ranges == ((0.0, 1.0), (0.0, 24.0)) and custom.archive_dims == (10, 24)
+
+
+def test_random_solutions_and_encode():
+    domain = MazeDomain(config=MazeConfig(height=5, width=4))
+    solutions = domain.random_solutions(7, np.random.default_rng(0))
+    assert solutions.shape == (7, 20) and solutions.dtype == domain.solution_dtype
+    assert set(np.unique(solutions)) == {0, 1}
+    assert domain.encode(solutions).shape == (7, 5, 5, 4)
+    assert domain.render(solutions[0], np.ones((5, 4)))[:4] == b"\x89PNG"
+
+
+def test_evaluate_loads_agent_once_and_is_deterministic(loads):
+    domain = MazeDomain(config=MazeConfig(height=3, width=4, episodes=10, agent="builtin:random"))
+    solution = np.array([0, 0, 1, 0, 0, 0, 0, 0, 0, 1, 0, 0], dtype=np.float64)
+    a = domain.evaluate(solution, seed=3)
+    b = domain.evaluate(solution, seed=3)
+    assert loads == ["builtin:random"]
+    assert a.objective == 1.0 and not a.failed
+    assert a.measures.tolist() == [2.0, a.info["mean_path_length"]] == b.measures.tolist()
+    assert a.occupancy.shape == (3, 4) and np.array_equal(a.occupancy, b.occupancy)
+    assert {"success_rate", "episode_lengths", "successes", "optimal_path_length", "start", "goal",
+            "valid"} <= set(a.info)
+    assert len(a.info["episode_lengths"]) == 10
+
+
+def test_invalid_solution_scores_zero_without_loading_agent(loads):
+    domain = MazeDomain(config=MazeConfig(height=4, width=4))
+    result = domain.evaluate(np.ones(16), seed=0)
+    assert result.objective == 0.0 and result.measures.tolist() == [16.0, 0.0]
+    assert loads == [] and result.info["valid"] is False
+
+
+def test_other_objectives(loads):
+    level = np.zeros(12)
+    for objective in ("failure_rate", "regret"):
+        domain = MazeDomain(config=MazeConfig(height=3, width=4, episodes=5, objective=objective))
+        assert 0.0 <= domain.evaluate(level, seed=0).objective <= 1.0
+
+
+def test_pickles_without_agent(loads):
+    domain = MazeDomain(config=MazeConfig(height=3, width=4, episodes=2))
+    domain.evaluate(np.zeros(12), seed=0)
+    clone = pickle.loads(pickle.dumps(domain))
+    assert clone._agent is None and clone.config == domain.config

@@ -1,0 +1,128 @@
+import json
+
+import numpy as np
+import pytest
+
+from dsage_ray.domains.maze.env import MazeEnv
+from dsage_ray.domains.maze.evaluate import evaluate
+from dsage_ray.domains.maze.layout import load_layout, parse_layout
+from dsage_ray.domains.maze.level import MazeLevel
+
+from .conftest import DATA, UniformRandomAgent
+
+#: Small and open enough that uniformly random actions sometimes reach the goal (max 60 steps).
+EASY = "S.#.\n....\n.#.G\n"
+
+
+def _reference_evaluate(level, agent, *, episodes, seed):
+    """The same protocol as evaluate(), stepping one MiniGrid env per episode."""
+    rng = np.random.default_rng(seed)
+    envs = [MazeEnv(level) for _ in range(episodes)]
+    observations = []
+    for env, heading in zip(envs, rng.integers(0, 4, size=episodes)):
+        env.reset(seed=0)
+        env.agent_dir = int(heading)
+        observations.append(env.gen_obs())
+    state = agent.initial_state(episodes)
+    lengths = np.zeros(episodes, dtype=np.int64)
+    successes = np.zeros(episodes, dtype=bool)
+    occupancy = np.zeros(level.walls.shape)
+    running = np.arange(episodes)
+    while running.size:
+        obs = {"image": np.stack([observations[e]["image"] for e in running]),
+               "direction": np.array([observations[e]["direction"] for e in running], dtype=np.int64)}
+        actions, state = agent.act(obs, state, rng)
+        done = []
+        for k, e in enumerate(running):
+            x, y = envs[e].agent_pos
+            occupancy[y - 1, x - 1] += 1
+            observations[e], _, term, trunc, _ = envs[e].step(int(actions[k]))
+            if term or trunc:
+                done.append(k)
+                lengths[e], successes[e] = envs[e].step_count, term
+        alive = np.setdiff1d(np.arange(running.size), done)
+        state = agent.select_state(state, alive)
+        running = running[alive]
+    return lengths, successes, occupancy / episodes
+
+
+def test_matches_minigrid_reference_loop():
+    level = parse_layout(EASY)
+    # Only left/right/forward, so that some of the random walks reach the goal.
+    result = evaluate(level, UniformRandomAgent(3), episodes=24, seed=4)
+    lengths, successes, occupancy = _reference_evaluate(level, UniformRandomAgent(3), episodes=24, seed=4)
+    assert np.array_equal(result.episode_lengths, lengths)
+    assert np.array_equal(result.successes, successes)
+    np.testing.assert_allclose(result.occupancy, occupancy, rtol=1e-6)
+    assert successes.any() and not successes.all()  # both outcomes are exercised
+
+
+def test_reproducible_for_a_seed_and_varies_across_seeds():
+    level = parse_layout(EASY)
+    a = evaluate(level, UniformRandomAgent(3), episodes=20, seed=11)
+    b = evaluate(level, UniformRandomAgent(3), episodes=20, seed=11)
+    c = evaluate(level, UniformRandomAgent(3), episodes=20, seed=12)
+    assert a.to_json(occupancy=True) == b.to_json(occupancy=True)
+    assert not np.array_equal(a.occupancy, c.occupancy)
+
+
+@pytest.mark.parametrize("layout", [EASY, (DATA / "small.txt").read_text()])
+def test_occupancy_and_summary_invariants(layout):
+    level = parse_layout(layout)
+    agent = UniformRandomAgent(3)
+    episodes = 30
+    r = evaluate(level, agent, episodes=episodes, seed=0)
+    assert r.occupancy.dtype == np.float32 and r.occupancy.shape == level.walls.shape
+    # One visit is recorded before every step.
+    assert r.occupancy.sum() * episodes == pytest.approx(r.episode_lengths.sum())
+    assert r.occupancy[level.goal] == 0
+    assert r.occupancy[level.start] >= 1
+    assert (r.occupancy[~level.reachable_cells] == 0).all()
+    failed = ~r.successes
+    assert (r.episode_lengths[failed] == level.max_steps).all()
+    assert (r.episode_lengths[r.successes] >= level.optimal_path_length).all()
+    assert r.mean_path_length == pytest.approx(r.episode_lengths.mean())
+    assert r.success_rate == pytest.approx(r.successes.mean())
+    assert 0 < r.explored_fraction <= 1 and 0 <= r.repeated_visits <= level.max_steps
+    # Finished episodes leave the batch: the batch never grows and ends smaller than it started.
+    sizes = agent.batch_sizes
+    assert sizes[0] == episodes and all(a >= b for a, b in zip(sizes, sizes[1:]))
+    assert len(sizes) == r.episode_lengths.max()
+
+
+def test_straight_corridor_exact_measures():
+    # An agent that only moves forward, facing right: start (0,0) to goal (0,3) in 3 steps.
+    class Forward(UniformRandomAgent):
+        def act(self, obs, state, rng):
+            return np.full(len(obs["direction"]), 2), state
+
+    level = parse_layout("S..G\n####\n")
+    # Only the episodes whose random initial heading is "right" succeed; check both kinds.
+    r = evaluate(level, Forward(), episodes=8, seed=0)
+    facing_right = r.successes
+    assert (r.episode_lengths[facing_right] == 3).all()
+    assert (r.episode_lengths[~facing_right] == level.max_steps).all()
+    assert facing_right.any() and (~facing_right).any()
+    n_right = facing_right.sum()
+    # Right-facing episodes visit (0,0),(0,1),(0,2) once each; the others sit on the start.
+    expected_start = (n_right + (8 - n_right) * level.max_steps) / 8
+    assert r.occupancy[0, 0] == pytest.approx(expected_start)
+    assert r.occupancy[0, 1] == pytest.approx(n_right / 8)
+    assert r.explored_fraction == pytest.approx((n_right * 4 + (8 - n_right) * 1) / 8 / 4)
+    assert r.repeated_visits == pytest.approx((8 - n_right) * (level.max_steps - 1) / 8)
+
+
+def test_invalid_level_does_not_run_agent():
+    agent = UniformRandomAgent()
+    r = evaluate(MazeLevel.from_bitmap(np.ones((16, 16))), agent, episodes=50, seed=0)
+    assert not r.valid and r.mean_path_length == 0 and r.episodes == 0 and agent.batch_sizes == []
+    assert r.occupancy.shape == (16, 16) and not r.occupancy.any()
+    json.loads(r.to_json())
+
+
+def test_see_through_setting_is_passed_on():
+    # The random agent ignores observations, so the outcome is the same; this checks it runs.
+    level = load_layout(DATA / "small.txt")
+    a = evaluate(level, UniformRandomAgent(), episodes=5, seed=1, see_through_walls=False)
+    b = evaluate(level, UniformRandomAgent(), episodes=5, seed=1, see_through_walls=True)
+    assert np.array_equal(a.episode_lengths, b.episode_lengths)
