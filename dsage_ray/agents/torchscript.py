@@ -22,6 +22,7 @@ batch of two when loading, and a module that fails that call or returns the wron
 from __future__ import annotations
 
 import pathlib
+import warnings
 
 import numpy as np
 import torch
@@ -67,7 +68,10 @@ def load_torchscript_agent(target: str, options: SpecOptions) -> TorchScriptAgen
     """Factory for ``torchscript:PATH``; checks the calling convention with one dummy call."""
     path = require_file(target, what="torchscript file")
     try:
-        module = torch.jit.load(str(path), map_location="cpu")
+        with warnings.catch_warnings():
+            # torch 2.9+ marks TorchScript deprecated; the user asked for this format explicitly.
+            warnings.simplefilter("ignore", DeprecationWarning)
+            module = torch.jit.load(str(path), map_location="cpu")
     except Exception as exc:  # torch reports non-TorchScript files as assorted RuntimeErrors
         raise AgentError(f"torchscript file {str(path)!r}: not a TorchScript module ({describe_exception(exc)})") from None
     state_size = _state_size(module, path)

@@ -1,0 +1,153 @@
+"""The DCD/ACCEL agent's mechanics on a random-weight checkpoint of the same format (no shared files needed)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from dsage_ray.agents import load_agent
+from dsage_ray.agents.sampling import sample_from_logits
+
+
+def random_obs(rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
+    objects = rng.choice(np.array([1, 2, 8], dtype=np.uint8), size=(n, 5, 5))  # empty, wall, goal
+    image = np.stack([objects, np.zeros_like(objects), np.zeros_like(objects)], axis=-1)
+    return {"image": image, "direction": rng.integers(0, 4, size=n)}
+
+
+@pytest.fixture
+def agent(random_dcd_checkpoint):
+    return load_agent(f"dcd:{random_dcd_checkpoint}")
+
+
+def rollout(agent, seed: int, steps: int = 25, n: int = 8) -> np.ndarray:
+    obs_rng, rng = np.random.default_rng(123), np.random.default_rng(seed)
+    state, actions = agent.initial_state(n), []
+    for _ in range(steps):
+        a, state = agent.act(random_obs(obs_rng, n), state, rng)
+        assert a.dtype == np.int64 and a.shape == (n,) and ((0 <= a) & (a < 7)).all()
+        actions.append(a)
+    return np.stack(actions)
+
+
+def test_actions_are_reproducible_from_the_rng(agent, random_dcd_checkpoint):
+    other = load_agent(f"dcd:{random_dcd_checkpoint}")
+    np.testing.assert_array_equal(rollout(agent, seed=7), rollout(other, seed=7))
+    assert not np.array_equal(rollout(agent, seed=7), rollout(agent, seed=8)), "actions must be sampled, not argmax"
+
+
+def test_rng_consumption_is_one_uniform_per_row(agent):
+    rng, mirror = np.random.default_rng(3), np.random.default_rng(3)
+    agent.act(random_obs(np.random.default_rng(0), 5), agent.initial_state(5), rng)
+    mirror.random(5)
+    assert rng.random() == mirror.random()
+
+
+def test_sampling_matches_the_categorical():
+    probs = np.array([0.1, 0.2, 0.7, 0.0, 0.0, 0.0, 0.0])
+    logits = torch.log(torch.tensor(probs)).repeat(40_000, 1)
+    freq = np.bincount(sample_from_logits(logits, np.random.default_rng(0)), minlength=7) / 40_000
+    np.testing.assert_allclose(freq, probs, atol=0.01)
+    assert freq[3:].sum() == 0
+
+
+def test_lstm_cell_step_equals_the_checkpoints_lstm(agent):
+    """The fast per-step LSTMCell must reproduce nn.LSTM (the module the weights belong to) over a sequence."""
+    net, n, steps = agent.network, 6, 12
+    obs_rng = np.random.default_rng(1)
+    observations = [random_obs(obs_rng, n) for _ in range(steps)]
+    state, stepped = agent.initial_state(n), []
+    for obs in observations:
+        logits, state = agent.logits(obs, state)
+        stepped.append(logits)
+    with torch.no_grad():
+        inputs = []
+        for obs in observations:
+            image = torch.tensor(obs["image"], dtype=torch.float32).permute(0, 3, 1, 2) / 10.0
+            onehot = torch.nn.functional.one_hot(torch.tensor(obs["direction"]), 4).float()
+            inputs.append(torch.cat([net.image_conv(image), net.scalar_embed(onehot)], dim=1))
+        hidden, _ = net.rnn.rnn(torch.stack(inputs))  # (steps, n, 256), zero initial state
+        reference = net.actor(hidden)
+    torch.testing.assert_close(torch.stack(stepped), reference, rtol=1e-5, atol=1e-5)
+
+
+def test_rows_are_independent_without_the_quirk(agent):
+    obs = random_obs(np.random.default_rng(2), 10)
+    full, _ = agent.logits(obs, agent.initial_state(10))
+    idx = np.array([1, 4, 7])
+    part, _ = agent.logits({k: v[idx] for k, v in obs.items()}, agent.initial_state(3))
+    torch.testing.assert_close(part, full[idx])
+
+
+def test_select_state_and_reset(agent):
+    n, obs_rng, rng = 6, np.random.default_rng(4), np.random.default_rng(0)
+    state = agent.initial_state(n)
+    for _ in range(3):
+        _, state = agent.act(random_obs(obs_rng, n), state, rng)
+    mask = np.array([True, False, True, False, False, True])
+    reset = agent.reset(state, mask)
+    for part, old in zip(reset, state):
+        assert part[mask].abs().sum() == 0, "reset rows must be back at the initial state"
+        torch.testing.assert_close(part[~mask], old[~mask])
+    idx = np.array([1, 3, 4])
+    kept = agent.select_state(state, idx)
+    for part, old in zip(kept, state):
+        torch.testing.assert_close(part, old[idx])
+    # Acting on the kept rows gives what those rows would have got in the full batch.
+    obs = random_obs(obs_rng, n)
+    full, _ = agent.logits(obs, state)
+    sub, _ = agent.logits({k: v[idx] for k, v in obs.items()}, kept)
+    torch.testing.assert_close(sub, full[idx])
+
+
+def test_heading_onehot_correct_and_quirk(random_dcd_checkpoint):
+    direction = np.array([0, 2, 2, 3, 1, 1, 1])
+    plain = load_agent(f"dcd:{random_dcd_checkpoint}")
+    np.testing.assert_array_equal(plain.heading_onehot(direction), np.eye(4)[direction])
+
+    whole = load_agent(f"dcd:{random_dcd_checkpoint}?heading_quirk=1&quirk_group=0")
+    np.testing.assert_array_equal(whole.heading_onehot(direction), np.ones((7, 4)))
+    np.testing.assert_array_equal(whole.heading_onehot(np.array([2, 2])), [[0, 0, 1, 0]] * 2)
+
+    grouped = load_agent(f"dcd:{random_dcd_checkpoint}?heading_quirk=1&quirk_group=3")
+    expected = [[1, 0, 1, 0]] * 3 + [[0, 1, 0, 1]] * 3 + [[0, 1, 0, 0]]  # groups {0,2,2}, {3,1,1}, {1}
+    np.testing.assert_array_equal(grouped.heading_onehot(direction), expected)
+    assert grouped.heading_onehot(np.zeros(0, np.int64)).shape == (0, 4)
+
+
+def test_quirk_couples_rows_in_a_group(random_dcd_checkpoint):
+    quirky = load_agent(f"dcd:{random_dcd_checkpoint}?heading_quirk=1")  # default group of 10
+    obs = random_obs(np.random.default_rng(5), 4)
+    obs["direction"] = np.array([0, 0, 0, 0])
+    changed = {"image": obs["image"], "direction": np.array([0, 0, 0, 3])}
+    before, _ = quirky.logits(obs, quirky.initial_state(4))
+    after, _ = quirky.logits(changed, quirky.initial_state(4))
+    assert not torch.allclose(before[0], after[0]), "row 0 must see row 3's heading under the quirk"
+    plain = load_agent(f"dcd:{random_dcd_checkpoint}")
+    torch.testing.assert_close(before, plain.logits(obs, plain.initial_state(4))[0])  # same heading: no difference
+    torch.testing.assert_close(plain.logits(changed, plain.initial_state(4))[0][0], before[0])
+
+
+def test_torchscript_export_of_the_dcd_network_acts_identically(agent, tmp_path):
+    """Cross-checks the TorchScript calling convention against the DCD agent: same weights, same actions."""
+
+    class Exported(torch.nn.Module):
+        def __init__(self, net):
+            super().__init__()
+            self.net = net
+            self.cell = torch.nn.LSTMCell(149, 256)
+            self.cell.load_state_dict({k.replace("_l0", ""): v for k, v in net.rnn.rnn.state_dict().items()})
+            self.state_size = 512
+
+        def forward(self, image: torch.Tensor, direction: torch.Tensor, state: torch.Tensor):
+            x = self.net.image_conv(image.permute(0, 3, 1, 2) / 10.0)
+            s = self.net.scalar_embed(torch.nn.functional.one_hot(direction, 4).float())
+            h, c = self.cell(torch.cat([x, s], dim=1), (state[:, :256], state[:, 256:]))
+            return self.net.actor[1].linear(self.net.actor[0](h)), torch.cat([h, c], dim=1)
+
+    path = tmp_path / "exported.pt"
+    torch.jit.script(Exported(agent.network)).save(str(path))
+    scripted = load_agent(f"torchscript:{path}")
+    assert scripted.state_size == 512
+    np.testing.assert_array_equal(rollout(scripted, seed=11), rollout(agent, seed=11))
