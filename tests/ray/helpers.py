@@ -1,0 +1,71 @@
+"""Shared pieces of the Ray tests: a small config and domain factories the actors can import."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from dsage_ray.config import RunConfig
+from tests.fakes import BitmapDomain
+
+#: A run small enough for a Tune trial to finish in seconds (cf. tests/core/test_runner.py).
+SMALL = {
+    "budget": 120,
+    "n_rand": 40,
+    "surrogate.epochs": 2,
+    "surrogate.batch_size": 16,
+    "qd.exploit_iterations": 4,
+    "qd.num_emitters": 2,
+    "qd.batch_size": 10,
+    "maze.archive_dims": (16, 8),
+    "selection.block": (4, 2),
+    "selection.count": 25,
+    "image_every": 1,
+    "ray.num_workers": 1,
+    "ray.cpus_per_worker": 0.5,
+    "ray.trial_cpus": 0.5,
+    "ray.placement_timeout_s": 60.0,
+}
+
+
+def small_config(**overrides) -> RunConfig:
+    return RunConfig.build({**SMALL, **{k.replace("__", "."): v for k, v in overrides.items()}})
+
+
+def bitmap_domain(config: RunConfig) -> BitmapDomain:
+    return BitmapDomain()
+
+
+#: The seed :class:`SlowBitmapDomain` raises on.
+RAISING_SEED = 13
+
+
+class SlowBitmapDomain(BitmapDomain):
+    """Each evaluation sleeps ``base + extra·(walls in the first row)`` seconds: uneven episodes.
+
+    Evaluating with seed :data:`RAISING_SEED` raises (a simulator bug, not a dead process); a
+    DSAGE run never draws that seed.
+    """
+
+    def __init__(self, *, base_s: float = 0.01, extra_s: float = 0.005) -> None:
+        super().__init__()
+        self.base_s = base_s
+        self.extra_s = extra_s
+
+    def evaluate(self, solution, seed):
+        walls = np.asarray(solution).reshape(8, 8)[0].sum()
+        time.sleep(self.base_s + self.extra_s * float(walls))
+        if seed == RAISING_SEED:
+            raise RuntimeError("injected failure")
+        return super().evaluate(solution, seed)
+
+
+def slow_bitmap_domain(config: RunConfig) -> SlowBitmapDomain:
+    return SlowBitmapDomain()
+
+
+def archive_snapshot(archive) -> tuple:
+    data = archive.data()
+    order = np.argsort(data["index"])
+    return (data["index"][order].tolist(), data["objective"][order].tolist(), data["solution"][order].tolist())
