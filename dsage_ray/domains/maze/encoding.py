@@ -7,6 +7,7 @@ from typing import Sequence
 import numpy as np
 
 from dsage_ray.domains.maze.level import MazeLevel
+from dsage_ray.domains.maze.paths import furthest_pairs
 
 #: Channel per cell kind; exactly one is hot per cell. ``spare`` is never set (kept for the
 #: original model's 5-channel input).
@@ -26,18 +27,22 @@ def encode_levels(levels: np.ndarray | Sequence[MazeLevel], height: int, width: 
     Returns:
         ``(n, 5, H, W)`` float32 with channels :data:`CHANNELS`.
     """
-    if not isinstance(levels, np.ndarray):
-        levels = list(levels)
     if isinstance(levels, np.ndarray):
-        bitmaps = np.asarray(levels).reshape(len(levels), height, width) > 0.5
-        levels = [MazeLevel.from_bitmap(bitmap) for bitmap in bitmaps]
-    out = np.zeros((len(levels), len(CHANNELS), height, width), dtype=np.float32)
-    for n, level in enumerate(levels):
-        if level.walls.shape != (height, width):
-            raise ValueError(f"level {n} is {level.height}x{level.width}, expected {height}x{width}")
-        kind = np.where(level.walls, WALL, EMPTY)
-        if level.start is not None:
-            kind[level.start] = START
-            kind[level.goal] = GOAL
-        out[n] = np.eye(len(CHANNELS), dtype=np.float32)[kind].transpose(2, 0, 1)
-    return out
+        walls = np.asarray(levels).reshape(len(levels), height, width) > 0.5
+        pairs = furthest_pairs(walls)
+        kind = np.where(walls, WALL, EMPTY).reshape(len(levels), -1)
+        has_pair = pairs[:, 0] >= 0
+        rows = np.flatnonzero(has_pair)
+        kind[rows, pairs[has_pair, 0]] = START
+        kind[rows, pairs[has_pair, 1]] = GOAL
+        kind = kind.reshape(len(levels), height, width)
+    else:
+        kind = np.empty((len(levels), height, width), dtype=np.int64)
+        for n, level in enumerate(levels):
+            if level.walls.shape != (height, width):
+                raise ValueError(f"level {n} is {level.height}x{level.width}, expected {height}x{width}")
+            kind[n] = np.where(level.walls, WALL, EMPTY)
+            if level.start is not None:
+                kind[n][level.start] = START
+                kind[n][level.goal] = GOAL
+    return np.eye(len(CHANNELS), dtype=np.float32)[kind].transpose(0, 3, 1, 2).copy()

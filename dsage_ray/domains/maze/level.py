@@ -13,6 +13,8 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components, shortest_path
 
+from dsage_ray.domains.maze.paths import furthest_pairs
+
 Cell = tuple[int, int]
 
 
@@ -50,17 +52,11 @@ def furthest_pair(walls: np.ndarray) -> tuple[Cell, Cell] | None:
     flat index. Returns ``None`` when no two empty cells are connected.
     """
     walls = np.asarray(walls, dtype=bool)
-    graph, flat = _adjacency(~walls)
-    if flat.size < 2:
-        return None
-    dist = shortest_path(graph, directed=False, unweighted=True)
-    dist[~np.isfinite(dist)] = -1.0
-    best = int(np.argmax(dist))  # np.argmax returns the first maximum in row-major order.
-    i, j = divmod(best, flat.size)
-    if dist[i, j] <= 0:
+    start, goal, _ = furthest_pairs(walls[None])[0]
+    if start < 0:
         return None
     width = walls.shape[1]
-    return divmod(int(flat[i]), width), divmod(int(flat[j]), width)
+    return divmod(int(start), width), divmod(int(goal), width)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
