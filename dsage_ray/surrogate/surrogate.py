@@ -194,8 +194,9 @@ class Surrogate:
         if state["kind"] != self.kind:
             raise ValueError(f"checkpoint holds a {state['kind']} surrogate, this one is {self.kind}")
         self.model.load_state_dict(state["model"])
-        # Adam moves its moment buffers onto the parameters' device itself.
-        self.optimizer.load_state_dict(state["optimizer"])
+        # Adam adopts the given tensors as its moment buffers (moving them to the parameters' device
+        # only if needed) and updates them in place: copy, so the checkpoint itself never changes.
+        self.optimizer.load_state_dict(_cpu_copy(state["optimizer"]))
         self._shuffle_rng.set_state(state["shuffle_rng"])
 
 

@@ -131,6 +131,20 @@ def test_resume_trains_exactly_like_an_uninterrupted_run(kind):
     assert np.array_equal(got.measures, expected.measures)
 
 
+def test_loading_a_checkpoint_does_not_change_it():
+    # Adam updates its moment buffers in place; if it adopted the checkpoint's tensors, a second
+    # surrogate resumed from the same checkpoint would start from a different state.
+    original = make()
+    dataset, _ = toy_dataset(original, n=20)
+    original.train(dataset)
+    state = original.state_dict()
+    first, second = make(seed=3), make(seed=4)
+    first.load_state_dict(state)
+    losses = first.train(dataset)
+    second.load_state_dict(state)
+    assert second.train(dataset) == losses
+
+
 def test_state_dict_is_a_snapshot_and_checks_kind():
     surrogate = make()
     dataset, _ = toy_dataset(surrogate, n=20)
