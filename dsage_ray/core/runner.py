@@ -31,7 +31,8 @@ from dsage_ray.core.metrics import mean_absolute_errors
 from dsage_ray.domains import build_domain
 from dsage_ray.qd.archives import archive_stats, make_archive
 from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
-from dsage_ray.qd.selection import select_solutions
+from dsage_ray.qd.selection import gather_elites, select_solutions
+from dsage_ray.surrogate.models import pad_to_power_of_two
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
 
 #: Called with (phase, done, total) while a step runs; the CLI turns it into progress bars.
@@ -83,7 +84,7 @@ class DSAGE:
         if config.uses_surrogate:
             from dsage_ray.surrogate import Surrogate, SurrogateDataset
 
-            sample = self.domain.encode(self.domain.random_solutions(1, np.random.default_rng(0)))
+            sample = self._encode(self.domain.random_solutions(1, np.random.default_rng(0)))
             self.surrogate = Surrogate(
                 kind=config.surrogate.kind,
                 input_channels=sample.shape[1],
@@ -93,7 +94,11 @@ class DSAGE:
                 config=config.surrogate,
                 seed=int(self._next_qd_seed()),
             )
-            self.dataset = SurrogateDataset()
+            self.dataset = SurrogateDataset(
+                level_shape=tuple(sample.shape[1:]),
+                num_measures=len(self.domain.measure_names),
+                occupancy_shape=self.domain.occupancy_shape,
+            )
         else:
             self.scheduler = make_scheduler(
                 self.archive,
@@ -133,19 +138,22 @@ class DSAGE:
             solutions = self.domain.random_solutions(self.config.n_rand, self.rng)
         else:
             tic = time.perf_counter()
-            metrics.update({f"surrogate_{k}": v for k, v in self.surrogate.train(self.dataset).items()})
+            losses = self.surrogate.train(self.dataset)
+            metrics["surrogate_loss"] = losses.pop("total")
+            metrics.update({f"surrogate_loss_{k}": v for k, v in losses.items()})
             times["train"] = time.perf_counter() - tic
             tic = time.perf_counter()
             surrogate_archive = self._exploit()
             times["exploit"] = time.perf_counter() - tic
             tic = time.perf_counter()
-            solutions = select_solutions(
+            picks = select_solutions(
                 surrogate_archive,
                 method=self.config.selection.method,
                 block=self.config.selection.block,
                 count=self.config.selection.count,
                 rng=self.rng,
             )
+            solutions = gather_elites(surrogate_archive, picks)["solution"]
             times["select"] = time.perf_counter() - tic
             metrics["surrogate_archive_size"] = float(len(surrogate_archive))
 
@@ -153,7 +161,7 @@ class DSAGE:
         solutions = solutions[: self.config.budget - self.evals]
         predicted = None
         if self.surrogate is not None and self.outer_iteration > 0 and len(solutions):
-            predicted = self.surrogate.predict(self.domain.encode(solutions))
+            predicted = self.surrogate.predict(self._encode(solutions))
 
         tic = time.perf_counter()
         results = self._evaluate(solutions)
@@ -172,12 +180,7 @@ class DSAGE:
         elif len(ok):
             self.archive.add(solutions[ok], objective, measures, occupancy=occupancy)
         if self.dataset is not None and len(ok):
-            self.dataset.append(
-                levels=self.domain.encode(solutions[ok]),
-                objective=objective,
-                measures=measures,
-                occupancy=occupancy,
-            )
+            self.dataset.append(encoded=self._encode(solutions), results=results)
         if predicted is not None and len(ok):
             metrics.update(
                 mean_absolute_errors(
@@ -197,6 +200,7 @@ class DSAGE:
         times["total"] = time.perf_counter() - started
         metrics.update(archive_stats(self.archive))
         metrics.update(
+            archive_size=float(len(self.archive)),
             outer_iteration=float(self.outer_iteration),
             evals=float(self.evals),
             evaluated_this_iteration=float(len(solutions)),
@@ -220,7 +224,7 @@ class DSAGE:
         )
 
         def predict(solutions: Solutions):
-            prediction = self.surrogate.predict(self.domain.encode(solutions))
+            prediction = self.surrogate.predict(self._encode(solutions))
             return prediction.objective, prediction.measures, {}
 
         progress = None
@@ -229,6 +233,11 @@ class DSAGE:
             progress = lambda done: self.progress("exploit", done, total)  # noqa: E731
         run_inner_loop(scheduler, predict, self.config.qd.exploit_iterations, progress=progress)
         return archive
+
+    def _encode(self, solutions: Solutions) -> np.ndarray:
+        """The surrogate's input: the domain's one-hot levels, padded to a square power of two."""
+        pad_channel = getattr(self.domain, "encoding_pad_channel", 0)
+        return pad_to_power_of_two(self.domain.encode(solutions), pad_channel=pad_channel)
 
     def _count_new_cells(self, measures: np.ndarray) -> int:
         """How many of these results land in a ground-truth cell that was empty before the batch."""
@@ -262,6 +271,7 @@ class DSAGE:
             ranges=self.domain.measure_ranges,
             occupancy_shape=self.domain.occupancy_shape if with_occupancy else None,
             seed=seed,
+            solution_dtype=getattr(self.domain, "solution_dtype", np.float64),
         )
 
     def write_outputs(self, run_dir) -> None:

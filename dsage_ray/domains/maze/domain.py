@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from dsage_ray.config import MazeConfig
-from dsage_ray.domains.maze.encoding import CHANNELS, encode_levels
+from dsage_ray.domains.maze.encoding import CHANNELS, SPARE, encode_levels
 from dsage_ray.domains.maze.evaluate import MazeEvaluation, evaluate
 from dsage_ray.domains.maze.level import MazeLevel
 from dsage_ray.domains.maze.measures import get_measure, get_objective
@@ -47,6 +47,9 @@ class MazeDomain:
         )
         self.occupancy_shape = (self.height, self.width)
         self.encoding_channels = len(CHANNELS)
+        # Sizes that are not a square power of two get padded for the surrogate: padding cells
+        # are marked "spare", which no real cell uses, so they never look like floor or wall.
+        self.encoding_pad_channel = SPARE
         self._agent = None
 
     @property
