@@ -18,6 +18,15 @@ def shared_dir() -> pathlib.Path:
     return pathlib.Path(os.environ.get("DSAGE_SHARED_DIR", REPO_ROOT.parent / "shared"))
 
 
+@pytest.fixture(scope="module", autouse=True)
+def one_torch_thread():
+    """Small batched steps on a small shared CPU: 2 intra-op threads cost ~10x more than 1. Restored after."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
 @pytest.fixture(scope="session")
 def accel_checkpoint() -> pathlib.Path:
     """The real ACCEL checkpoint, read in place (never copied into the repo); skips when it is absent."""

@@ -9,20 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import torch
 
 from dsage_ray.agents import Agent, load_agent
 from dsage_ray.domains.maze import evaluate
 from tests.agents.mazes import labyrinth13, open_maze, perfect_maze
-
-
-@pytest.fixture(scope="module", autouse=True)
-def one_torch_thread():
-    """On a small shared CPU, two intra-op threads per step cost 10x more than one; restore afterwards."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
 
 
 @pytest.fixture(scope="module")
