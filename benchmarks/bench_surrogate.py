@@ -16,6 +16,7 @@ Usage: python benchmarks/bench_surrogate.py [--threads 2] [--batch 150] [--train
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from typing import Callable
 
@@ -145,7 +146,10 @@ def main() -> None:
     parser.add_argument("--train-epochs", type=int, default=3)
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
-    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, mkldnn {torch.backends.mkldnn.is_available()}")
+    # Other processes on the cores make multi-threaded small convolutions much slower (threads wait on
+    # each other at every op): read the numbers against the load average.
+    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, mkldnn {torch.backends.mkldnn.is_available()}, "
+          f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}")
     bench_inference(batch=args.batch, repeats=args.repeats, calls=args.calls)
     bench_training(samples=args.train_samples, batch_size=args.train_batch, epochs=args.train_epochs)
 
