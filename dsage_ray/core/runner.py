@@ -27,7 +27,6 @@ import numpy as np
 
 from dsage_ray.config import RunConfig
 from dsage_ray.core.evaluation import InProcessEvaluator, evaluate_with_retry
-from dsage_ray.core.metrics import mean_absolute_errors
 from dsage_ray.domains import build_domain
 from dsage_ray.qd.archives import archive_stats, make_archive
 from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
@@ -140,7 +139,7 @@ class DSAGE:
             tic = time.perf_counter()
             losses = self.surrogate.train(self.dataset)
             metrics["surrogate_loss"] = losses.pop("total")
-            metrics.update({f"surrogate_loss_{k}": v for k, v in losses.items()})
+            metrics.update({f"surrogate_loss_{self._head_name(k)}": v for k, v in losses.items()})
             times["train"] = time.perf_counter() - tic
             tic = time.perf_counter()
             surrogate_archive = self._exploit()
@@ -160,8 +159,9 @@ class DSAGE:
         full_batch = len(solutions)
         solutions = solutions[: self.config.budget - self.evals]
         predicted = None
+        encoded = self._encode(solutions) if self.surrogate is not None else None
         if self.surrogate is not None and self.outer_iteration > 0 and len(solutions):
-            predicted = self.surrogate.predict(self._encode(solutions))
+            predicted = self.surrogate.predict(encoded)
 
         tic = time.perf_counter()
         results = self._evaluate(solutions)
@@ -169,7 +169,7 @@ class DSAGE:
 
         ok = [i for i, r in enumerate(results) if not r.failed]
         objective = np.array([results[i].objective for i in ok], dtype=np.float64)
-        measures = np.array([results[i].measures for i in ok], dtype=np.float64).reshape(len(ok), -1)
+        measures = np.array([results[i].measures for i in ok], dtype=np.float64).reshape(len(ok), len(self.domain.measure_names))
         occupancy = np.array([results[i].occupancy for i in ok], dtype=np.float32).reshape(
             (len(ok),) + tuple(self.domain.occupancy_shape)
         )
@@ -180,19 +180,10 @@ class DSAGE:
         elif len(ok):
             self.archive.add(solutions[ok], objective, measures, occupancy=occupancy)
         if self.dataset is not None and len(ok):
-            self.dataset.append(encoded=self._encode(solutions), results=results)
+            self.dataset.append(encoded=encoded, results=results)
         if predicted is not None and len(ok):
-            metrics.update(
-                mean_absolute_errors(
-                    predicted_objective=predicted.objective[ok],
-                    predicted_measures=predicted.measures[ok],
-                    predicted_occupancy=None if predicted.occupancy is None else predicted.occupancy[ok],
-                    objective=objective,
-                    measures=measures,
-                    occupancy=occupancy,
-                    measure_names=self.domain.measure_names,
-                )
-            )
+            errors = self.surrogate.mae(encoded, results, prediction=predicted)
+            metrics.update({f"mae_{self._head_name(k)}": v for k, v in errors.items()})
             self.last_predictions = (predicted.measures[ok], measures)
 
         self.evals += len(solutions)
@@ -233,6 +224,12 @@ class DSAGE:
             progress = lambda done: self.progress("exploit", done, total)  # noqa: E731
         run_inner_loop(scheduler, predict, self.config.qd.exploit_iterations, progress=progress)
         return archive
+
+    def _head_name(self, head: str) -> str:
+        """``measure_1`` → the measure's name, so metrics read ``mae_mean_path_length``."""
+        if head.startswith("measure_"):
+            return self.domain.measure_names[int(head.split("_")[1])]
+        return head
 
     def _encode(self, solutions: Solutions) -> np.ndarray:
         """The surrogate's input: the domain's one-hot levels, padded to a square power of two."""

@@ -161,8 +161,14 @@ class Surrogate:
         fields = [None if parts[0] is None else torch.cat(parts).cpu().numpy() for parts in zip(*chunks)]
         return Prediction(*fields)
 
-    def mae(self, encoded: EncodedLevels, results: Sequence[EvaluationResult]) -> dict[str, float]:
+    def mae(self, encoded: EncodedLevels, results: Sequence[EvaluationResult],
+            prediction: Prediction | None = None) -> dict[str, float]:
         """Mean absolute error of the predictions against real results, per head (failed results skipped).
+
+        Args:
+            encoded: The evaluated levels.
+            results: Their real results.
+            prediction: ``predict(encoded)`` when the caller already has it (saves a second pass).
 
         Returns:
             ``{head: MAE}`` over ``head_names`` (occupancy: mean over cells and levels); empty when
@@ -171,7 +177,13 @@ class Surrogate:
         targets = Targets.from_results(results, num_measures=self.num_measures, occupancy_shape=self.occupancy_shape)
         if not targets.valid.any():
             return {}
-        prediction = self.predict(np.asarray(encoded)[targets.valid])
+        if prediction is None:
+            prediction = self.predict(np.asarray(encoded)[targets.valid])
+        else:
+            prediction = Prediction(**{
+                name: None if value is None else value[targets.valid]
+                for name, value in dataclasses.asdict(prediction).items()
+            })
         errors = np.abs(prediction.measures - targets.measures).mean(axis=0)
         mae = {"objective": float(np.abs(prediction.objective - targets.objective).mean()),
                **{f"measure_{i}": float(e) for i, e in enumerate(errors)}}

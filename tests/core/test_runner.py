@@ -8,9 +8,9 @@ from dsage_ray.core.runner import DSAGE
 from tests.fakes import BitmapDomain
 
 SMALL = {
-    "budget": 120,
+    "budget": 70,
     "n_rand": 40,
-    "surrogate.epochs": 2,
+    "surrogate.epochs": 1,
     "surrogate.batch_size": 16,
     "qd.exploit_iterations": 4,
     "qd.num_emitters": 2,
@@ -103,18 +103,20 @@ def test_state_from_another_config_is_refused():
 
 def test_failed_evaluation_is_retried_once_then_recorded():
     config = RunConfig.build({**SMALL, "variant": "dr"})
+    batch = config.qd.num_emitters * config.qd.batch_size
     flaky = BitmapDomain(fail_on=tuple(range(0, 65)), fail_once=True)  # every level fails once
     runner = DSAGE(config=config, domain=flaky)
     runner.step()
     assert runner.failures == []
-    assert flaky.calls == 2 * 30  # each of the 30 evaluations ran twice, none more
+    assert flaky.calls == 2 * batch  # each evaluation ran twice, none more
+    assert len(runner.archive) > 0
 
     broken = BitmapDomain(fail_on=tuple(range(0, 65)), fail_once=False)
     runner = DSAGE(config=config, domain=broken)
     metrics = runner.step()
-    assert len(runner.failures) == 30 and "injected failure" in runner.failures[0]["error"]
-    assert metrics["evals"] == 30 and len(runner.archive) == 0
-    assert [f["eval_index"] for f in runner.failures] == list(range(30))
+    assert len(runner.failures) == batch and "injected failure" in runner.failures[0]["error"]
+    assert metrics["evals"] == batch and metrics["failed_evals"] == batch and len(runner.archive) == 0
+    assert [f["eval_index"] for f in runner.failures] == list(range(batch))
 
 
 def test_write_outputs(tmp_path):
