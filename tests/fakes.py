@@ -26,6 +26,7 @@ class BitmapDomain:
     archive_dims = (16, 8)
     occupancy_shape = (8, 8)
     encoding_channels = 2
+    solution_dtype = np.int8
 
     def __init__(self, *, fail_on: tuple[int, ...] = (), fail_once: bool = True) -> None:
         self.fail_on = set(fail_on)
@@ -34,7 +35,7 @@ class BitmapDomain:
         self._failed: set[bytes] = set()
 
     def random_solutions(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        return rng.integers(0, 2, size=(n, self.solution_dim)).astype(np.float32)
+        return rng.integers(0, 2, size=(n, self.solution_dim)).astype(np.int8)
 
     def encode(self, solutions: np.ndarray) -> np.ndarray:
         walls = np.asarray(solutions, dtype=np.float32).reshape(-1, 8, 8)
@@ -60,7 +61,7 @@ class BitmapDomain:
 
         from PIL import Image
 
-        image = Image.fromarray((np.asarray(solution).reshape(8, 8) * 255).astype(np.uint8))
+        image = Image.fromarray(np.asarray(solution, dtype=np.uint8).reshape(8, 8) * np.uint8(255))
         buffer = io.BytesIO()
         image.save(buffer, format="PNG")
         return buffer.getvalue()
