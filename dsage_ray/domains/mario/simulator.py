@@ -21,6 +21,7 @@ counts A* search iterations instead, making an episode a pure function of the le
 from __future__ import annotations
 
 import dataclasses
+import faulthandler
 import hashlib
 import logging
 import os
@@ -152,6 +153,20 @@ def java() -> _Java:
     return _java
 
 
+def _keep_faulthandler_off() -> None:
+    """Turns Python's faulthandler off; called before the JVM starts and before every episode.
+
+    The JVM raises SIGSEGV on purpose (implicit null checks in JIT-compiled code). With Python's
+    faulthandler installed (pytest and Ray turn it on) such a signal reaches faulthandler, which
+    kills the process at random (JPype user guide, "JIT and faulthandler"; we saw it in
+    ``AStarTree.pickBestPos``). Disabling restores the handler faulthandler displaced, so this is
+    also the fix when something re-enables it after the JVM started.
+    """
+    if faulthandler.is_enabled():
+        faulthandler.disable()
+        logger.info("Python faulthandler disabled: it conflicts with the JVM's signal handling")
+
+
 def _start_jvm() -> _Java:
     try:
         import jpype
@@ -177,7 +192,10 @@ def _start_jvm() -> _Java:
             jvm = jpype.getDefaultJVMPath()
         except jpype.JVMNotFoundException:
             raise SimulatorError("no Java runtime found (install a JDK 17, or set JAVA_HOME)") from None
-        opts = ["-Djava.awt.headless=true", *os.environ.get(JVM_OPTS_ENV, "").split()]
+        # Crash reports go to the temp folder, not the working directory (often a git checkout).
+        error_file = Path(tempfile.gettempdir()) / "dsage_ray_hs_err_pid%p.log"
+        opts = ["-Djava.awt.headless=true", f"-XX:ErrorFile={error_file}", *os.environ.get(JVM_OPTS_ENV, "").split()]
+        _keep_faulthandler_off()
         jpype.startJVM(jvm, *opts, classpath=classpath, convertStrings=False)
     jvm_start_s = time.perf_counter() - start
     JClass = jpype.JClass
@@ -298,6 +316,7 @@ class MarioSimulator:
         """
         text = to_string(level)
         j = java()
+        _keep_faulthandler_off()
         make_timer = self._timer_factory(j)
         deterministic = self.astar_iterations > 0 and j.DeterministicTimer is not None
         start = time.perf_counter()
