@@ -31,6 +31,7 @@ _BUILTIN_KINDS: dict[str, str] = {
     "builtin": "dsage_ray.agents.builtin:load_builtin_agent",
     "dcd": "dsage_ray.agents.dcd:load_dcd_agent",
     "torchscript": "dsage_ray.agents.torchscript:load_torchscript_agent",
+    "rllib": "dsage_ray.agents.rllib:load_rllib_agent",
 }
 _REGISTRY: dict[str, Union[str, AgentFactory]] = dict(_BUILTIN_KINDS)
 

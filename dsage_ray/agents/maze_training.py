@@ -1,0 +1,135 @@
+"""Random valid mazes for training and benchmarking agents, and the gymnasium env RLlib trains on.
+
+``random_valid_level`` is *the* distribution of "random valid 16×16 mazes" in this project: every interior
+cell is a wall with probability ``density``, drawn per maze uniformly from ``density_range``, and the level
+is kept if it is valid (start and goal = the furthest connected pair, as everywhere else). The agent
+benchmark evaluates a fixed seeded set of them; training samples a fresh one on every reset.
+
+``RandomMazeEnv`` wraps the project's :class:`~dsage_ray.domains.maze.env.MazeEnv` (so the dynamics and
+observations are the ones the evaluator's simulator is tested against) and drops the constant mission
+string from the observation. Its curriculum knob ``difficulty`` in ``[0, 1]`` caps how far the goal is
+from the start: below 1 the goal is a random reachable cell at most ``3 + difficulty·(max_goal_distance -
+3)`` moves away; at 1 it is the furthest pair, the evaluation setting. The training script raises it as
+training proceeds (``env.set_attr("difficulty", ...)`` on the vector env).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from scipy.sparse.csgraph import shortest_path
+
+from dsage_ray.domains.maze.env import MazeEnv
+from dsage_ray.domains.maze.level import MazeLevel, _adjacency
+
+#: Wall density range of the benchmark and training mazes.
+DEFAULT_DENSITY_RANGE = (0.0, 0.5)
+
+
+def random_valid_level(
+    rng: np.random.Generator,
+    *,
+    height: int = 16,
+    width: int = 16,
+    density_range: tuple[float, float] = DEFAULT_DENSITY_RANGE,
+) -> MazeLevel:
+    """A uniformly random wall bitmap at a random density, redrawn until valid.
+
+    Args:
+        rng: Source of all randomness (density, then walls).
+        height: Interior rows.
+        width: Interior columns.
+        density_range: ``(low, high)`` wall probability range; one density is drawn per maze.
+    """
+    while True:
+        density = rng.uniform(*density_range)
+        level = MazeLevel.from_bitmap(rng.random((height, width)) < density)
+        if level.valid:
+            return level
+
+
+def random_valid_levels(n: int, *, seed: int, height: int = 16, width: int = 16,
+                        density_range: tuple[float, float] = DEFAULT_DENSITY_RANGE) -> list[MazeLevel]:
+    """``n`` levels from :func:`random_valid_level`, a fixed set for a given seed."""
+    rng = np.random.default_rng(seed)
+    return [random_valid_level(rng, height=height, width=width, density_range=density_range) for _ in range(n)]
+
+
+def with_near_goal(level: MazeLevel, max_distance: int, rng: np.random.Generator) -> MazeLevel:
+    """``level`` with its goal moved to a random reachable cell at most ``max_distance`` moves from the start."""
+    graph, flat = _adjacency(~level.walls)
+    start = int(np.searchsorted(flat, level.start[0] * level.width + level.start[1]))
+    distance = shortest_path(graph, directed=False, unweighted=True, indices=start)
+    candidates = flat[(distance > 0) & (distance <= max_distance)]
+    if candidates.size == 0:
+        return level
+    goal = divmod(int(rng.choice(candidates)), level.width)
+    return MazeLevel.from_bitmap(level.walls, start=level.start, goal=goal)
+
+
+class RandomMazeEnv(gym.Env):
+    """A new random valid maze every episode; MiniGrid's Maze observation minus the mission string.
+
+    Args:
+        height: Interior rows.
+        width: Interior columns.
+        density_range: Wall probability range (see :func:`random_valid_level`).
+        difficulty: Curriculum position in ``[0, 1]`` (module docstring); settable between episodes.
+        max_goal_distance: Goal distance cap just below difficulty 1.
+        see_through_walls: MiniGrid's observation setting (the evaluator's default is True).
+    """
+
+    metadata = {"render_modes": []}
+
+    def __init__(
+        self,
+        *,
+        height: int = 16,
+        width: int = 16,
+        density_range: tuple[float, float] = DEFAULT_DENSITY_RANGE,
+        difficulty: float = 1.0,
+        max_goal_distance: int = 60,
+        see_through_walls: bool = True,
+    ) -> None:
+        from dsage_ray.agents.rllib_module import MAZE_ACTION_SPACE, MAZE_OBSERVATION_SPACE
+
+        self.height, self.width = height, width
+        self.density_range = tuple(density_range)
+        self.difficulty = float(difficulty)
+        self.max_goal_distance = max_goal_distance
+        self.observation_space = MAZE_OBSERVATION_SPACE
+        self.action_space = MAZE_ACTION_SPACE
+        self._maze = MazeEnv(random_valid_level(np.random.default_rng(0), height=height, width=width),
+                             see_through_walls=see_through_walls)
+
+    def _next_level(self) -> MazeLevel:
+        level = random_valid_level(self.np_random, height=self.height, width=self.width,
+                                   density_range=self.density_range)
+        if self.difficulty < 1.0:
+            cap = 3 + int(self.difficulty * (self.max_goal_distance - 3))
+            level = with_near_goal(level, cap, self.np_random)
+        return level
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        # Same grid size every episode, so swapping the level in is all MiniGrid's reset needs.
+        self._maze.level = self._next_level()
+        obs, info = self._maze.reset(seed=int(self.np_random.integers(2**31)))
+        info["optimal_path_length"] = self._maze.level.optimal_path_length
+        return _strip(obs), info
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self._maze.step(int(action))
+        return _strip(obs), float(reward), terminated, truncated, info
+
+
+def _strip(obs: dict[str, Any]) -> dict[str, Any]:
+    return {"direction": int(obs["direction"]), "image": obs["image"]}
+
+
+def make_random_maze_env(env_config: dict[str, Any] | None = None) -> RandomMazeEnv:
+    """RLlib env creator: ``config.environment(make_random_maze_env, env_config={...})`` keys = constructor's."""
+    config = {k: v for k, v in dict(env_config or {}).items() if k != "num_envs"}
+    return RandomMazeEnv(**config)

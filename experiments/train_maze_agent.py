@@ -1,0 +1,255 @@
+"""Train a Maze agent with PPO on RLlib's new API stack (CleanRL-style: one file, one config dataclass).
+
+The environment is :class:`dsage_ray.agents.maze_training.RandomMazeEnv`: a fresh random valid 16×16 maze
+every episode, built on the project's MiniGrid ``MazeEnv``. A curriculum moves the goal from a few steps
+away to the furthest cell (the evaluation setting) over ``curriculum_steps`` env steps. The policy is
+:class:`dsage_ray.agents.rllib_module.MazeRLModule` (a small CNN; ``--use-lstm`` adds an LSTM).
+
+Every ``eval_every`` iterations the current module is evaluated the way audits evaluate agents (our batched
+simulator, ``rllib:`` loader semantics) on a fixed set of random valid mazes; that success rate, the
+curriculum position and RLlib's own metrics go to TensorBoard under ``tb_logs/<run_name>/``.
+
+Usage::
+
+    nice -n 10 python experiments/train_maze_agent.py --run-name ppo_maze --total-env-steps 400000
+    nice -n 10 python experiments/train_maze_agent.py --run-name ppo_maze --resume   # continue it
+    tensorboard --logdir tb_logs
+
+The run folder holds ``checkpoint/`` (the latest full algorithm checkpoint, what ``--resume`` reads; also
+loadable as ``rllib:tb_logs/<run>/checkpoint``), ``progress.json`` and TensorBoard event files.
+``--export DIR`` copies the module-only checkpoint (a few hundred KB) there, e.g. into the package assets.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+
+ENV_NAME = "dsage_ray/RandomMaze-v0"
+
+
+@dataclasses.dataclass
+class Args:
+    run_name: str = "ppo_maze"
+    """folder under tb_logs/"""
+    seed: int = 0
+    total_env_steps: int = 400_000
+    """stop after this many environment steps (all iterations together, across resumes)"""
+    max_minutes: float = 0.0
+    """also stop after this much wall-clock training time (0 = no limit)"""
+    resume: bool = False
+    """continue tb_logs/<run_name>/checkpoint"""
+    export: str = ""
+    """at the end, copy the module-only checkpoint to this folder"""
+    # Environment and curriculum
+    num_envs: int = 8
+    """vectorised envs in the (single, local) env runner"""
+    curriculum_steps: int = 200_000
+    """env steps over which the goal moves from nearby to the furthest cell"""
+    # PPO
+    lr: float = 5e-4
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    train_batch_size: int = 4096
+    minibatch_size: int = 512
+    num_epochs: int = 4
+    entropy_coeff: float = 0.01
+    vf_loss_coeff: float = 0.5
+    clip_param: float = 0.2
+    # Module
+    hidden: int = 128
+    use_lstm: bool = False
+    max_seq_len: int = 32
+    """LSTM training sequence length (only with use_lstm)"""
+    # Bookkeeping
+    checkpoint_every: int = 5
+    """iterations between checkpoints"""
+    eval_every: int = 10
+    """iterations between evaluations on the fixed maze set (0 = never)"""
+    eval_mazes: int = 20
+    eval_episodes: int = 10
+    num_cpus: int = 2
+    """logical CPUs of the local Ray instance"""
+    torch_threads: int = 1
+    """torch threads for the learner (the machine is shared)"""
+
+
+def parse_args() -> Args:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    for field in dataclasses.fields(Args):
+        flag = "--" + field.name.replace("_", "-")
+        if field.type in (bool, "bool"):
+            parser.add_argument(flag, action="store_true", default=field.default)
+        else:
+            kind = {"int": int, "float": float, "str": str}.get(str(field.type), field.type)
+            parser.add_argument(flag, type=kind, default=field.default)
+    return Args(**vars(parser.parse_args()))
+
+
+def build_config(args: Args):
+    """The PPOConfig: our env creator, our RLModule, one local env runner, one local learner."""
+    from ray.rllib.algorithms.ppo import PPOConfig
+    from ray.rllib.core.rl_module.rl_module import RLModuleSpec
+    from ray.tune.registry import register_env
+
+    from dsage_ray.agents.maze_training import make_random_maze_env
+    from dsage_ray.agents.rllib_module import MazeRLModule
+
+    # Registered by name: RLlib ships the creator to every env runner through its registry.
+    register_env(ENV_NAME, make_random_maze_env)
+    model_config = {"hidden": args.hidden, "use_lstm": args.use_lstm}
+    if args.use_lstm:
+        model_config["max_seq_len"] = args.max_seq_len
+    return (
+        PPOConfig()
+        .environment(ENV_NAME, env_config={"difficulty": 0.0})
+        # Sampling in the driver process: on 2 shared cores a remote env runner only adds copies.
+        .env_runners(num_env_runners=0, num_envs_per_env_runner=args.num_envs)
+        .learners(num_learners=0)
+        .rl_module(rl_module_spec=RLModuleSpec(module_class=MazeRLModule, model_config=model_config))
+        .training(
+            lr=args.lr,
+            gamma=args.gamma,
+            lambda_=args.gae_lambda,
+            train_batch_size_per_learner=args.train_batch_size,
+            minibatch_size=args.minibatch_size,
+            num_epochs=args.num_epochs,
+            entropy_coeff=args.entropy_coeff,
+            vf_loss_coeff=args.vf_loss_coeff,
+            clip_param=args.clip_param,
+        )
+        .debugging(seed=args.seed)
+    )
+
+
+def difficulty_at(env_steps: int, args: Args) -> float:
+    """Curriculum position: linear in env steps, 1 (furthest goal) from ``curriculum_steps`` on."""
+    return 1.0 if args.curriculum_steps <= 0 else min(1.0, env_steps / args.curriculum_steps)
+
+
+def set_difficulty(algo, difficulty: float) -> None:
+    """Pushes the curriculum position into every env of every env runner (here: the local one)."""
+    algo.env_runner_group.foreach_env_runner(lambda runner: runner.env.unwrapped.set_attr("difficulty", difficulty))
+
+
+def evaluate_module(module_dir: Path, args: Args) -> dict[str, float]:
+    """Success rate and mean path length on a fixed set of random valid mazes, through the ``rllib:`` loader."""
+    import numpy as np
+
+    from dsage_ray.agents import load_agent
+    from dsage_ray.agents.maze_training import random_valid_levels
+    from dsage_ray.domains.maze import evaluate
+
+    agent = load_agent(f"rllib:{module_dir}")
+    results = [evaluate(level, agent, episodes=args.eval_episodes, seed=i)
+               for i, level in enumerate(random_valid_levels(args.eval_mazes, seed=12345))]
+    return {"success_rate": float(np.mean([r.success_rate for r in results])),
+            "mean_path_length": float(np.mean([r.mean_path_length for r in results]))}
+
+
+def save_checkpoint(algo, run_dir: Path, progress: dict) -> Path:
+    """Writes the full algorithm checkpoint to a staging folder, then swaps it in (a crash keeps the old one)."""
+    from dsage_ray.io import atomic_write_json, replace_dir
+
+    staging = Path(tempfile.mkdtemp(prefix=".checkpoint.", dir=run_dir))
+    algo.save_to_path(str(staging))
+    replace_dir(staging, run_dir / "checkpoint")
+    atomic_write_json(run_dir / "progress.json", progress)
+    return run_dir / "checkpoint"
+
+
+def module_dir(checkpoint: Path) -> Path:
+    """The RLModule folder inside an algorithm checkpoint (what the ``rllib:`` loader reads)."""
+    return checkpoint / "learner_group" / "learner" / "rl_module" / "default_policy"
+
+
+def main() -> int:
+    args = parse_args()
+    os.environ.setdefault("RAY_AUTH_MODE", "disabled")
+    import ray
+    import torch
+    from tensorboardX import SummaryWriter
+
+    torch.set_num_threads(args.torch_threads)
+    run_dir = (Path("tb_logs") / args.run_name).resolve()  # RLlib reads paths as URIs: they must be absolute
+    if run_dir.exists() and not args.resume and (run_dir / "checkpoint").exists():
+        print(f"{run_dir} already holds a run; pass --resume to continue it or pick another --run-name",
+              file=sys.stderr)
+        return 2
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / "args.json").write_text(json.dumps(dataclasses.asdict(args), indent=2))
+
+    ray.init(num_cpus=args.num_cpus, include_dashboard=False, log_to_driver=False)
+    algo = build_config(args).build_algo()
+    progress = {"iteration": 0, "env_steps": 0, "wall_s": 0.0}
+    if args.resume:
+        algo.restore_from_path(str((run_dir / "checkpoint").resolve()))
+        progress = json.loads((run_dir / "progress.json").read_text())
+        print(f"resumed at iteration {progress['iteration']}, {progress['env_steps']} env steps")
+    writer = SummaryWriter(str(run_dir))
+
+    started = time.perf_counter() - progress["wall_s"]
+    def finished() -> bool:
+        out_of_time = args.max_minutes > 0 and progress["wall_s"] >= 60 * args.max_minutes
+        return progress["env_steps"] >= args.total_env_steps or out_of_time
+
+    while not finished():
+        set_difficulty(algo, difficulty_at(progress["env_steps"], args))
+        result = algo.train()
+        progress["iteration"] += 1
+        progress["env_steps"] += int(result["env_runners"]["num_env_steps_sampled"])
+        progress["wall_s"] = time.perf_counter() - started
+        step = progress["env_steps"]
+        runners = result["env_runners"]
+        learner = result["learners"]["default_policy"]
+        scalars = {
+            "train/episode_return_mean": runners.get("episode_return_mean"),
+            "train/episode_len_mean": runners.get("episode_len_mean"),
+            "train/difficulty": difficulty_at(step, args),
+            "train/env_steps_per_s": step / max(progress["wall_s"], 1e-9),
+            "loss/policy": learner.get("policy_loss"),
+            "loss/vf": learner.get("vf_loss"),
+            "loss/entropy": learner.get("entropy"),
+        }
+        for tag, value in scalars.items():
+            if value is not None:
+                writer.add_scalar(tag, float(value), step)
+        print(f"iter {progress['iteration']:4d}  steps {step:8d}  return {scalars['train/episode_return_mean'] or 0:.3f}  "
+              f"len {scalars['train/episode_len_mean'] or 0:6.1f}  difficulty {scalars['train/difficulty']:.2f}  "
+              f"{scalars['train/env_steps_per_s']:.0f} steps/s", flush=True)
+
+        last = finished()
+        if progress["iteration"] % args.checkpoint_every == 0 or last:
+            checkpoint = save_checkpoint(algo, run_dir, progress)
+            if args.eval_every and (progress["iteration"] % args.eval_every == 0 or last):
+                scores = evaluate_module(module_dir(checkpoint), args)
+                for name, value in scores.items():
+                    writer.add_scalar(f"eval/{name}", value, step)
+                print(f"  eval on {args.eval_mazes} fixed mazes: success {scores['success_rate']:.3f}  "
+                      f"mean path length {scores['mean_path_length']:.1f}", flush=True)
+        writer.flush()
+
+    checkpoint = save_checkpoint(algo, run_dir, progress)
+    if args.export:
+        export = Path(args.export)
+        if export.exists():
+            shutil.rmtree(export)
+        shutil.copytree(module_dir(checkpoint), export)
+        print(f"module checkpoint exported to {export}")
+    writer.close()
+    algo.stop()
+    ray.shutdown()
+    print(f"done: {progress['env_steps']} env steps in {progress['wall_s'] / 60:.1f} min; checkpoint {checkpoint}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
