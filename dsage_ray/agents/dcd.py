@@ -11,8 +11,12 @@ strict key matching::
       -> actor.0.0 Linear(256->32) + Tanh -> actor.1.linear Linear(32->7) -> logits -> sampled action
       (critic.0.0 / critic.1: the value head; loaded for strictness, never evaluated)
 
-Inference runs one step at a time with an :class:`torch.nn.LSTMCell` that carries the LSTM's weights (same
-gate order and equations as a one-step ``nn.LSTM``, less per-call overhead), and actions are sampled in
+Inference runs one step at a time on matrices precomputed from those weights (:class:`_StepWeights`), because
+at evaluation batch sizes (≤ 50 rows) per-call overhead, not arithmetic, dominates (SPEC §8): the conv becomes
+one (75→144) matmul, the heading embedding and both LSTM biases one table row per heading one-hot, and each LSTM
+step two ``addmm`` into one gate buffer. It is the same network with float32 sums taken in a different order,
+so logits match the module-by-module computation to ~1e-6, not bit for bit (``tests/agents/test_dcd_step.py``
+checks both that and that the real checkpoint takes the same actions on test mazes). Actions are sampled in
 numpy from the caller's ``rng`` (:mod:`dsage_ray.agents.sampling`).
 
 Options (``dcd:PATH?heading_quirk=1&quirk_group=10``):
@@ -81,6 +85,51 @@ class DCDNetwork(nn.Module):
         self.critic = nn.Sequential(nn.Sequential(nn.Linear(HIDDEN_SIZE, 32), nn.Tanh()), nn.Linear(32, 1))
 
 
+def _masks_to_onehot(masks: np.ndarray) -> np.ndarray:
+    """4-bit heading masks ``(n,)`` (bit d set = heading d present) -> the network's heading input ``(n, 4)`` float32."""
+    return ((masks[:, None] >> np.arange(NUM_HEADINGS)) & 1).astype(np.float32)
+
+
+class _StepWeights:
+    """The network's weights rearranged for one batched inference step (module docstring); built once per agent.
+
+    Attributes:
+        conv: ``(75, 144)``: row k is ``image_conv.0``'s (bias-free, flattened) response to the k-th unit image in
+            MiniGrid's flat ``[x, y, channel]`` order. The conv is linear, so ``image.reshape(n, 75) @ conv +
+            conv_bias`` is the conv on the transposed image, and each entry is one conv weight exactly.
+        conv_bias: ``(144,)``, the conv bias repeated per output position.
+        gate_bias: ``(16, 1024)``: for each heading mask m, ``W_ih[:, 144:] @ scalar_embed(onehot(m)) + b_ih + b_hh``
+            -- every part of the LSTM's gates that depends on neither the image nor the hidden state. A table over
+            all 16 masks covers both the true one-hot and the quirk's unions.
+        w_image: ``(144, 1024)`` = ``W_ih[:, :144]ᵀ``.  w_hidden: ``(256, 1024)`` = ``W_hhᵀ``.
+        actor_w1, actor_b1, actor_w2, actor_b2: The actor's two layers, weights transposed for ``addmm``.
+
+    Gate columns are reordered from PyTorch's (i, f, g, o) to (i, f, o, g) so one sigmoid covers three gates.
+    """
+
+    def __init__(self, net: DCDNetwork) -> None:
+        conv = net.image_conv[0]
+        lstm = net.rnn.rnn
+        hidden = lstm.hidden_size
+        gate_order = torch.cat([torch.arange(0, 2 * hidden), torch.arange(3 * hidden, 4 * hidden),
+                                torch.arange(2 * hidden, 3 * hidden)])
+        w_ih, w_hh = lstm.weight_ih_l0[gate_order], lstm.weight_hh_l0[gate_order]
+        num_image = w_ih.shape[1] - net.scalar_embed.out_features  # 144
+        with torch.no_grad():
+            units = torch.eye(5 * 5 * 3).reshape(-1, 5, 5, 3).permute(0, 3, 1, 2)
+            self.conv = nn.functional.conv2d(units, conv.weight).flatten(1).contiguous()
+            self.conv_bias = conv.bias.repeat_interleave(self.conv.shape[1] // conv.out_channels)
+            onehots = torch.from_numpy(_masks_to_onehot(np.arange(1 << NUM_HEADINGS)))
+            embedded = net.scalar_embed(onehots)
+            bias = (lstm.bias_ih_l0 + lstm.bias_hh_l0)[gate_order]
+            self.gate_bias = (embedded @ w_ih[:, num_image:].T + bias).contiguous()
+            self.w_image = w_ih[:, :num_image].T.contiguous()
+            self.w_hidden = w_hh.T.contiguous()
+            actor1, actor2 = net.actor[0][0], net.actor[1].linear
+            self.actor_w1, self.actor_b1 = actor1.weight.T.contiguous(), actor1.bias.detach().clone()
+            self.actor_w2, self.actor_b2 = actor2.weight.T.contiguous(), actor2.bias.detach().clone()
+
+
 class DCDAgent(Agent):
     """A recurrent, stochastic ACCEL policy; its state is the LSTM's ``(h, c)``, each ``(n, 256)`` float32.
 
@@ -96,42 +145,45 @@ class DCDAgent(Agent):
         self.network = network.eval()
         self.heading_quirk = heading_quirk
         self.quirk_group = quirk_group
-        lstm = network.rnn.rnn
-        self._cell = nn.LSTMCell(lstm.input_size, lstm.hidden_size)
-        with torch.no_grad():
-            self._cell.weight_ih.copy_(lstm.weight_ih_l0)
-            self._cell.weight_hh.copy_(lstm.weight_hh_l0)
-            self._cell.bias_ih.copy_(lstm.bias_ih_l0)
-            self._cell.bias_hh.copy_(lstm.bias_hh_l0)
-        self._cell.eval()
+        self._step = _StepWeights(network)
 
     def initial_state(self, batch_size: int) -> AgentState:
         zeros = torch.zeros(batch_size, HIDDEN_SIZE)
         return (zeros, zeros.clone())
 
-    def heading_onehot(self, direction: np.ndarray) -> np.ndarray:
-        """The heading input ``(n, 4)`` float32: a true one-hot, or the quirk's per-group union.
+    def heading_masks(self, direction: np.ndarray) -> np.ndarray:
+        """The heading input ``(n,)`` int64 as 4-bit masks: ``1 << direction``, or the quirk's per-group union (OR).
 
         A true one-hot is the quirk with groups of one row, so both go through the same code.
         """
-        n = len(direction)
+        bits = np.left_shift(1, np.asarray(direction, dtype=np.int64))
+        n = len(bits)
         group_size = (self.quirk_group or max(n, 1)) if self.heading_quirk else 1
-        group = np.arange(n) // group_size
-        present = np.zeros((group[-1] + 1 if n else 0, NUM_HEADINGS), dtype=np.float32)
-        present[group, direction] = 1.0
-        return present[group]
+        if group_size == 1:
+            return bits
+        starts = np.arange(0, n, group_size)
+        return np.repeat(np.bitwise_or.reduceat(bits, starts), np.diff(starts, append=n))
+
+    def heading_onehot(self, direction: np.ndarray) -> np.ndarray:
+        """The heading input ``(n, 4)`` float32 that the network sees: :meth:`heading_masks` as one-hot rows."""
+        return _masks_to_onehot(self.heading_masks(direction))
 
     def logits(self, obs: Observation, state: AgentState) -> tuple[torch.Tensor, AgentState]:
         """One network step: action logits ``(n, 7)`` and the next ``(h, c)``; no sampling."""
-        net = self.network
-        direction = np.asarray(obs["direction"], dtype=np.int64)
+        w = self._step
+        h, c = state
+        masks = torch.from_numpy(self.heading_masks(obs["direction"]))
+        image = np.ascontiguousarray(obs["image"]).reshape(len(masks), -1)
         with torch.inference_mode():
-            # MiniGrid's image is [x, y, channel]; DCD scaled it by 1/10 and moved channels first -> (3, x, y).
-            image = torch.from_numpy(np.ascontiguousarray(obs["image"])).permute(0, 3, 1, 2).float() / 10.0
-            in_image = net.image_conv(image)
-            in_scalar = net.scalar_embed(torch.from_numpy(self.heading_onehot(direction)))
-            h, c = self._cell(torch.cat((in_image, in_scalar), dim=1), state)
-            logits = net.actor(h)
+            # MiniGrid's image is [x, y, channel] uint8; DCD scaled it by 1/10 (w.conv absorbs the transpose).
+            features = torch.addmm(w.conv_bias, torch.from_numpy(image).float() / 10.0, w.conv).relu_()
+            gates = w.gate_bias.index_select(0, masks).addmm_(features, w.w_image).addmm_(h, w.w_hidden)
+            # nn.LSTM's cell equations, gates in (i, f, o, g) order.
+            sig = gates[:, : 3 * HIDDEN_SIZE].sigmoid()
+            i, f, o = sig[:, :HIDDEN_SIZE], sig[:, HIDDEN_SIZE : 2 * HIDDEN_SIZE], sig[:, 2 * HIDDEN_SIZE :]
+            c = f * c + i * gates[:, 3 * HIDDEN_SIZE :].tanh()
+            h = o * c.tanh()
+            logits = torch.addmm(w.actor_b2, torch.addmm(w.actor_b1, h, w.actor_w1).tanh_(), w.actor_w2)
         return logits, (h, c)
 
     def act(self, obs: Observation, state: AgentState, rng: np.random.Generator) -> tuple[np.ndarray, AgentState]:
