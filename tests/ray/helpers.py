@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import os
 import time
+from pathlib import Path
 
 import numpy as np
 
 from dsage_ray.config import RunConfig
+from dsage_ray.ray.trainable import DSAGETrainable
 from tests.fakes import BitmapDomain
 
 #: A run small enough for a Tune trial to finish in seconds (cf. tests/core/test_runner.py).
@@ -33,15 +36,22 @@ def small_config(**overrides) -> RunConfig:
     return RunConfig.build({**SMALL, **{k.replace("__", "."): v for k, v in overrides.items()}})
 
 
+class RenderableBitmapDomain(BitmapDomain):
+    """``BitmapDomain`` whose elite images also work for int8 solutions (trials write elite PNGs)."""
+
+    def render(self, solution, occupancy):
+        return super().render(np.asarray(solution, dtype=np.float32), occupancy)
+
+
 def bitmap_domain(config: RunConfig) -> BitmapDomain:
-    return BitmapDomain()
+    return RenderableBitmapDomain()
 
 
 #: The seed :class:`SlowBitmapDomain` raises on.
 RAISING_SEED = 13
 
 
-class SlowBitmapDomain(BitmapDomain):
+class SlowBitmapDomain(RenderableBitmapDomain):
     """Each evaluation sleeps ``base + extra·(walls in the first row)`` seconds: uneven episodes.
 
     Evaluating with seed :data:`RAISING_SEED` raises (a simulator bug, not a dead process); a
@@ -69,3 +79,19 @@ def archive_snapshot(archive) -> tuple:
     data = archive.data()
     order = np.argsort(data["index"])
     return (data["index"][order].tolist(), data["objective"][order].tolist(), data["solution"][order].tolist())
+
+
+class CrashOnceTrainable(DSAGETrainable):
+    """Kills its own process after ``crash_after`` steps, once (a marker file remembers)."""
+
+    def setup(self, config, domain_factory=bitmap_domain, crash_marker: str = "", crash_after: int = 2):
+        super().setup(config, domain_factory=domain_factory)
+        self._crash_marker = Path(crash_marker)
+        self._crash_after = crash_after
+
+    def step(self):
+        result = super().step()
+        if self.iteration + 1 == self._crash_after and not self._crash_marker.exists():
+            self._crash_marker.touch()
+            os._exit(1)  # a hard crash: no cleanup, no exception for Tune to catch
+        return result

@@ -1,0 +1,114 @@
+"""The Tune Trainable: steps, checkpoints, restore after a crash, placement groups, resources."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from ray import tune
+
+from dsage_ray.core.runner import DSAGE
+from dsage_ray.ray.experiment import check_resources, run_experiment
+from dsage_ray.ray.pool import PoolResourceError
+from dsage_ray.ray.trainable import STATE_FILE, DSAGETrainable
+from tests.fakes import BitmapDomain
+from tests.ray.helpers import CrashOnceTrainable, archive_snapshot, bitmap_domain, small_config
+
+pytestmark = pytest.mark.usefixtures("ray_session")
+
+
+@pytest.fixture(scope="module")
+def uninterrupted():
+    """The reference: the same config run in-process without Ray."""
+    runner = DSAGE(config=small_config(), domain=BitmapDomain())
+    runner.run()
+    return runner
+
+
+def make_trainable(config) -> DSAGETrainable:
+    return tune.with_parameters(DSAGETrainable, domain_factory=bitmap_domain)(config=config.to_flat())
+
+
+def test_resource_request_has_a_bundle_per_simulator():
+    request = DSAGETrainable.default_resource_request(small_config(ray__num_workers=3).to_flat())
+    assert request.bundles == [{"CPU": 0.5}, {"CPU": 0.5}, {"CPU": 0.5}, {"CPU": 0.5}]
+
+
+def test_step_save_restore_continues_exactly(tmp_path, uninterrupted):
+    config = small_config()
+    first = make_trainable(config)
+    try:
+        result = first.train()
+        assert {"evals", "qd_score", "coverage", "done"} <= set(result)
+        assert result["evals"] == config.n_rand and not result["done"]
+        first.save_checkpoint(str(tmp_path))
+        assert (tmp_path / STATE_FILE).exists()
+    finally:
+        first.stop()
+    second = make_trainable(config)
+    try:
+        second.load_checkpoint(str(tmp_path))
+        while not (result := second.train())["done"]:
+            pass
+        assert result["evals"] == config.budget
+        assert archive_snapshot(second.runner.ground_truth_archive) == archive_snapshot(
+            uninterrupted.ground_truth_archive)
+    finally:
+        second.stop()
+
+
+def test_a_trial_killed_mid_run_restores_and_ends_with_the_uninterrupted_archive(tmp_path, uninterrupted):
+    config = small_config()
+    trainable = tune.with_parameters(CrashOnceTrainable, domain_factory=bitmap_domain,
+                                     crash_marker=str(tmp_path / "crashed"), crash_after=2)
+    results = tune.Tuner(
+        trainable,
+        param_space=config.to_flat(),
+        run_config=tune.RunConfig(
+            name="crash", storage_path=str(tmp_path / "storage"), verbose=0,
+            checkpoint_config=tune.CheckpointConfig(checkpoint_frequency=1, checkpoint_at_end=True),
+            failure_config=tune.FailureConfig(max_failures=1),
+        ),
+    ).fit()
+    assert (tmp_path / "crashed").exists(), "the trial never crashed: the test proves nothing"
+    (result,) = results
+    assert result.error is None
+    assert result.metrics["done"] and result.metrics["evals"] == config.budget
+    # Restored, not restarted: the first step after the crash is step 3 (iteration 2 was checkpointed).
+    assert result.metrics["training_iteration"] == len(uninterrupted.history)
+    assert result.metrics["pool_in_trial_placement_group"] == 1.0
+    state = torch.load(Path(result.checkpoint.path) / STATE_FILE, weights_only=False)
+    assert archive_snapshot(state["archive"]) == archive_snapshot(uninterrupted.ground_truth_archive)
+    history = result.metrics_dataframe
+    assert list(history["training_iteration"]) == sorted(set(history["training_iteration"]))
+
+
+def test_an_impossible_trial_request_fails_with_a_clear_message(tmp_path):
+    config = small_config(ray__num_workers=8, ray__cpus_per_worker=1.0)
+    with pytest.raises(PoolResourceError, match=r"ray.num_workers=8"):
+        check_resources(config)
+
+
+def test_tune_run_grid_writes_tensorboard_scalars_and_images(tmp_path):
+    """``tune.run`` here; the Tuner path is exercised by the crash test and the ablation test."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    config = small_config(budget=70)
+    space = {**config.to_flat(), "seed": tune.grid_search([0, 1])}
+    for api in ("run",):
+        path = run_experiment(space, name=f"tb_{api}", storage_path=tmp_path, api=api, max_failures=0,
+                              domain_factory=bitmap_domain, verbose=0)
+        trial_dirs = sorted(p.parent for p in path.glob("*/params.json"))
+        assert len(trial_dirs) == 2
+        for trial_dir in trial_dirs:
+            scalars, images = set(), set()
+            for event_file in trial_dir.glob("events.out.tfevents.*"):
+                accumulator = EventAccumulator(str(event_file), size_guidance={"images": 0})
+                accumulator.Reload()
+                scalars |= set(accumulator.Tags()["scalars"])
+                images |= set(accumulator.Tags()["images"])
+            assert "ray/tune/qd_score" in scalars
+            assert {"archive/heatmap", "surrogate/predicted_vs_true_measures"} <= images
+            assert (trial_dir / "archive.csv").exists() and (trial_dir / "metrics.json").exists()
