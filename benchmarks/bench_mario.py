@@ -7,6 +7,7 @@ second of wall clock is the per-core rate when the core is free; on a shared mac
 per CPU-second of this process is the steadier number, and both are printed.
 
     python benchmarks/bench_mario.py [--levels 20] [--astar-iterations 1000] [--json]
+    python benchmarks/bench_mario.py --completion-share 50   # A* on GAN levels vs human windows
 """
 
 from __future__ import annotations
@@ -34,7 +35,13 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--gan-batch", type=int, default=256)
     parser.add_argument("--gan-levels", type=int, default=1024)
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--completion-share", type=int, default=0, metavar="N",
+                        help="instead: share of N generated levels (latent seed 1) and of N evenly spaced "
+                             "human windows that the A* agent completes")
+    parser.add_argument("--sets", default="generated,human", help="with --completion-share: which level sets")
     args = parser.parse_args(argv)
+    if args.completion_share:
+        return completion_share(args)
 
     import numpy as np
     import torch
@@ -103,6 +110,41 @@ def main(argv: list[str] | None = None) -> dict:
     else:
         for key, value in report.items():
             print(f"{key:28s} {value}")
+    return report
+
+
+def completion_share(args: argparse.Namespace) -> dict:
+    """A* completion on generated levels next to human-authored windows of the same size."""
+    import numpy as np
+
+    from dsage_ray.domains.mario.generator import latents_to_levels, load_generator
+    from dsage_ray.domains.mario.human_levels import human_windows
+    from dsage_ray.domains.mario.simulator import MarioSimulator
+
+    n = args.completion_share
+    wanted = args.sets.split(",")
+    sets = {}
+    if "generated" in wanted:
+        sets["generated"] = latents_to_levels(load_generator("builtin"), np.random.default_rng(1).standard_normal((n, 32)))
+    if "human" in wanted:
+        windows = human_windows()
+        sets["human"] = windows[np.linspace(0, len(windows) - 1, n).round().astype(int)]
+    simulator = MarioSimulator(timer=args.timer, astar_iterations=args.astar_iterations)
+    report: dict = {"n": n, "astar_iterations": args.astar_iterations, "timer": args.timer}
+    for name, levels in sets.items():
+        t0 = time.perf_counter()
+        episodes = [simulator.play(level) for level in levels]
+        statuses = collections.Counter(e.status for e in episodes)
+        report[name] = {
+            "completed_share": round(statuses.get("WIN", 0) / n, 3),
+            "mean_completion": round(float(np.mean([e.completion for e in episodes])), 3),
+            "status": dict(statuses),
+            "mean_jumps": round(float(np.mean([e.jumps for e in episodes])), 2),
+            "mean_sky_tiles": round(float(np.mean([np.count_nonzero(lv[:9]) for lv in levels])), 1),
+            "wall_s": round(time.perf_counter() - t0, 1),
+        }
+        print(json.dumps({name: report[name]}), flush=True)
+    print(json.dumps(report))
     return report
 
 

@@ -322,6 +322,13 @@ class MarioSimulator:
         start = time.perf_counter()
         deadline = start + self.episode_timeout_s
         path: list[tuple[float, float]] = []
+
+        def unfinished(status: str, error: str) -> EpisodeResult:
+            # An episode that did not reach a game end has no completion; the evaluation fails.
+            return EpisodeResult(status=status, completion=float("nan"), jumps=0, kills=0, ticks=len(path),
+                                 path=np.asarray(path, dtype=np.float32).reshape(-1, 2),
+                                 wall_s=time.perf_counter() - start, deterministic=deterministic, error=error)
+
         try:
             world = j.MarioWorld(None, 1)
             world.visuals = False
@@ -336,11 +343,8 @@ class MarioSimulator:
             running = j.GameStatus.RUNNING
             while world.gameStatus == running:
                 if time.perf_counter() > deadline:
-                    return EpisodeResult(
-                        status=WALL_CLOCK_TIMEOUT, completion=float("nan"), jumps=0, kills=0, ticks=len(path),
-                        path=np.asarray(path, dtype=np.float32).reshape(-1, 2), wall_s=time.perf_counter() - start,
-                        deterministic=deterministic,
-                        error=f"episode exceeded {self.episode_timeout_s:g} s of wall clock after {len(path)} ticks")
+                    return unfinished(WALL_CLOCK_TIMEOUT, f"episode exceeded {self.episode_timeout_s:g} s of "
+                                                          f"wall clock after {len(path)} ticks")
                 actions = agent.getActions(j.MarioForwardModel(world.clone()), make_timer())
                 world.update(actions)
                 game_events.addAll(world.lastFrameEvents)
@@ -350,10 +354,9 @@ class MarioSimulator:
                                                    mario.onGround, world.currentTick))
                 path.append((x, y))
             result = j.MarioResult(world, game_events, agent_events)
-            completion = float(result.getCompletionPercentage())
-            episode = EpisodeResult(
+            return EpisodeResult(
                 status=str(result.getGameStatus().toString()),
-                completion=completion,
+                completion=float(result.getCompletionPercentage()),
                 jumps=int(result.getNumJumps()),
                 kills=int(result.getKillsTotal()),
                 ticks=len(path),
@@ -369,8 +372,4 @@ class MarioSimulator:
                 },
             )
         except j.JException as exc:
-            return EpisodeResult(status=JAVA_ERROR, completion=float("nan"), jumps=0, kills=0, ticks=len(path),
-                                 path=np.asarray(path, dtype=np.float32).reshape(-1, 2),
-                                 wall_s=time.perf_counter() - start, deterministic=deterministic,
-                                 error=f"{exc.getClass().getName()}: {exc.getMessage()}")
-        return episode
+            return unfinished(JAVA_ERROR, f"{exc.getClass().getName()}: {exc.getMessage()}")
