@@ -118,7 +118,10 @@ def main() -> None:
     print(f"MiniGrid-stepped reference    : mean {ref[0].mean():.3f} s CPU  {ref[1].mean():.3f} s wall per maze "
           f"(CPU max {ref[0].max():.3f} s)")
     print(f"ratio (reference / evaluate): {ref[0].mean() / sim[0].mean():.1f}x CPU, {ref[1].mean() / sim[1].mean():.1f}x wall")
-    verdict = "met" if sim[0].mean() <= TARGET_S else "NOT met"
+    if spec.startswith("dcd:"):
+        verdict = "met" if sim[0].mean() <= TARGET_S else "NOT met"
+    else:
+        verdict = "n/a (the target is for the ACCEL agent)"
     print(f"target mean <= {TARGET_S} s per maze on one core (CPU time): {verdict}")
 
 
