@@ -27,6 +27,10 @@ from dsage_ray.ray.trainable import DSAGETrainable, resource_request
 TuneApi = Literal["tuner", "run"]
 
 
+class ExperimentInterrupted(RuntimeError):
+    """Tune returned before every trial spent its budget (Ctrl+C, a stopped driver)."""
+
+
 def connect(address: str | None = None, *, num_cpus: int | None = None) -> None:
     """Joins the cluster at ``address`` (or ``RAY_ADDRESS``), else starts a local one.
 
@@ -121,6 +125,7 @@ def run_experiment(
             resume="AUTO+ERRORED" if resume else False,
             verbose=verbose,
         )
+        _check_finished(name, [trial.last_result for trial in analysis.trials])
         return Path(analysis.experiment_path)
 
     if resume and tune.Tuner.can_restore(experiment_path):
@@ -141,4 +146,12 @@ def run_experiment(
     errors = [result.error for result in results if result.error is not None]
     if errors:
         raise tune.TuneError(f"{len(errors)} trial(s) failed; first error: {errors[0]}")
+    _check_finished(name, [result.metrics for result in results])
     return Path(results.experiment_path)
+
+
+def _check_finished(name: str, last_results: list[dict[str, Any] | None]) -> None:
+    unfinished = sum(not (result or {}).get("done") for result in last_results)
+    if unfinished:
+        raise ExperimentInterrupted(
+            f"{unfinished} of {len(last_results)} trials of {name!r} did not finish; continue them with --resume")
