@@ -266,7 +266,7 @@ class RunConfig:
 # ------------------------------------------------------------------------------- presets, variants
 
 #: Per-domain presets: ``paper`` reproduces the paper's numbers; ``cpu`` finishes well under an hour
-#: on 2 cores; ``tiny`` is for tests and smoke runs.
+#: on 2 cores; ``demo`` is the few-minute run of ``make run``; ``tiny`` is for tests and smoke runs.
 PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     "maze": {
         "paper": {},
@@ -275,8 +275,16 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
             "n_rand": 100,
             "maze.episodes": 50,
             "surrogate.epochs": 20,
-            "surrogate.train_window": 20_000,
-            "qd.exploit_iterations": 200,
+            "surrogate.train_window": 2_000,
+            "qd.exploit_iterations": 300,
+            "selection.count": 200,
+        },
+        "demo": {
+            "budget": 500,
+            "n_rand": 100,
+            "maze.episodes": 50,
+            "surrogate.epochs": 10,
+            "qd.exploit_iterations": 100,
             "selection.count": 100,
         },
         "tiny": {

@@ -221,7 +221,9 @@ class DSAGE:
         progress = None
         if self.progress is not None:
             total = self.config.qd.exploit_iterations
-            progress = lambda done: self.progress("exploit", done, total)  # noqa: E731
+            done = iter(range(1, total + 1))
+            # run_inner_loop reports one increment per iteration; our callback takes a running count.
+            progress = lambda _increment: self.progress("exploit", next(done), total)  # noqa: E731
         run_inner_loop(scheduler, predict, self.config.qd.exploit_iterations, progress=progress)
         return archive
 
