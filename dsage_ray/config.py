@@ -270,22 +270,31 @@ class RunConfig:
 PRESETS: dict[str, dict[str, dict[str, Any]]] = {
     "maze": {
         "paper": {},
+        # CPU presets scale the paper's loop down (SPEC §4: one paper inner loop is ~20 minutes of
+        # surrogate predictions on 2 cores). A shorter inner loop fills a smaller surrogate archive,
+        # so blocks are smaller to keep a useful number of picks per outer iteration, and a smaller
+        # batch gives the surrogate enough Adam steps on the few samples it has early on.
         "cpu": {
             "budget": 2_000,
             "n_rand": 100,
             "maze.episodes": 50,
-            "surrogate.epochs": 20,
-            "surrogate.train_window": 2_000,
+            "surrogate.epochs": 10,
+            "surrogate.batch_size": 16,
+            "surrogate.train_window": 1_000,
             "qd.exploit_iterations": 300,
-            "selection.count": 200,
+            "selection.block": (4, 3),
+            "selection.count": 100,
         },
         "demo": {
             "budget": 500,
             "n_rand": 100,
             "maze.episodes": 50,
-            "surrogate.epochs": 10,
+            "surrogate.epochs": 20,
+            "surrogate.batch_size": 16,
+            "surrogate.train_window": 1_000,
             "qd.exploit_iterations": 100,
-            "selection.count": 100,
+            "selection.block": (4, 3),
+            "selection.count": 50,
         },
         "tiny": {
             "budget": 150,
