@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml
 venv: $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/dsage-ray run experiments/configs/maze_dsage.toml --preset cpu
+	$(BIN)/dsage-ray run experiments/configs/maze_dsage.toml --preset demo
 
 test: $(STAMP)
 	RAY_AUTH_MODE=disabled $(BIN)/python -m pytest -q
