@@ -12,6 +12,7 @@ from pathlib import Path
 _COMMAND_MODULES = (
     "dsage_ray.domains.maze.cli",
     "dsage_ray.domains.mario.cli",
+    "dsage_ray.audit.cli",
 )
 
 

@@ -1,0 +1,7 @@
+"""Auditing a trained agent: search for the mazes where it fails, save them reproducibly, compare agents.
+
+* :func:`dsage_ray.audit.run.run_audit` — DSAGE with a failure-eliciting objective, then a collection;
+* :mod:`dsage_ray.audit.collection` — the collection format and how its seeds make every number reproducible;
+* :mod:`dsage_ray.audit.report` — ``report.html`` and the comparison page;
+* :func:`dsage_ray.audit.compare.compare_agents` — two agents on one collection with the same seeds.
+"""

@@ -1,0 +1,73 @@
+"""``run_audit``: the DSAGE search (through Ray Tune, or in this process) followed by the collection."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from dsage_ray.audit.collection import build_collection
+from dsage_ray.config import RunConfig
+
+
+def run_audit(
+    config: RunConfig,
+    *,
+    out_dir: str | Path,
+    local: bool = False,
+    workers: int | None = None,
+    address: str | None = None,
+    resume: bool = False,
+    episodes: int | None = None,
+    max_levels: int | None = None,
+) -> Path:
+    """Searches for failures of ``config.maze.agent`` and writes the collection; returns its folder.
+
+    Args:
+        config: An audit config (:func:`dsage_ray.audit.collection.audit_config`).
+        out_dir: Audit folder: the search goes to ``out_dir/search``, the collection to ``out_dir/collection``.
+        local: Run the search and the re-evaluations in this process instead of through Ray.
+        workers: Simulator actors (sets ``ray.num_workers``).
+        address: Ray cluster to join (default ``RAY_ADDRESS`` or a new local one).
+        resume: Continue an interrupted search from its last checkpoint.
+        episodes: Episodes per re-evaluation in the collection (default ``config.maze.episodes``).
+        max_levels: Keep only this many of the worst elites.
+    """
+    out_dir = Path(out_dir)
+    search_dir = out_dir / "search"
+    if workers is not None:
+        config = config.replace(**{"ray.num_workers": workers})
+    collection_config = config if episodes is None else config.replace(**{"maze.episodes": int(episodes)})
+    if local:
+        from dsage_ray.cli import run_locally
+        from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint
+
+        run_locally(config, out_dir=search_dir, resume=resume)
+        archive = load_checkpoint(search_dir / CHECKPOINT_NAME)["archive"]
+        return build_collection(archive, config=collection_config, out_dir=out_dir / "collection",
+                                max_levels=max_levels, search_dir=search_dir)
+
+    from dsage_ray.ray.cli import run_with_tune
+    from dsage_ray.ray.pool import SimulatorPool
+
+    experiment = run_with_tune(config, address=address, resume=resume, out_dir=search_dir)
+    archive = _final_archive(Path(experiment))
+    pool = SimulatorPool(config=collection_config) if collection_config.ray.num_workers > 0 else None
+    try:
+        return build_collection(archive, config=collection_config, out_dir=out_dir / "collection",
+                                evaluator=pool, max_levels=max_levels, search_dir=experiment)
+    finally:
+        if pool is not None:
+            pool.close()
+
+
+def _final_archive(experiment: Path):
+    """The ground-truth archive in the latest Tune checkpoint of the (single) trial in ``experiment``."""
+    import torch
+
+    from dsage_ray.ray.trainable import STATE_FILE
+
+    states = sorted(experiment.glob(f"*/checkpoint_*/{STATE_FILE}"),
+                    key=lambda p: int(p.parent.name.rsplit("_", 1)[-1]))
+    if not states:
+        raise RuntimeError(f"{experiment}: the search left no checkpoint ({STATE_FILE}) to read the archive from")
+    # Our own file (archives and RNG states, not only tensors), so weights_only=False is safe.
+    return torch.load(states[-1], map_location="cpu", weights_only=False)["archive"]
