@@ -60,7 +60,8 @@ def main() -> int:
     args = parse_args()
     os.environ.setdefault("RAY_AUTH_MODE", "disabled")
     from dsage_ray.config import RunConfig, parse_override
-    from dsage_ray.ray.experiment import check_resources, connect, grid_param_space, run_experiment
+    from dsage_ray.ray.experiment import (ExperimentInterrupted, check_resources, connect, grid_param_space,
+                                          run_experiment)
 
     # 1. The base config: domain + preset, the tiny preset's Ray sizing, then explicit overrides.
     values = {"domain": args.domain, "preset": args.preset}
@@ -87,8 +88,13 @@ def main() -> int:
     # 4. Run every trial to its evaluation budget (Tune stops a trial when it reports done=True).
     print(f"{name}: {len(variants)} variants × {len(seeds)} seeds via {args.api}, storage {args.storage}")
     started = time.perf_counter()
-    path = run_experiment(param_space, name=name, storage_path=args.storage, api=args.api, resume=args.resume,
-                          max_failures=args.max_failures, checkpoint_every=base.checkpoint_every)
+    try:
+        path = run_experiment(param_space, name=name, storage_path=args.storage, api=args.api,
+                              resume=args.resume, max_failures=args.max_failures,
+                              checkpoint_every=base.checkpoint_every)
+    except ExperimentInterrupted as exc:
+        print(f"interrupted: {exc}")
+        return 130
     print(f"done in {time.perf_counter() - started:.0f}s: {path}")
     print(f"table: python {Path(__file__).with_name('summarize.py')} {path}")
     print(f"TensorBoard: tensorboard --logdir {path}")
