@@ -107,13 +107,16 @@ def resolve_module_dir(target: str, *, policy: str = "default_policy") -> Path:
     if not path.is_dir():
         raise AgentError(f"rllib checkpoint {str(path)!r}: not a folder (expected an RLlib algorithm "
                          f"or RLModule checkpoint folder)")
-    for candidate in (path / MODULES_SUBDIR / policy, path / "rl_module" / policy, path):
-        if (candidate / _CTOR_FILE).is_file():
-            return candidate
-    if (path / MODULES_SUBDIR).is_dir():
-        found = sorted(p.name for p in (path / MODULES_SUBDIR).iterdir() if p.is_dir())
-        raise AgentError(f"rllib checkpoint {str(path)!r}: no module {policy!r} (modules: {', '.join(found) or 'none'}); "
-                         f"pick one with ?policy=NAME")
+    # An algorithm (or learner) checkpoint has its own class file at the top: look for modules first.
+    for modules in (path / MODULES_SUBDIR, path / "rl_module"):
+        if modules.is_dir():
+            if (modules / policy / _CTOR_FILE).is_file():
+                return modules / policy
+            found = sorted(p.name for p in modules.iterdir() if p.is_dir())
+            raise AgentError(f"rllib checkpoint {str(path)!r}: no module {policy!r} (modules: "
+                             f"{', '.join(found) or 'none'}); pick one with ?policy=NAME")
+    if (path / _CTOR_FILE).is_file():
+        return path
     raise AgentError(f"rllib checkpoint {str(path)!r}: not an RLlib checkpoint (no {_CTOR_FILE} and no "
                      f"{MODULES_SUBDIR.as_posix()}/ inside)")
 
