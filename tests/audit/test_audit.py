@@ -1,0 +1,118 @@
+"""Audit end to end on a tiny budget: a complete collection whose every number re-evaluates exactly."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dsage_ray.audit.collection import audit_config, level_seed, load_collection
+from dsage_ray.audit.compare import compare_agents, format_comparison
+from dsage_ray.audit.report import region_statistics
+from dsage_ray.cli import main
+
+AUDITED = "builtin:random"
+
+
+@pytest.fixture(scope="module")
+def collection(tmp_path_factory) -> Path:
+    """``dsage-ray audit --local`` on 24 random solutions (one outer iteration), 4 episodes per level."""
+    out = tmp_path_factory.mktemp("audit")
+    code = main(["audit", "--agent", AUDITED, "--preset", "tiny", "--budget", "24", "--set", "n_rand=24",
+                 "--set", "maze.episodes=4", "--seed", "3", "--local", "--out", str(out)])
+    assert code == 0
+    return out / "collection"
+
+
+def test_collection_is_complete(collection):
+    c = load_collection(collection)
+    assert c["agent"] == AUDITED and c["objective"] == "failure_rate"
+    assert c["measures"] == ["num_walls", "optimal_path_length"]
+    levels = c["levels"]
+    assert 0 < len(levels) <= c["search_elites"]
+    assert len(levels) == c["search_elites"] - c["search_invalid_elites"]
+    for key in ("layout", "start", "goal", "measures", "success_rate", "mean_path_length", "episode_lengths", "seed"):
+        assert all(key in lv for lv in levels), key
+    for lv in levels:
+        assert (collection / lv["layout_file"]).read_text() == lv["layout"]
+        assert (collection / lv["image_file"]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert len(lv["episode_lengths"]) == lv["episodes"] == 4
+        assert lv["objective"] == pytest.approx(1 - lv["success_rate"])
+    objectives = [lv["objective"] for lv in levels]
+    assert objectives == sorted(objectives, reverse=True), "worst first"
+    assert (collection / "heatmap.png").is_file()
+    # Seeds follow the documented rule and are distinct.
+    assert len({lv["seed"] for lv in levels}) == len(levels)
+    assert {lv["seed"] for lv in levels} <= {level_seed(3, r) for r in range(c["search_elites"])}
+
+
+def test_every_level_re_evaluates_to_its_recorded_numbers(collection, capsys):
+    """Through the public CLI, exactly as the report tells a user to do it."""
+    c = load_collection(collection)
+    for lv in c["levels"]:
+        capsys.readouterr()
+        assert main(["maze", "eval", "--agent", c["agent"], "--layout", str(collection / lv["layout_file"]),
+                     "--episodes", str(lv["episodes"]), "--seed", str(lv["seed"]), "--json"]) == 0
+        again = json.loads(capsys.readouterr().out)
+        assert again["success_rate"] == lv["success_rate"]
+        assert again["mean_path_length"] == lv["mean_path_length"]
+        assert again["episode_lengths"] == lv["episode_lengths"]
+        assert [again["start"], again["goal"]] == [lv["start"], lv["goal"]]
+        assert again["optimal_path_length"] == lv["optimal_path_length"] == lv["measures"]["optimal_path_length"]
+        assert again["num_walls"] == lv["num_walls"] == lv["measures"]["num_walls"]
+
+
+def test_report_is_self_contained(collection):
+    page = (collection / "report.html").read_text()
+    assert page.count("data:image/png;base64,") >= 2  # heatmap + at least one level
+    for href in re.findall(r"href='([^']+)'", page):
+        assert (collection / href).is_file(), f"broken link {href}"
+    assert "Per-region statistics" in page
+
+
+def test_region_statistics_partition_the_levels(collection):
+    c = load_collection(collection)
+    regions = region_statistics(c["levels"], c["measures"])
+    assert sum(r["levels"] for r in regions) == len(c["levels"])
+    ids = {lv["id"] for lv in c["levels"]}
+    assert all(r["worst"] in ids and 0 <= r["min_success_rate"] <= r["success_rate"] <= 1 for r in regions)
+
+
+def test_compare_uses_the_recorded_seeds(collection, tmp_path):
+    """With A = the audited agent, A's column must equal the collection's numbers exactly."""
+    html = tmp_path / "compare.html"
+    comparison = compare_agents(AUDITED, "builtin:wall_follower", collection_dir=collection, html_path=html)
+    recorded = {lv["id"]: lv for lv in load_collection(collection)["levels"]}
+    assert len(comparison["levels"]) == len(recorded)
+    for row in comparison["levels"]:
+        assert row["success_a"] == recorded[row["id"]]["success_rate"]
+        assert row["path_a"] == recorded[row["id"]]["mean_path_length"]
+        delta = row["success_b"] - row["success_a"]
+        assert row["verdict"] == ("worse" if delta < -0.1 else "better" if delta > 0.1 else "same")
+    deltas = [r["success_b"] - r["success_a"] for r in comparison["levels"]]
+    assert deltas == sorted(deltas), "B's regressions first"
+    s = comparison["summary"]
+    assert s["b_worse"] + s["b_better"] <= s["levels"]
+    assert s["success_a"] == pytest.approx(np.mean([lv["success_rate"] for lv in recorded.values()]))
+    assert "B worse on" in format_comparison(comparison)
+    assert html.read_text().startswith("<!DOCTYPE html>")
+
+
+def test_compare_cli(collection, tmp_path, capsys):
+    html = tmp_path / "c.html"
+    assert main(["compare", "--agent", "builtin:wall_follower", "--agent", AUDITED, "--collection", str(collection),
+                 "--html", str(html)]) == 0
+    out = capsys.readouterr().out
+    assert "A = builtin:wall_follower" in out and "B = builtin:random" in out and html.is_file()
+    with pytest.raises(SystemExit, match="exactly two agents"):
+        main(["compare", "--agent", AUDITED, "--collection", str(collection)])
+
+
+def test_audit_config_rejects_non_failure_objectives():
+    with pytest.raises(ValueError, match="failure_rate' or 'regret"):
+        audit_config(agent=AUDITED, objective="validity")
+    config = audit_config(agent=AUDITED, objective="regret", measures=("num_walls", "mean_path_length"))
+    assert config.maze.objective == "regret" and config.maze.archive_dims == (256, 648)
