@@ -27,6 +27,7 @@ Options (``rllib:PATH?policy=default_policy&greedy=0``):
 from __future__ import annotations
 
 import io
+import logging
 import pickle
 from pathlib import Path
 from typing import Any
@@ -176,10 +177,17 @@ def load_rllib_module(target: str, *, policy: str = "default_policy"):
     """Loads only the RLModule a checkpoint holds (no Ray cluster), with its spaces checked."""
     module_dir = resolve_module_dir(target, policy=policy)
     cls = module_class(module_dir)
+    # RLlib re-creates modules it saved during training through a constructor it has itself deprecated and
+    # warns about it on every load; nothing the user can act on.
+    rlm_logger = logging.getLogger("ray._common.deprecation")
+    level = rlm_logger.level
+    rlm_logger.setLevel(logging.ERROR)
     try:
         module = cls.from_checkpoint(module_dir.resolve())  # relative paths read as URIs without a scheme
     except Exception as exc:  # noqa: BLE001 - missing/corrupt state files surface as many types
         raise AgentError(f"rllib checkpoint {str(module_dir)!r}: cannot load the module ({describe_exception(exc)})") from None
+    finally:
+        rlm_logger.setLevel(level)
     check_spaces(module, source=str(module_dir))
     return module
 
