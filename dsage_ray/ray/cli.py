@@ -24,7 +24,11 @@ def run_with_tune(
     out_dir: str | Path = "tb_logs",
     max_failures: int = 2,
 ) -> Path:
-    """Runs one DSAGE run as a single Tune trial; returns its experiment folder.
+    """Runs one DSAGE run as a single Tune trial; returns its trial folder.
+
+    The trial folder (``out_dir/<name>/<trial>``) holds the run outputs (``metrics.json``,
+    ``archive.csv``, ``heatmap.png``, elites), Tune's results and checkpoints and the TensorBoard
+    files. ``resume=True`` continues ``out_dir/<name>``, so pass the same ``out_dir`` again.
 
     Args:
         config: The run's config; its ``name`` names the experiment folder.
@@ -39,8 +43,10 @@ def run_with_tune(
         config = config.replace(ray__num_workers=workers)
     connect(address)
     check_resources(config)
-    return run_experiment(config.to_flat(), name=config.name, storage_path=out_dir, api="tuner", resume=resume,
-                          max_failures=max_failures, checkpoint_every=config.checkpoint_every)
+    experiment = run_experiment(config.to_flat(), name=config.name, storage_path=out_dir, api="tuner",
+                                resume=resume, max_failures=max_failures, checkpoint_every=config.checkpoint_every)
+    (trial_dir,) = {params.parent for params in experiment.glob("*/params.json")}
+    return trial_dir
 
 
 def ablate(
