@@ -69,6 +69,8 @@ class Domain(Protocol):
     occupancy_shape: tuple[int, int]
     #: Channels of :meth:`encode`'s output.
     encoding_channels: int
+    #: How archives store solutions (``int8`` for bitmaps keeps a 100k-elite archive small).
+    solution_dtype: type
 
     def random_solutions(self, n: int, rng: np.random.Generator) -> Solutions:
         """Samples ``n`` solutions the way DR and the first outer iteration do."""
