@@ -27,11 +27,6 @@ PAPER_VARIANTS = {
 }
 TINY_VARIANTS = {"maze": ["dsage", "map_elites", "dr"], "mario": ["dsage", "cma_me", "dr"]}
 
-# The tiny preset's inner loop is so short that its surrogate archive covers only a few 8×6
-# downsampling blocks (≈1 real evaluation per outer iteration, >100 iterations): smaller blocks
-# give a smoke run a handful of evaluations per iteration.
-TINY_OVERRIDES = {"selection.block": (2, 2)}
-
 # Ray keys for the tiny preset: 1 CPU per trial (half for the trial, half for one simulator), so
 # two trials run side by side on a 2-core machine.
 TINY_RAY = {"ray.num_workers": 1, "ray.cpus_per_worker": 0.5, "ray.trial_cpus": 0.5}
@@ -40,7 +35,7 @@ TINY_RAY = {"ray.num_workers": 1, "ray.cpus_per_worker": 0.5, "ray.trial_cpus": 
 def parse_args() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--domain", default="maze", choices=["maze", "mario"])
-    parser.add_argument("--preset", default="tiny", choices=["tiny", "cpu", "paper"])
+    parser.add_argument("--preset", default="tiny", choices=["tiny", "demo", "cpu", "paper"])
     parser.add_argument("--variants", help="comma-separated (default: the paper's; 3 for --preset tiny)")
     parser.add_argument("--seeds", type=int, default=None, help="seeds 0..K-1 (default: 2 for tiny, 5 otherwise)")
     parser.add_argument("--api", default="tuner", choices=["tuner", "run"], help="tune.Tuner or tune.run")
@@ -65,8 +60,6 @@ def main() -> int:
 
     # 1. The base config: domain + preset, the tiny preset's Ray sizing, then explicit overrides.
     values = {"domain": args.domain, "preset": args.preset}
-    if args.preset == "tiny" and args.domain == "maze":
-        values.update(TINY_OVERRIDES)
     if args.preset == "tiny":
         values.update(TINY_RAY)
     if args.workers is not None:

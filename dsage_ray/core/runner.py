@@ -177,8 +177,16 @@ class DSAGE:
         if self.scheduler is not None and len(ok) == full_batch:
             # The emitters need the whole batch they asked for; tell() also adds to the archive.
             self.scheduler.tell(objective, measures, occupancy=occupancy)
-        elif len(ok):
-            self.archive.add(solutions[ok], objective, measures, occupancy=occupancy)
+        else:
+            if len(ok):
+                self.archive.add(solutions[ok], objective, measures, occupancy=occupancy)
+            if self.scheduler is not None:
+                # A batch with failed (or budget-truncated) evaluations cannot be told: pyribs needs
+                # the whole batch it asked for. A fresh scheduler over the same archive and emitters
+                # closes the ask/tell cycle; the emitters simply never learn from this one batch.
+                from ribs.schedulers import Scheduler
+
+                self.scheduler = Scheduler(self.archive, self.scheduler.emitters)
         if self.dataset is not None and len(ok):
             self.dataset.append(encoded=encoded, results=results)
         if predicted is not None and len(ok):

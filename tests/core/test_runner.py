@@ -132,3 +132,15 @@ def test_write_outputs(tmp_path):
     assert (tmp_path / "heatmap.png").read_bytes()[:4] == b"\x89PNG"
     assert list((tmp_path / "elites").glob("elite_*.png"))
     assert not [p for p in tmp_path.rglob("*.tmp")]
+
+
+@pytest.mark.parametrize("variant", ["map_elites", "dr"])
+def test_baseline_survives_batches_with_failed_evaluations(variant):
+    config = RunConfig.build({**SMALL, "variant": variant, "budget": 100})
+    domain = BitmapDomain(fail_on=tuple(range(28, 36)), fail_once=False)  # common wall counts
+    runner = DSAGE(config=config, domain=domain)
+    history = runner.run()
+    assert runner.failures, "the fault injection should have hit some levels"
+    assert history[-1]["evals"] == 100
+    assert len(runner.archive) > 0
+    assert {int(np.sum(f["solution"])) for f in runner.failures} <= set(range(28, 36))
