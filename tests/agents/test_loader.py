@@ -38,7 +38,7 @@ def test_builtin_specs_load_and_record_spec():
     "spec, needle",
     [
         ("nonsense:foo", "unknown kind 'nonsense'"),
-        ("rllib:/tmp/x", "unknown kind 'rllib'"),
+        ("rllib:/tmp/does-not-exist", "not found"),
         ("no_colon", "expected KIND:TARGET"),
         ("builtin:", "expected KIND:TARGET"),
         ("builtin:teleporter", "unknown (known: random, wall_follower)"),
