@@ -17,9 +17,11 @@ _COMMAND_MODULES = (
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="dsage-ray", description=__doc__.split(":")[0])
+    parser = argparse.ArgumentParser(
+        prog="dsage-ray", description="DSAGE on Ray: search for diverse levels where an agent fails.")
     subparsers = parser.add_subparsers(dest="command", required=True)
     _add_run(subparsers)
+    _add_ablate(subparsers)
     for module_name in _COMMAND_MODULES:
         try:
             module = importlib.import_module(module_name)
@@ -52,27 +54,50 @@ def _add_run(subparsers) -> None:
     parser = subparsers.add_parser("run", help="run DSAGE (or a baseline) from a config file")
     parser.add_argument("config", help="a TOML/JSON config, e.g. experiments/configs/maze_dsage.toml")
     add_config_arguments(parser)
-    parser.add_argument("--out", help="run folder (default: tb_logs/<name>-<time>)")
-    parser.add_argument("--resume", action="store_true", help="continue from the run folder's last checkpoint")
+    parser.add_argument("--out", help="output folder (default: tb_logs/<name>; Tune keeps one folder per trial in it)")
+    parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
     parser.add_argument("--local", action="store_true", help="run in this process, without Ray")
     parser.add_argument("--workers", type=int, help="simulator actors (sets ray.num_workers)")
     parser.add_argument("--address", help="join an existing Ray cluster (default: RAY_ADDRESS or a local one)")
     parser.set_defaults(handler=_run)
 
 
+def _add_ablate(subparsers) -> None:
+    parser = subparsers.add_parser("ablate", help="run the paper's variant x seed grid as one Tune experiment")
+    parser.add_argument("config", help="a TOML/JSON config giving the domain and base settings")
+    add_config_arguments(parser)
+    parser.add_argument("--seeds", type=int, default=5, help="seeds 0..K-1 per variant (default 5)")
+    parser.add_argument("--variants", help="comma-separated variants (default: the paper's comparison)")
+    parser.add_argument("--api", choices=["tuner", "run"], default="tuner", help="tune.Tuner or tune.run")
+    parser.add_argument("--out", default="tb_logs", help="storage folder (default tb_logs)")
+    parser.add_argument("--resume", action="store_true", help="continue an interrupted experiment")
+    parser.add_argument("--workers", type=int, help="simulator actors per trial")
+    parser.add_argument("--address", help="join an existing Ray cluster")
+    parser.set_defaults(handler=_ablate)
+
+
 def _run(args: argparse.Namespace) -> int:
     config = load_run_config(args, args.config)
-    if args.workers is not None:
-        config = config.replace(**{"ray.num_workers": args.workers})
-    out = Path(args.out) if args.out else Path("tb_logs") / f"{config.name}-{time.strftime('%Y%m%d-%H%M%S')}"
     if args.local:
+        out = Path(args.out) if args.out else Path("tb_logs") / config.name
         run_dir = run_locally(config, out_dir=out, resume=args.resume)
     else:
         from dsage_ray.ray.cli import run_with_tune
 
-        run_dir = run_with_tune(config, workers=config.ray.num_workers, address=args.address,
-                                resume=args.resume, out_dir=out)
+        run_dir = run_with_tune(config, workers=args.workers, address=args.address, resume=args.resume,
+                                out_dir=Path(args.out or "tb_logs").resolve())
     print(f"run folder: {run_dir}")
+    return 0
+
+
+def _ablate(args: argparse.Namespace) -> int:
+    from dsage_ray.ray.cli import ablate
+
+    config = load_run_config(args, args.config)
+    variants = args.variants.split(",") if args.variants else None
+    folder = ablate(config, seeds=args.seeds, variants=variants, workers=args.workers, address=args.address,
+                    resume=args.resume, out_dir=Path(args.out).resolve(), api=args.api)
+    print(f"experiment folder: {folder}\nsummarise it with: python experiments/summarize.py {folder}")
     return 0
 
 
@@ -95,6 +120,8 @@ def run_locally(config, *, out_dir: Path, resume: bool = False) -> Path:
 
     runner = DSAGE(config=config, progress=progress)
     checkpoint = out_dir / CHECKPOINT_NAME
+    if checkpoint.exists() and not resume:
+        raise ValueError(f"{out_dir} already holds a run: pass --resume to continue it, or another --out")
     if resume:
         runner.load_state_dict(load_checkpoint(checkpoint))
         print(f"resumed at {runner.evals} evaluations, outer iteration {runner.outer_iteration}")

@@ -367,6 +367,13 @@ VARIANTS: dict[str, dict[str, dict[str, Any]]] = {
 }
 
 
+#: The paper's comparison per domain (its Table 2 rows; ``dsage_rsample`` is the appendix ablation).
+PAPER_COMPARISON: dict[str, tuple[str, ...]] = {
+    "maze": ("dsage", "dsage_only_anc", "dsage_only_down", "dsage_basic", "map_elites", "dr"),
+    "mario": ("dsage", "dsage_only_anc", "dsage_only_down", "dsage_basic", "cma_me", "dr"),
+}
+
+
 # ---------------------------------------------------------------------------------------- helpers
 
 def flatten(values: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:

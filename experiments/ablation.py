@@ -21,10 +21,6 @@ import time
 from pathlib import Path
 
 # Both grids in one place: what the paper compares on each domain, and a small grid for smoke runs.
-PAPER_VARIANTS = {
-    "maze": ["dsage", "dsage_only_anc", "dsage_only_down", "dsage_basic", "map_elites", "dr"],
-    "mario": ["dsage", "dsage_only_anc", "dsage_only_down", "dsage_basic", "cma_me", "dr"],
-}
 TINY_VARIANTS = {"maze": ["dsage", "map_elites", "dr"], "mario": ["dsage", "cma_me", "dr"]}
 
 # Ray keys for the tiny preset: 1 CPU per trial (half for the trial, half for one simulator), so
@@ -54,7 +50,7 @@ def parse_args() -> argparse.Namespace:
 def main() -> int:
     args = parse_args()
     os.environ.setdefault("RAY_AUTH_MODE", "disabled")
-    from dsage_ray.config import RunConfig, parse_override
+    from dsage_ray.config import PAPER_COMPARISON, RunConfig, parse_override
     from dsage_ray.ray.experiment import (ExperimentInterrupted, check_resources, connect, grid_param_space,
                                           run_experiment)
 
@@ -69,7 +65,7 @@ def main() -> int:
 
     # 2. The grid: every variant × every seed, each a full DSAGE run.
     variants = (args.variants.split(",") if args.variants
-                else (TINY_VARIANTS if args.preset == "tiny" else PAPER_VARIANTS)[args.domain])
+                else (TINY_VARIANTS if args.preset == "tiny" else PAPER_COMPARISON)[args.domain])
     seeds = list(range(args.seeds if args.seeds is not None else (2 if args.preset == "tiny" else 5)))
     param_space = grid_param_space(base, variants=variants, seeds=seeds)
     name = args.name or f"ablation_{args.domain}_{args.preset}"

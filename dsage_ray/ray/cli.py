@@ -8,11 +8,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
-from dsage_ray.config import RunConfig
+from dsage_ray.config import PAPER_COMPARISON, RunConfig
 from dsage_ray.ray.experiment import TuneApi, check_resources, connect, grid_param_space, run_experiment
-
-#: The paper's Maze comparison (Table 2 rows without the random-selection ablation).
-MAZE_VARIANTS = ("dsage", "dsage_only_anc", "dsage_only_down", "dsage_basic", "map_elites", "dr")
 
 
 def run_with_tune(
@@ -75,8 +72,7 @@ def ablate(
         config = config.replace(ray__num_workers=workers)
     seed_list = list(range(seeds)) if isinstance(seeds, int) else list(seeds)
     if variants is None:
-        variants = MAZE_VARIANTS if config.domain == "maze" else ("dsage", "dsage_only_anc", "dsage_only_down",
-                                                                   "dsage_basic", "cma_me", "dr")
+        variants = PAPER_COMPARISON[config.domain]
     connect(address)
     check_resources(config)
     param_space = grid_param_space(config, variants=variants, seeds=seed_list)
