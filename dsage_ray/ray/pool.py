@@ -286,13 +286,6 @@ class SimulatorPool:
     def __exit__(self, *exc_info: Any) -> None:
         self.close()
 
-    def __del__(self) -> None:
-        # Best effort only; the trainable and the CLI close pools explicitly.
-        try:
-            self.close()
-        except Exception:  # noqa: BLE001
-            pass
-
 
 def check_cluster_fits(*, bundles: list[dict[str, float]], what: str) -> None:
     """Raises :class:`PoolResourceError` when ``bundles`` can never be placed on this cluster.
