@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from dsage_ray.core.metrics import evals_to_reach
+
 
 def load_trials(experiment: Path) -> list[dict]:
     """One record per trial: variant, seed and the per-iteration ``evals``/``qd_score``/``coverage``."""
@@ -46,14 +48,19 @@ def load_trials(experiment: Path) -> list[dict]:
 
 
 def mean_se(values: list[float]) -> tuple[float, float]:
+    """Mean and standard error; the error is NaN for a single run (it is not zero, just unknown)."""
     values = np.asarray(values, dtype=float)
-    se = values.std(ddof=1) / math.sqrt(len(values)) if len(values) > 1 else 0.0
+    se = values.std(ddof=1) / math.sqrt(len(values)) if len(values) > 1 else math.nan
     return float(values.mean()), float(se)
 
 
-def evals_to_reach(trial: dict, target: float) -> float | None:
-    reached = np.flatnonzero(trial["qd_score"] >= target)
-    return float(trial["evals"][reached[0]]) if len(reached) else None
+def fmt(mean: float, se: float, spec: str) -> str:
+    return format(mean, spec) if math.isnan(se) else f"{format(mean, spec)} ± {format(se, spec)}"
+
+
+def trial_evals_to_reach(trial: dict, target: float) -> int | None:
+    history = ({"evals": e, "qd_score": q} for e, q in zip(trial["evals"], trial["qd_score"]))
+    return evals_to_reach(history, target)
 
 
 def table(trials: list[dict], target: float) -> str:
@@ -69,15 +76,14 @@ def table(trials: list[dict], target: float) -> str:
         runs = by_variant[variant]
         qd = mean_se([t["qd_score"][-1] for t in runs])
         cov = mean_se([100 * t["coverage"][-1] for t in runs])
-        reached = [e for e in (evals_to_reach(t, target) for t in runs) if e is not None]
+        reached = [e for e in (trial_evals_to_reach(t, target) for t in runs) if e is not None]
         if reached:
-            m, s = mean_se(reached)
-            to_target = f"{m:,.0f} ± {s:,.0f}" + ("" if len(reached) == len(runs) else f" ({len(reached)}/{len(runs)} runs)")
+            to_target = fmt(*mean_se(reached), ",.0f") + ("" if len(reached) == len(runs) else f" ({len(reached)}/{len(runs)} runs)")
         else:
             to_target = f"not reached (0/{len(runs)})"
         unfinished = sum(not t["done"] for t in runs)
         label = f"{len(runs)}" + (f" ({unfinished} unfinished)" if unfinished else "")
-        lines.append(f"| {variant} | {label} | {qd[0]:.2f} ± {qd[1]:.2f} | {cov[0]:.2f} ± {cov[1]:.2f} | {to_target} |")
+        lines.append(f"| {variant} | {label} | {fmt(*qd, '.1f')} | {fmt(*cov, '.2f')} | {to_target} |")
     return "\n".join(lines)
 
 
