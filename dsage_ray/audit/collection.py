@@ -83,8 +83,10 @@ def audit_config(
         "name": name, "domain": "maze", "variant": "dsage", "preset": preset, "seed": seed,
         "maze.agent": agent, "maze.objective": objective, "maze.measures": tuple(measures),
         "maze.archive_dims": tuple(cells(m) for m in measures),
-        "selection.block": tuple(8 if i == 0 else 6 for i in range(len(measures))),
     }
+    if len(measures) != 2:
+        # The presets' downsampling blocks are per measure for the usual two; keep their scale otherwise.
+        values["selection.block"] = (4,) * len(measures)
     if budget is not None:
         values["budget"] = budget
     values.update(overrides or {})
