@@ -38,6 +38,8 @@ def add_subparser(subparsers) -> None:
     audit.add_argument("--workers", type=int, help="simulator actors (sets ray.num_workers)")
     audit.add_argument("--address", help="join an existing Ray cluster")
     audit.add_argument("--resume", action="store_true", help="continue an interrupted search in --out")
+    audit.add_argument("--collect-only", action="store_true",
+                       help="skip the search: build the collection from the last checkpoint of the search in --out")
     audit.set_defaults(handler=run_audit_command)
 
     compare = subparsers.add_parser(
@@ -73,8 +75,14 @@ def run_audit_command(args: argparse.Namespace) -> int:
                           budget=args.budget, seed=args.seed, name=f"audit_{_slug(args.agent)}",
                           overrides=dict(parse_override(item) for item in args.overrides))
     out = Path(args.out) if args.out else Path("tb_logs") / f"audit-{_slug(args.agent)}-{time.strftime('%Y%m%d-%H%M%S')}"
-    collection = run_audit(config, out_dir=out, local=args.local, workers=args.workers, address=args.address,
-                           resume=args.resume, episodes=args.episodes, max_levels=args.max_levels)
+    if args.collect_only and not args.out:
+        raise SystemExit("dsage-ray audit: error: --collect-only needs the --out of the search to collect from")
+    try:
+        collection = run_audit(config, out_dir=out, local=args.local, workers=args.workers, address=args.address,
+                               resume=args.resume, episodes=args.episodes, max_levels=args.max_levels,
+                               collect_only=args.collect_only)
+    except RuntimeError as exc:  # e.g. --collect-only on a folder without a search checkpoint
+        raise SystemExit(f"dsage-ray audit: error: {exc}") from None
     from dsage_ray.audit.collection import load_collection
 
     levels = load_collection(collection)["levels"]

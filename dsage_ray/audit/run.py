@@ -18,6 +18,7 @@ def run_audit(
     resume: bool = False,
     episodes: int | None = None,
     max_levels: int | None = None,
+    collect_only: bool = False,
 ) -> Path:
     """Searches for failures of ``config.maze.agent`` and writes the collection; returns its folder.
 
@@ -30,6 +31,8 @@ def run_audit(
         resume: Continue an interrupted search from its last checkpoint.
         episodes: Episodes per re-evaluation in the collection (default ``config.maze.episodes``).
         max_levels: Keep only this many of the worst elites.
+        collect_only: Skip the search; build the collection from the last checkpoint of the search in
+            ``out_dir`` (e.g. of an interrupted run, which ``resume`` could also continue).
     """
     out_dir = Path(out_dir)
     search_dir = out_dir / "search"
@@ -40,7 +43,8 @@ def run_audit(
         from dsage_ray.cli import run_locally
         from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint
 
-        run_locally(config, out_dir=search_dir, resume=resume)
+        if not collect_only:
+            run_locally(config, out_dir=search_dir, resume=resume)
         archive = load_checkpoint(search_dir / CHECKPOINT_NAME)["archive"]
         return build_collection(archive, config=collection_config, out_dir=out_dir / "collection",
                                 max_levels=max_levels, search_dir=search_dir)
@@ -48,8 +52,11 @@ def run_audit(
     from dsage_ray.ray.cli import run_with_tune
     from dsage_ray.ray.pool import SimulatorPool
 
-    experiment = run_with_tune(config, address=address, resume=resume, out_dir=search_dir)
-    archive = _final_archive(Path(experiment))
+    if collect_only:
+        experiment = search_dir / config.name
+    else:
+        experiment = Path(run_with_tune(config, address=address, resume=resume, out_dir=search_dir))
+    archive = _final_archive(experiment)
     pool = SimulatorPool(config=collection_config) if collection_config.ray.num_workers > 0 else None
     try:
         return build_collection(archive, config=collection_config, out_dir=out_dir / "collection",
@@ -60,12 +67,12 @@ def run_audit(
 
 
 def _final_archive(experiment: Path):
-    """The ground-truth archive in the latest Tune checkpoint of the (single) trial in ``experiment``."""
+    """The ground-truth archive in the latest Tune checkpoint under ``experiment`` (a trial or experiment folder)."""
     import torch
 
     from dsage_ray.ray.trainable import STATE_FILE
 
-    states = sorted(experiment.glob(f"*/checkpoint_*/{STATE_FILE}"),
+    states = sorted([*experiment.glob(f"checkpoint_*/{STATE_FILE}"), *experiment.glob(f"*/checkpoint_*/{STATE_FILE}")],
                     key=lambda p: int(p.parent.name.rsplit("_", 1)[-1]))
     if not states:
         raise RuntimeError(f"{experiment}: the search left no checkpoint ({STATE_FILE}) to read the archive from")
