@@ -21,8 +21,11 @@ venv: $(STAMP)
 run: $(STAMP)
 	$(BIN)/dsage-ray run experiments/configs/maze_dsage.toml --preset demo
 
+# The JDK's libjsig.so lets the in-process JVM (Mario) chain signal handlers with Python's.
+JSIG := $(shell j=$$(readlink -f $$(command -v java) 2>/dev/null) && ls $$(dirname $$(dirname $$j))/lib/libjsig.so 2>/dev/null)
+
 test: $(STAMP)
-	RAY_AUTH_MODE=disabled $(BIN)/python -m pytest -q
+	RAY_AUTH_MODE=disabled LD_PRELOAD=$(JSIG) $(BIN)/python -m pytest -q
 
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do $(BIN)/python $$b || exit 1; done

@@ -40,7 +40,7 @@ def main() -> None:
     parser.add_argument("--preset", default="cpu", help="Maze preset (sets episodes per evaluation)")
     parser.add_argument("--n", type=int, default=200, help="solutions per batch")
     parser.add_argument("--repeats", type=int, default=5, help="alternating rounds (median)")
-    parser.add_argument("--chunk-size", type=int, default=1)
+    parser.add_argument("--chunk-size", type=int, default=0, help="0: the pool's automatic chunking")
     args = parser.parse_args()
 
     os.environ.setdefault("RAY_AUTH_MODE", "disabled")

@@ -113,8 +113,9 @@ class RayConfig:
     cpus_per_worker: float = 0.5
     #: Logical CPUs the trial itself reserves (surrogate training and the inner loop).
     trial_cpus: float = 1.0
-    #: Solutions per pool task; 1 spreads uneven episodes best, larger amortises round trips.
-    chunk_size: int = 1
+    #: Solutions per pool task; 0 (default) picks ~8 chunks per actor per batch, 1 spreads
+    #: uneven episodes best, larger amortises Ray's per-task round trip.
+    chunk_size: int = 0
     #: Seconds to wait for the simulators' resources before failing instead of hanging.
     placement_timeout_s: float = 120.0
 
@@ -236,7 +237,7 @@ class RunConfig:
         need(self.ray.num_workers >= 0, "ray.num_workers", "must be >= 0")
         need(self.ray.cpus_per_worker > 0, "ray.cpus_per_worker", "must be positive")
         need(self.ray.trial_cpus > 0, "ray.trial_cpus", "must be positive")
-        need(self.ray.chunk_size >= 1, "ray.chunk_size", "must be positive")
+        need(self.ray.chunk_size >= 0, "ray.chunk_size", "must be >= 0 (0: automatic)")
         need(self.ray.placement_timeout_s > 0, "ray.placement_timeout_s", "must be positive")
         dom = self.domain_config
         prefix = self.domain

@@ -21,6 +21,7 @@ with ``placement_group_capture_child_tasks=True``, so child actors take the tria
 from __future__ import annotations
 
 import collections
+import math
 import dataclasses
 import logging
 import os
@@ -105,7 +106,7 @@ class SimulatorPool:
             defaults of the other arguments.
         num_workers: Number of simulator actors.
         cpus_per_worker: Logical CPUs each actor reserves (fractions allowed).
-        chunk_size: Solutions per task.
+        chunk_size: Solutions per task; 0 picks about 8 chunks per actor for each batch.
         max_in_flight: Chunks queued per actor; 2 hides the round trip behind the current chunk.
         domain_factory: Builds the domain inside each actor.
         placement_timeout_s: How long to wait for all actors to start before failing.
@@ -139,8 +140,8 @@ class SimulatorPool:
         self.domain_factory = domain_factory
         if self.num_workers < 1:
             raise ValueError(f"ray.num_workers: a pool needs at least one actor (got {self.num_workers})")
-        if self.chunk_size < 1 or self.max_in_flight < 1:
-            raise ValueError("chunk_size and max_in_flight must be positive")
+        if self.chunk_size < 0 or self.max_in_flight < 1:
+            raise ValueError("chunk_size must be >= 0 (0: automatic) and max_in_flight positive")
         self.stats = PoolStats()
         self._closed = False
 
@@ -162,6 +163,13 @@ class SimulatorPool:
 
     def _new_actor(self):
         env = {name: str(self._threads) for name in _THREAD_ENV_VARS}
+        if self.config.domain == "mario":
+            from dsage_ray.domains.mario.simulator import signal_chaining_library
+
+            chaining = signal_chaining_library()
+            if chaining:
+                # Ray workers enable faulthandler; the JVM needs signal chaining next to it.
+                env["LD_PRELOAD"] = chaining
         return SimulatorActor.options(
             num_cpus=self.cpus_per_worker,
             runtime_env={"env_vars": env},
@@ -208,7 +216,8 @@ class SimulatorPool:
         if len(seeds) != n:
             raise ValueError(f"got {n} solutions but {len(seeds)} seeds")
         results: list[EvaluationResult | None] = [None] * n
-        todo = collections.deque((start, min(start + self.chunk_size, n)) for start in range(0, n, self.chunk_size))
+        size = self.chunk_size or self._auto_chunk_size(n)
+        todo = collections.deque((start, min(start + size, n)) for start in range(0, n, size))
         deaths: collections.Counter[tuple[int, int]] = collections.Counter()
         # ref -> (slot, generation of the actor it was sent to, chunk)
         in_flight: dict[ray.ObjectRef, tuple[int, int, tuple[int, int]]] = {}
@@ -255,6 +264,11 @@ class SimulatorPool:
         results[index] = result
         self.stats.evaluations += 1
         self.stats.failed_evaluations += int(result.failed)
+
+    def _auto_chunk_size(self, n: int) -> int:
+        """About 8 chunks per actor: few enough round trips that the ~1–3 ms per task stays small
+        next to cheap evaluations, enough chunks that uneven episode lengths still even out."""
+        return max(1, math.ceil(n / (8 * len(self._actors))))
 
     def _fill_failed(self, results: list[EvaluationResult | None], chunk: tuple[int, int], error: str) -> None:
         for index in range(*chunk):

@@ -142,6 +142,25 @@ _java_lock = threading.Lock()
 _warned_stock_timer = False
 
 
+def signal_chaining_library() -> str | None:
+    """The JDK's ``libjsig.so``, or None.
+
+    Preloaded (``LD_PRELOAD``), it lets the JVM chain its SIGSEGV handler with handlers that Python
+    code installs later; without it a JIT implicit null check in the A* search occasionally reached
+    another handler and aborted the process (seen under pytest: ~1 run in 4; 0 in 8 with it).
+    """
+    try:
+        import jpype
+
+        libjvm = Path(jpype.getDefaultJVMPath())
+    except Exception:  # noqa: BLE001 - no JPype or no Java: nothing to chain
+        return None
+    for candidate in (libjvm.parent.parent / "libjsig.so", libjvm.parent / "libjsig.so"):
+        if candidate.exists():
+            return str(candidate)
+    return None
+
+
 def java() -> _Java:
     """Starts the JVM on first call (thread-safe) and returns the framework classes."""
     global _java
@@ -196,6 +215,11 @@ def _start_jvm() -> _Java:
         error_file = Path(tempfile.gettempdir()) / "dsage_ray_hs_err_pid%p.log"
         opts = ["-Djava.awt.headless=true", f"-XX:ErrorFile={error_file}", *os.environ.get(JVM_OPTS_ENV, "").split()]
         _keep_faulthandler_off()
+        chaining = signal_chaining_library()
+        if chaining and chaining not in os.environ.get("LD_PRELOAD", ""):
+            warnings.warn(f"the JVM runs without signal chaining; Python libraries that install signal handlers "
+                          f"(faulthandler in pytest and Ray workers) can crash it at random. Start the process "
+                          f"with LD_PRELOAD={chaining} (the Makefile and the Ray pool do).", RuntimeWarning, stacklevel=2)
         jpype.startJVM(jvm, *opts, classpath=classpath, convertStrings=False)
     jvm_start_s = time.perf_counter() - start
     JClass = jpype.JClass
