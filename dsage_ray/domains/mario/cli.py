@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
 
 def add_subparser(subparsers) -> None:
@@ -101,15 +100,3 @@ def run_sample(args: argparse.Namespace) -> int:
         raise _die("sample", f"cannot write to {out}: {exc.strerror or exc}") from None
     print(f"wrote {args.n} levels to {out}")
     return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Standalone entry point (``python -m dsage_ray.domains.mario.cli mario eval ...``)."""
-    parser = argparse.ArgumentParser(prog="dsage-ray")
-    add_subparser(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(argv)
-    return args.handler(args)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
 
 def add_subparser(subparsers) -> None:
@@ -67,15 +66,3 @@ def run_eval(args: argparse.Namespace) -> int:
         print(f"explored fraction {result.explored_fraction:.3f}")
         print(f"repeated visits   {result.repeated_visits:.1f}")
     return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Standalone entry point (``python -m dsage_ray.domains.maze.cli maze eval ...``)."""
-    parser = argparse.ArgumentParser(prog="dsage-ray")
-    add_subparser(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(argv)
-    return args.handler(args)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

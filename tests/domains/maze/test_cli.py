@@ -3,7 +3,7 @@ import json
 import pytest
 
 import dsage_ray.agents
-from dsage_ray.domains.maze.cli import main
+from dsage_ray.cli import main
 
 from .conftest import DATA, UniformRandomAgent
 
