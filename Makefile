@@ -19,7 +19,8 @@ $(STAMP): pyproject.toml
 venv: $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/dsage-ray run experiments/configs/maze_dsage.toml --preset demo
+	# The main job: audit the shipped PPO agent with DSAGE (through Ray Tune) and write a collection.
+	$(BIN)/dsage-ray audit --agent rllib:ppo_maze --preset demo --budget 300 --out tb_logs/audit_ppo_maze_$$(date +%Y%m%d-%H%M%S)
 
 # The JDK's libjsig.so lets the in-process JVM (Mario) chain signal handlers with Python's.
 JSIG := $(shell j=$$(readlink -f $$(command -v java) 2>/dev/null) && ls $$(dirname $$(dirname $$j))/lib/libjsig.so 2>/dev/null)
