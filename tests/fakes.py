@@ -6,6 +6,20 @@ import numpy as np
 
 from dsage_ray.types import EvaluationResult
 
+#: A DSAGE run on :class:`BitmapDomain` small enough to finish in seconds (``RunConfig.build`` keys).
+SMALL_RUN = {
+    "budget": 70,
+    "n_rand": 40,
+    "surrogate.epochs": 1,
+    "surrogate.batch_size": 16,
+    "qd.exploit_iterations": 4,
+    "qd.num_emitters": 2,
+    "qd.batch_size": 10,
+    "maze.archive_dims": (16, 8),
+    "selection.block": (4, 2),
+    "selection.count": 25,
+}
+
 
 class BitmapDomain:
     """An 8×8 wall bitmap whose "agent" is a pure function of the level and the seed.

@@ -5,20 +5,9 @@ import pytest
 
 from dsage_ray.config import RunConfig
 from dsage_ray.core.runner import DSAGE
-from tests.fakes import BitmapDomain
+from tests.fakes import SMALL_RUN, BitmapDomain
 
-SMALL = {
-    "budget": 70,
-    "n_rand": 40,
-    "surrogate.epochs": 1,
-    "surrogate.batch_size": 16,
-    "qd.exploit_iterations": 4,
-    "qd.num_emitters": 2,
-    "qd.batch_size": 10,
-    "maze.archive_dims": (16, 8),
-    "selection.block": (4, 2),
-    "selection.count": 25,
-}
+SMALL = SMALL_RUN
 
 
 def make_runner(**overrides) -> DSAGE:

@@ -10,20 +10,13 @@ import numpy as np
 
 from dsage_ray.config import RunConfig
 from dsage_ray.ray.trainable import DSAGETrainable
-from tests.fakes import BitmapDomain
+from tests.fakes import SMALL_RUN, BitmapDomain
 
-#: A run small enough for a Tune trial to finish in seconds (cf. tests/core/test_runner.py).
+#: tests.fakes.SMALL_RUN sized for a Tune trial: a longer budget, and images every iteration.
 SMALL = {
+    **SMALL_RUN,
     "budget": 120,
-    "n_rand": 40,
     "surrogate.epochs": 2,
-    "surrogate.batch_size": 16,
-    "qd.exploit_iterations": 4,
-    "qd.num_emitters": 2,
-    "qd.batch_size": 10,
-    "maze.archive_dims": (16, 8),
-    "selection.block": (4, 2),
-    "selection.count": 25,
     "image_every": 1,
     "ray.num_workers": 1,
     "ray.cpus_per_worker": 0.5,
