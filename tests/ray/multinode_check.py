@@ -27,8 +27,9 @@ def main() -> int:
     cluster.wait_for_nodes()
     ray.init(address=cluster.address, log_to_driver=False)
     try:
-        solutions = SlowBitmapDomain().random_solutions(30, np.random.default_rng(7))
-        seeds = list(range(100, 130))
+        # Long enough (~1.5 s on 2 actors) that the node loss at 0.3 s lands mid-batch even on an idle machine.
+        solutions = SlowBitmapDomain().random_solutions(120, np.random.default_rng(7))
+        seeds = list(range(100, 220))
         expected = InProcessEvaluator(domain=SlowBitmapDomain(base_s=0, extra_s=0))(solutions, seeds)
         with SimulatorPool(config=small_config(), num_workers=2, cpus_per_worker=1.0,
                            domain_factory=slow_bitmap_domain) as pool:
