@@ -90,3 +90,16 @@ class CrashOnceTrainable(DSAGETrainable):
             self._crash_marker.touch()
             os._exit(1)  # a hard crash: no cleanup, no exception for Tune to catch
         return result
+
+
+def tensorboard_tags(trial_dir) -> tuple[set[str], set[str]]:
+    """Scalar and image tags of every TensorBoard event file in a trial folder."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    scalars, images = set(), set()
+    for event_file in trial_dir.glob("events.out.tfevents.*"):
+        accumulator = EventAccumulator(str(event_file), size_guidance={"images": 0})
+        accumulator.Reload()
+        scalars |= set(accumulator.Tags()["scalars"])
+        images |= set(accumulator.Tags()["images"])
+    return scalars, images

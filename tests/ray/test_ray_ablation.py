@@ -10,6 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from tests.ray.helpers import tensorboard_tags
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -20,7 +22,6 @@ def run(*args: str, timeout: int) -> subprocess.CompletedProcess:
 
 
 def test_tiny_ablation_writes_tensorboard_and_summarize_prints_the_table(tmp_path):
-    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
     proc = run("experiments/ablation.py", "--preset", "tiny", "--storage", str(tmp_path), "--num-cpus", "2",
                "--name", "tiny", timeout=900)
@@ -29,12 +30,7 @@ def test_tiny_ablation_writes_tensorboard_and_summarize_prints_the_table(tmp_pat
     trial_dirs = sorted(p.parent for p in experiment.glob("*/params.json"))
     assert len(trial_dirs) == 6  # 3 variants × 2 seeds
     for trial_dir in trial_dirs:
-        scalars, images = set(), set()
-        for event_file in trial_dir.glob("events.out.tfevents.*"):
-            accumulator = EventAccumulator(str(event_file), size_guidance={"images": 0})
-            accumulator.Reload()
-            scalars |= set(accumulator.Tags()["scalars"])
-            images |= set(accumulator.Tags()["images"])
+        scalars, images = tensorboard_tags(trial_dir)
         assert "ray/tune/qd_score" in scalars, trial_dir.name
         assert "archive/heatmap" in images, trial_dir.name
 

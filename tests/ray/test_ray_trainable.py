@@ -14,7 +14,7 @@ from dsage_ray.ray.experiment import check_resources, run_experiment
 from dsage_ray.ray.pool import PoolResourceError
 from dsage_ray.ray.trainable import STATE_FILE, DSAGETrainable
 from tests.fakes import BitmapDomain
-from tests.ray.helpers import CrashOnceTrainable, archive_snapshot, bitmap_domain, small_config
+from tests.ray.helpers import CrashOnceTrainable, archive_snapshot, bitmap_domain, small_config, tensorboard_tags
 
 pytestmark = pytest.mark.usefixtures("ray_session")
 
@@ -93,7 +93,6 @@ def test_an_impossible_trial_request_fails_with_a_clear_message(tmp_path):
 
 def test_tune_run_grid_writes_tensorboard_scalars_and_images(tmp_path):
     """``tune.run`` here; the Tuner path is exercised by the crash test and the ablation test."""
-    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
     config = small_config(budget=70)
     space = {**config.to_flat(), "seed": tune.grid_search([0, 1])}
@@ -103,12 +102,7 @@ def test_tune_run_grid_writes_tensorboard_scalars_and_images(tmp_path):
         trial_dirs = sorted(p.parent for p in path.glob("*/params.json"))
         assert len(trial_dirs) == 2
         for trial_dir in trial_dirs:
-            scalars, images = set(), set()
-            for event_file in trial_dir.glob("events.out.tfevents.*"):
-                accumulator = EventAccumulator(str(event_file), size_guidance={"images": 0})
-                accumulator.Reload()
-                scalars |= set(accumulator.Tags()["scalars"])
-                images |= set(accumulator.Tags()["images"])
+            scalars, images = tensorboard_tags(trial_dir)
             assert "ray/tune/qd_score" in scalars
             assert {"archive/heatmap", "surrogate/predicted_vs_true_measures"} <= images
             assert (trial_dir / "archive.csv").exists() and (trial_dir / "metrics.json").exists()
