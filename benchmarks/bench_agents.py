@@ -1,6 +1,6 @@
 """Model card numbers: agents on a fixed set of random valid 16×16 mazes.
 
-The maze set is :func:`dsage_ray.agents.maze_training.random_valid_levels` with a fixed seed: each interior
+The maze set is :func:`dsage_ray.domains.maze.generator.random_valid_levels` with a fixed seed: each interior
 cell is a wall with a probability drawn per maze from U(0, 0.5); start and goal are the furthest connected
 pair (the Maze domain's rule). Maze ``i`` is evaluated with seed ``i`` for every agent, so the agents see
 the same initial headings.
@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from dsage_ray.agents import load_agent
-from dsage_ray.agents.maze_training import random_valid_levels
+from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.domains.maze import evaluate
 
 REPO_ROOT = Path(__file__).resolve().parents[1]

@@ -16,19 +16,13 @@ import time
 import numpy as np
 
 from dsage_ray.domains.maze.env import MazeEnv
+from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.domains.maze.level import MazeLevel
 from dsage_ray.domains.maze.simulator import BatchedMazeSimulator
 
 BATCH = 50
-
-
-def random_valid_levels(n: int, rng: np.random.Generator) -> list[MazeLevel]:
-    levels = []
-    while len(levels) < n:
-        level = MazeLevel.from_bitmap(rng.random((16, 16)) < rng.uniform(0.1, 0.4))
-        if level.valid:
-            levels.append(level)
-    return levels
+#: Wall densities of the benchmark mazes (sparse to dense enough for long episodes).
+DENSITY_RANGE = (0.1, 0.4)
 
 
 def bench_simulator(levels: list[MazeLevel], rng: np.random.Generator) -> tuple[int, float, float]:
@@ -65,7 +59,7 @@ def main() -> None:
     parser.add_argument("--mazes", type=int, default=10, help="random 16x16 mazes (default 10)")
     parser.add_argument("--minigrid-steps", type=int, default=3000, help="MiniGrid steps per maze (default 3000)")
     args = parser.parse_args()
-    levels = random_valid_levels(args.mazes, np.random.default_rng(0))
+    levels = random_valid_levels(args.mazes, seed=0, density_range=DENSITY_RANGE)
     bench_simulator(levels[:1], np.random.default_rng(1))  # warm-up (imports, caches)
 
     sim_steps, sim_cpu, sim_wall = bench_simulator(levels, np.random.default_rng(2))

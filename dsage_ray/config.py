@@ -136,6 +136,8 @@ class RunConfig:
     #: Outer iterations between checkpoints / TensorBoard images.
     checkpoint_every: int = 1
     image_every: int = 5
+    #: Elite levels (spread along the first measure) rendered to TensorBoard with each heatmap.
+    image_levels: int = 4
     maze: MazeConfig = dataclasses.field(default_factory=MazeConfig)
     mario: MarioConfig = dataclasses.field(default_factory=MarioConfig)
     surrogate: SurrogateConfig = dataclasses.field(default_factory=SurrogateConfig)
@@ -221,6 +223,7 @@ class RunConfig:
              f"must be at least n_rand={self.n_rand} (the first outer iteration evaluates n_rand solutions)")
         need(self.checkpoint_every >= 1, "checkpoint_every", "must be positive")
         need(self.image_every >= 1, "image_every", "must be positive")
+        need(self.image_levels >= 0, "image_levels", "must be >= 0")
         need(self.surrogate.kind in ("two_stage", "one_stage", "none"), "surrogate.kind",
              "must be 'two_stage', 'one_stage' or 'none'")
         for key in ("epochs", "batch_size", "train_window", "predict_batch_size"):

@@ -145,7 +145,7 @@ def evaluate_module(module_dir: Path, args: Args) -> dict[str, float]:
     import numpy as np
 
     from dsage_ray.agents import load_agent
-    from dsage_ray.agents.maze_training import random_valid_levels
+    from dsage_ray.domains.maze.generator import random_valid_levels
     from dsage_ray.domains.maze import evaluate
 
     agent = load_agent(f"rllib:{module_dir}")

@@ -1,11 +1,7 @@
-"""Random valid mazes for training and benchmarking agents, and the gymnasium env RLlib trains on.
+"""The gymnasium env RLlib trains maze agents on: a fresh random valid maze every episode.
 
-``random_valid_level`` is *the* distribution of "random valid 16×16 mazes" in this project: every interior
-cell is a wall with probability ``density``, drawn per maze uniformly from ``density_range``, and the level
-is kept if it is valid (start and goal = the furthest connected pair, as everywhere else). The agent
-benchmark evaluates a fixed seeded set of them; training samples a fresh one on every reset.
-
-``RandomMazeEnv`` wraps the project's :class:`~dsage_ray.domains.maze.env.MazeEnv` (so the dynamics and
+The mazes come from :func:`dsage_ray.domains.maze.generator.random_valid_level`, the same distribution
+the agent benchmark evaluates. ``RandomMazeEnv`` wraps the project's :class:`~dsage_ray.domains.maze.env.MazeEnv` (so the dynamics and
 observations are the ones the evaluator's simulator is tested against) and drops the constant mission
 string from the observation. Its curriculum knob ``difficulty`` in ``[0, 1]`` caps how far the goal is
 from the start: below 1 the goal is a random reachable cell at most ``3 + difficulty·(max_goal_distance -
@@ -22,39 +18,8 @@ import numpy as np
 from scipy.sparse.csgraph import shortest_path
 
 from dsage_ray.domains.maze.env import MazeEnv
+from dsage_ray.domains.maze.generator import DEFAULT_DENSITY_RANGE, random_valid_level
 from dsage_ray.domains.maze.level import MazeLevel, _adjacency
-
-#: Wall density range of the benchmark and training mazes.
-DEFAULT_DENSITY_RANGE = (0.0, 0.5)
-
-
-def random_valid_level(
-    rng: np.random.Generator,
-    *,
-    height: int = 16,
-    width: int = 16,
-    density_range: tuple[float, float] = DEFAULT_DENSITY_RANGE,
-) -> MazeLevel:
-    """A uniformly random wall bitmap at a random density, redrawn until valid.
-
-    Args:
-        rng: Source of all randomness (density, then walls).
-        height: Interior rows.
-        width: Interior columns.
-        density_range: ``(low, high)`` wall probability range; one density is drawn per maze.
-    """
-    while True:
-        density = rng.uniform(*density_range)
-        level = MazeLevel.from_bitmap(rng.random((height, width)) < density)
-        if level.valid:
-            return level
-
-
-def random_valid_levels(n: int, *, seed: int, height: int = 16, width: int = 16,
-                        density_range: tuple[float, float] = DEFAULT_DENSITY_RANGE) -> list[MazeLevel]:
-    """``n`` levels from :func:`random_valid_level`, a fixed set for a given seed."""
-    rng = np.random.default_rng(seed)
-    return [random_valid_level(rng, height=height, width=width, density_range=density_range) for _ in range(n)]
 
 
 def with_near_goal(level: MazeLevel, max_distance: int, rng: np.random.Generator) -> MazeLevel:

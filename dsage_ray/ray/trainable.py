@@ -102,10 +102,11 @@ class DSAGETrainable(tune.Trainable):
         return Path(self.logdir)
 
     def _log_images(self, iteration: int) -> None:
-        """Archive heatmap and the surrogate's predicted-vs-true measures (paper Fig. 9)."""
+        """Archive heatmap, sample elite levels spread over the archive, and the surrogate's
+        predicted-vs-true measures (paper Fig. 9)."""
         from tensorboardX import SummaryWriter
 
-        from dsage_ray.core.outputs import heatmap_image, scatter_png
+        from dsage_ray.core.outputs import heatmap_image, scatter_png, spread_elites
 
         if self._writer is None:
             self.output_dir.mkdir(parents=True, exist_ok=True)
@@ -115,6 +116,12 @@ class DSAGETrainable(tune.Trainable):
         if len(archive) > 0:
             heatmap = heatmap_image(archive, title=f"iteration {iteration}", measure_names=measure_names)
             self._writer.add_image("archive/heatmap", heatmap, iteration, dataformats="HWC")
+            render = getattr(self.runner.domain, "render", None)
+            if render is not None and self.run_config.image_levels > 0:
+                data = archive.data()
+                for rank, index in enumerate(spread_elites(archive, self.run_config.image_levels)):
+                    level = _png_to_array(render(data["solution"][index], data["occupancy"][index]))
+                    self._writer.add_image(f"levels/elite_{rank}", level, iteration, dataformats="HWC")
         predictions = getattr(self.runner, "last_predictions", None)
         if predictions is not None:
             predicted, true = (np.asarray(a) for a in predictions)

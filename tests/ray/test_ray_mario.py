@@ -1,21 +1,31 @@
-"""A tiny-budget DSAGE Mario run end to end through the Ray simulator pool (issue 6)."""
+"""A tiny-budget DSAGE Mario run end to end through Tune and the Ray simulator pool (issue 6)."""
+
+import json
 
 import numpy as np
+import pandas as pd
 
 from dsage_ray.config import RunConfig
-from dsage_ray.core.runner import DSAGE
-from dsage_ray.domains import build_domain
-from dsage_ray.ray.pool import SimulatorPool
+from dsage_ray.ray.experiment import run_experiment
 from tests.domains.mario.conftest import needs_java
+from tests.ray.helpers import tensorboard_tags
 
 
 @needs_java
-def test_tiny_mario_dsage_through_the_pool(ray_session):
-    config = RunConfig.build(domain="mario", variant="dsage", preset="tiny", **{"ray.num_workers": 2})
-    with SimulatorPool(config=config) as pool:
-        runner = DSAGE(config=config, evaluator=pool, domain=build_domain(config))
-        history = runner.run()
-    assert runner.evals == config.budget and not runner.failures
-    assert history[-1]["qd_score"] > 0 and len(runner.archive) >= 1
-    occupancy = runner.archive.data()["occupancy"]
-    assert occupancy.shape[1:] == (16, 56) and np.all(occupancy >= 0)
+def test_tiny_mario_dsage_through_tune_and_the_pool(ray_session, tmp_path):
+    config = RunConfig.build(domain="mario", variant="dsage", preset="tiny", image_every=1,
+                             **{"ray.num_workers": 2, "ray.cpus_per_worker": 0.5, "ray.trial_cpus": 0.5})
+    path = run_experiment(config.to_flat(), name="mario_tiny", storage_path=tmp_path, max_failures=0, verbose=0)
+    (trial_dir,) = [p.parent for p in path.glob("*/params.json")]
+
+    metrics = json.loads((trial_dir / "metrics.json").read_text())
+    assert metrics[-1]["evals"] == config.budget and json.loads((trial_dir / "failures.json").read_text()) == []
+    assert metrics[-1]["qd_score"] > 0
+    archive = pd.read_csv(trial_dir / "archive.csv")
+    assert len(archive) >= 1 and archive["objective"].between(0, 1).all()
+    assert np.all(archive.filter(like="measures_").to_numpy() >= 0)
+
+    scalars, images = tensorboard_tags(trial_dir)
+    assert "ray/tune/qd_score" in scalars
+    # The heatmap and sample levels (rendered with Mario's path) reach TensorBoard.
+    assert {"archive/heatmap", "levels/elite_0"} <= images

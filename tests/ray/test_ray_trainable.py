@@ -104,5 +104,5 @@ def test_tune_run_grid_writes_tensorboard_scalars_and_images(tmp_path):
         for trial_dir in trial_dirs:
             scalars, images = tensorboard_tags(trial_dir)
             assert "ray/tune/qd_score" in scalars
-            assert {"archive/heatmap", "surrogate/predicted_vs_true_measures"} <= images
+            assert {"archive/heatmap", "surrogate/predicted_vs_true_measures", "levels/elite_0"} <= images
             assert (trial_dir / "archive.csv").exists() and (trial_dir / "metrics.json").exists()

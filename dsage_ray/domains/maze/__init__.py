@@ -6,6 +6,7 @@ Importing the package registers ``"dsage_ray/Maze-v0"`` with gymnasium, so
 
 from dsage_ray.domains.maze.env import ENV_ID, MazeEnv, register_env
 from dsage_ray.domains.maze.evaluate import MazeEvaluation, evaluate
+from dsage_ray.domains.maze.generator import random_valid_level, random_valid_levels
 from dsage_ray.domains.maze.layout import LayoutError, format_layout, load_layout, parse_layout
 from dsage_ray.domains.maze.level import MazeLevel, furthest_pair
 from dsage_ray.domains.maze.simulator import BatchedMazeSimulator
@@ -24,4 +25,6 @@ __all__ = [
     "furthest_pair",
     "load_layout",
     "parse_layout",
+    "random_valid_level",
+    "random_valid_levels",
 ]
