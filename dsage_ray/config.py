@@ -113,6 +113,11 @@ class RayConfig:
     cpus_per_worker: float = 0.5
     #: Logical CPUs the trial itself reserves (surrogate training and the inner loop).
     trial_cpus: float = 1.0
+    #: Torch threads of the trial; 0 (default) is one per reserved trial CPU. The trial's phases
+    #: (surrogate training, inner loop) never overlap its simulators' evaluations, so a lone trial
+    #: may use every CPU of its placement group (the Mario ``cpu`` preset does: its 64×64 surrogate
+    #: dominates the run).
+    trial_threads: int = 0
     #: Solutions per pool task; 0 (default) picks ~8 chunks per actor per batch, 1 spreads
     #: uneven episodes best, larger amortises Ray's per-task round trip.
     chunk_size: int = 0
@@ -240,6 +245,7 @@ class RunConfig:
         need(self.ray.num_workers >= 0, "ray.num_workers", "must be >= 0")
         need(self.ray.cpus_per_worker > 0, "ray.cpus_per_worker", "must be positive")
         need(self.ray.trial_cpus > 0, "ray.trial_cpus", "must be positive")
+        need(self.ray.trial_threads >= 0, "ray.trial_threads", "must be >= 0 (0: one per trial CPU)")
         need(self.ray.chunk_size >= 0, "ray.chunk_size", "must be >= 0 (0: automatic)")
         need(self.ray.placement_timeout_s > 0, "ray.placement_timeout_s", "must be positive")
         dom = self.domain_config

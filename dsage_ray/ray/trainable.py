@@ -49,9 +49,11 @@ class DSAGETrainable(tune.Trainable):
         from dsage_ray.core.runner import DSAGE
 
         self.run_config = RunConfig.build(config)
-        # One torch thread per reserved CPU: several trials and simulators share the cores, and
-        # oversubscribed intra-op threads slow surrogate training down several times over.
-        torch.set_num_threads(max(1, int(self.run_config.ray.trial_cpus)))
+        # One torch thread per reserved CPU unless told otherwise: several trials and simulators
+        # share the cores, and oversubscribed intra-op threads slow surrogate training down
+        # several times over.
+        ray_config = self.run_config.ray
+        torch.set_num_threads(ray_config.trial_threads or max(1, int(ray_config.trial_cpus)))
         domain = domain_factory(self.run_config)
         # num_workers = 0 keeps evaluation in the trial process (useful on a 1-CPU machine).
         self.pool = (SimulatorPool(config=self.run_config, domain_factory=domain_factory)
