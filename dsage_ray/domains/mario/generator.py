@@ -113,8 +113,8 @@ def scores_to_levels(scores: torch.Tensor) -> np.ndarray:
 def latents_to_levels(generator: Generator, z: np.ndarray | torch.Tensor, *, batch_size: int = 256) -> np.ndarray:
     """Decodes latents ``(n, latent_dim)`` into levels ``(n, 16, 56)`` of tile indices."""
     device = next(generator.parameters()).device
-    z = torch.as_tensor(np.asarray(z, dtype=np.float32) if not isinstance(z, torch.Tensor) else z,
-                        dtype=torch.float32)
+    # A copy: latents often arrive as read-only views (pyribs archives, Ray object store).
+    z = z.to(torch.float32) if isinstance(z, torch.Tensor) else torch.tensor(np.asarray(z), dtype=torch.float32)
     if z.ndim != 2 or z.shape[1] != generator.latent_dim:
         raise ValueError(f"latents must have shape (n, {generator.latent_dim}), got {tuple(z.shape)}")
     out = [scores_to_levels(generator(z[i:i + batch_size].to(device))) for i in range(0, len(z), batch_size)]
