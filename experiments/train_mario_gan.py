@@ -19,7 +19,7 @@ original training code.
 
 Example (the shipped weights: see the README's Mario section for the exact command)::
 
-    python experiments/train_mario_gan.py --minutes 60 --threads 2 --out dsage_ray/domains/mario/assets/generator.pt
+    python experiments/train_mario_gan.py --minutes 50 --threads 1 --out dsage_ray/domains/mario/assets/generator.pt
 """
 
 from __future__ import annotations
