@@ -25,11 +25,10 @@ import numpy as np
 import torch
 from bench_maze_simulator import DENSITY_RANGE  # this script's folder is on sys.path when run
 
-from dsage_ray.agents import Agent, load_agent
-from dsage_ray.domains.maze.env import MazeEnv
+from dsage_ray.agents import load_agent
+from dsage_ray.domains.maze.env import minigrid_evaluate
 from dsage_ray.domains.maze.evaluate import evaluate
 from dsage_ray.domains.maze.generator import random_valid_levels
-from dsage_ray.domains.maze.level import MazeLevel
 
 EPISODES = 50
 TARGET_S = 0.5
@@ -40,36 +39,6 @@ REPO_ROOT = pathlib.Path(__file__).resolve().parents[1]
 def accel_checkpoint() -> pathlib.Path:
     shared = pathlib.Path(os.environ.get("DSAGE_SHARED_DIR", REPO_ROOT.parent / "shared"))
     return shared / "models" / "accel_seed_1" / "model_20000.tar"
-
-
-def minigrid_evaluate(level: MazeLevel, agent: Agent, *, episodes: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """evaluate()'s protocol and rng use, stepping one MazeEnv per episode; returns (lengths, successes)."""
-    rng = np.random.default_rng(seed)
-    envs = [MazeEnv(level) for _ in range(episodes)]
-    observations = []
-    for env, heading in zip(envs, rng.integers(0, 4, size=episodes)):
-        env.reset(seed=0)
-        env.agent_dir = int(heading)  # evaluate() draws the headings from its rng; MazeEnv from its own
-        observations.append(env.gen_obs())
-    state = agent.initial_state(episodes)
-    lengths = np.zeros(episodes, dtype=np.int64)
-    successes = np.zeros(episodes, dtype=bool)
-    running = np.arange(episodes)
-    while running.size:
-        obs = {"image": np.stack([observations[e]["image"] for e in running]),
-               "direction": np.array([observations[e]["direction"] for e in running], dtype=np.int64)}
-        actions, state = agent.act(obs, state, rng)
-        alive = []
-        for k, e in enumerate(running):
-            observations[e], _, terminated, truncated, _ = envs[e].step(int(actions[k]))
-            if terminated or truncated:
-                lengths[e], successes[e] = envs[e].step_count, terminated
-            else:
-                alive.append(k)
-        alive = np.array(alive, dtype=np.int64)
-        state = agent.select_state(state, alive)
-        running = running[alive]
-    return lengths, successes
 
 
 def timed(fn, *args, **kwargs):
@@ -103,7 +72,7 @@ def main() -> None:
     sim, ref, env_steps = np.zeros((2, args.mazes)), np.zeros((2, args.mazes)), 0
     for i, level in enumerate(levels):  # interleaved, so both loops see the same machine load
         result, sim[0, i], sim[1, i] = timed(evaluate, level, agent, episodes=EPISODES, seed=i)
-        (lengths, successes), ref[0, i], ref[1, i] = timed(minigrid_evaluate, level, agent, episodes=EPISODES, seed=i)
+        (lengths, successes, _), ref[0, i], ref[1, i] = timed(minigrid_evaluate, level, agent, episodes=EPISODES, seed=i)
         if not (np.array_equal(lengths, result.episode_lengths) and np.array_equal(successes, result.successes)):
             raise SystemExit(f"maze {i}: the MiniGrid loop played different episodes from evaluate()")
         env_steps += int(lengths.sum())

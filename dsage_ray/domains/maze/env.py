@@ -2,17 +2,25 @@
 
 Evaluations use the faster :class:`~dsage_ray.domains.maze.simulator.BatchedMazeSimulator`; this
 class is the ground truth the simulator is tested against, and what ``gymnasium.make`` returns.
+:func:`minigrid_evaluate` is :func:`~dsage_ray.domains.maze.evaluate.evaluate`'s protocol played on
+it, one env per episode: the slow reference a new agent's numbers can be cross-checked against.
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import gymnasium
+import numpy as np
 from minigrid.core.grid import Grid
 from minigrid.core.mission import MissionSpace
 from minigrid.core.world_object import Goal, Wall
 from minigrid.minigrid_env import MiniGridEnv
 
 from dsage_ray.domains.maze.level import MazeLevel
+
+if TYPE_CHECKING:
+    from dsage_ray.agents.base import Agent
 
 #: The gymnasium id; registered when :mod:`dsage_ray.domains.maze` is imported.
 ENV_ID = "dsage_ray/Maze-v0"
@@ -81,3 +89,45 @@ def register_env() -> None:
     """Registers :data:`ENV_ID` with gymnasium (idempotent)."""
     if ENV_ID not in gymnasium.registry:
         gymnasium.register(id=ENV_ID, entry_point="dsage_ray.domains.maze.env:MazeEnv")
+
+
+def minigrid_evaluate(level: MazeLevel, agent: "Agent", *, episodes: int, seed: int,
+                      see_through_walls: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``evaluate()``'s protocol and random-number use, stepping one :class:`MazeEnv` per episode.
+
+    Same seed, same agent: the same actions and outcomes as
+    :func:`~dsage_ray.domains.maze.evaluate.evaluate`, at MiniGrid's speed.
+
+    Returns:
+        ``(lengths, successes, occupancy)``: steps and success per episode, and the mean visits per
+        interior cell per episode (counted before each step, as ``evaluate`` does).
+    """
+    rng = np.random.default_rng(seed)
+    envs = [MazeEnv(level, see_through_walls=see_through_walls) for _ in range(episodes)]
+    observations = []
+    for env, heading in zip(envs, rng.integers(0, 4, size=episodes)):
+        env.reset(seed=0)
+        env.agent_dir = int(heading)  # evaluate() draws the headings from its rng; MazeEnv from its own
+        observations.append(env.gen_obs())
+    state = agent.initial_state(episodes)
+    lengths = np.zeros(episodes, dtype=np.int64)
+    successes = np.zeros(episodes, dtype=bool)
+    occupancy = np.zeros(level.walls.shape)
+    running = np.arange(episodes)
+    while running.size:
+        obs = {"image": np.stack([observations[e]["image"] for e in running]),
+               "direction": np.array([observations[e]["direction"] for e in running], dtype=np.int64)}
+        actions, state = agent.act(obs, state, rng)
+        alive = []
+        for k, e in enumerate(running):
+            x, y = envs[e].agent_pos
+            occupancy[y - 1, x - 1] += 1
+            observations[e], _, terminated, truncated, _ = envs[e].step(int(actions[k]))
+            if terminated or truncated:
+                lengths[e], successes[e] = envs[e].step_count, terminated
+            else:
+                alive.append(k)
+        alive = np.array(alive, dtype=np.int64)
+        state = agent.select_state(state, alive)
+        running = running[alive]
+    return lengths, successes, occupancy / max(episodes, 1)

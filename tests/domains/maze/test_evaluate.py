@@ -3,7 +3,7 @@ import json
 import numpy as np
 import pytest
 
-from dsage_ray.domains.maze.env import MazeEnv
+from dsage_ray.domains.maze.env import minigrid_evaluate
 from dsage_ray.domains.maze.evaluate import evaluate
 from dsage_ray.domains.maze.layout import load_layout, parse_layout
 from dsage_ray.domains.maze.level import MazeLevel
@@ -14,43 +14,11 @@ from .conftest import DATA, UniformRandomAgent
 EASY = "S.#.\n....\n.#.G\n"
 
 
-def _reference_evaluate(level, agent, *, episodes, seed):
-    """The same protocol as evaluate(), stepping one MiniGrid env per episode."""
-    rng = np.random.default_rng(seed)
-    envs = [MazeEnv(level) for _ in range(episodes)]
-    observations = []
-    for env, heading in zip(envs, rng.integers(0, 4, size=episodes)):
-        env.reset(seed=0)
-        env.agent_dir = int(heading)
-        observations.append(env.gen_obs())
-    state = agent.initial_state(episodes)
-    lengths = np.zeros(episodes, dtype=np.int64)
-    successes = np.zeros(episodes, dtype=bool)
-    occupancy = np.zeros(level.walls.shape)
-    running = np.arange(episodes)
-    while running.size:
-        obs = {"image": np.stack([observations[e]["image"] for e in running]),
-               "direction": np.array([observations[e]["direction"] for e in running], dtype=np.int64)}
-        actions, state = agent.act(obs, state, rng)
-        done = []
-        for k, e in enumerate(running):
-            x, y = envs[e].agent_pos
-            occupancy[y - 1, x - 1] += 1
-            observations[e], _, term, trunc, _ = envs[e].step(int(actions[k]))
-            if term or trunc:
-                done.append(k)
-                lengths[e], successes[e] = envs[e].step_count, term
-        alive = np.setdiff1d(np.arange(running.size), done)
-        state = agent.select_state(state, alive)
-        running = running[alive]
-    return lengths, successes, occupancy / episodes
-
-
 def test_matches_minigrid_reference_loop():
     level = parse_layout(EASY)
     # Only left/right/forward, so that some of the random walks reach the goal.
     result = evaluate(level, UniformRandomAgent(3), episodes=24, seed=4)
-    lengths, successes, occupancy = _reference_evaluate(level, UniformRandomAgent(3), episodes=24, seed=4)
+    lengths, successes, occupancy = minigrid_evaluate(level, UniformRandomAgent(3), episodes=24, seed=4)
     assert np.array_equal(result.episode_lengths, lengths)
     assert np.array_equal(result.successes, successes)
     np.testing.assert_allclose(result.occupancy, occupancy, rtol=1e-6)
