@@ -46,6 +46,19 @@ def atomic_write_json(path: str | Path, obj: Any) -> None:
     atomic_write_text(path, json.dumps(obj, indent=2, default=_json_default) + "\n")
 
 
+def staging_dir(final: str | Path) -> Path:
+    """A fresh empty folder beside ``final`` to write into before :func:`replace_dir` swaps it in.
+
+    Its name is unique (concurrent writers never share one) and its permissions are those of a
+    plain ``mkdir`` (``mkdtemp`` alone makes it private).
+    """
+    final = Path(final)
+    final.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".staging", dir=final.parent))
+    os.chmod(staging, 0o777 & ~_UMASK)
+    return staging
+
+
 def replace_dir(staging: Path, final: Path) -> None:
     """Swaps a fully written ``staging`` folder in for ``final`` (old contents removed last)."""
     final = Path(final)

@@ -81,7 +81,7 @@ def init_weights(module: nn.Module) -> None:
         nn.init.zeros_(module.bias)
 
 
-def gradient_penalty(critic: Critic, real: torch.Tensor, fake: torch.Tensor) -> torch.Tensor:
+def gradient_penalty(critic: nn.Module, real: torch.Tensor, fake: torch.Tensor) -> torch.Tensor:
     """WGAN-GP: mean of ``(‖∇D(x̂)‖ − 1)²`` at random points between real and fake samples."""
     alpha = torch.rand(real.shape[0], 1, 1, 1, device=real.device)
     mixed = (alpha * real + (1 - alpha) * fake).requires_grad_(True)
@@ -96,15 +96,15 @@ def recalibrate_batch_norm(generator: nn.Module, *, batches: int, batch_size: in
     During GAN training the running averages trail a moving generator; averaging over the final
     weights makes eval-mode levels match what the critic saw.
     """
-    norms = [m for m in generator.modules() if isinstance(m, nn.BatchNorm2d)]
+    norms = {m: m.momentum for m in generator.modules() if isinstance(m, nn.BatchNorm2d)}
     for m in norms:
         m.reset_running_stats()
         m.momentum = None  # cumulative moving average
     generator.train()
     for _ in range(batches):
         generator(torch.randn(batch_size, generator.latent_dim, device=device))
-    for m in norms:
-        m.momentum = 0.1
+    for m, momentum in norms.items():
+        m.momentum = momentum
     generator.eval()
 
 

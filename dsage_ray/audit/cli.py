@@ -87,7 +87,8 @@ def run_audit_command(args: argparse.Namespace) -> int:
 
     levels = load_collection(collection)["levels"]
     failing = sum(lv["success_rate"] < 1.0 for lv in levels)
-    print(f"collection: {collection} ({len(levels)} levels, {failing} with failures)")
+    never = sum(lv["success_rate"] == 0.0 for lv in levels)
+    print(f"collection: {collection} ({len(levels)} levels, {failing} with failures, {never} never solved)")
     for lv in levels[:5]:
         print(f"  #{lv['id']:<4} {args.objective} {lv['objective']:.3f}  success {lv['success_rate']:.2f}  "
               f"mean path {lv['mean_path_length']:.1f} (optimal {lv['optimal_path_length']})  "

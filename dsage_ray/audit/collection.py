@@ -34,7 +34,7 @@ import numpy as np
 
 from dsage_ray.config import RunConfig
 from dsage_ray.domains import build_domain
-from dsage_ray.io import atomic_write_json, replace_dir
+from dsage_ray.io import atomic_write_json, replace_dir, staging_dir
 from dsage_ray.types import Evaluator
 
 COLLECTION_FILE = "collection.json"
@@ -140,13 +140,8 @@ def build_collection(
     results = evaluate_with_retry(evaluator, solutions[order], seeds) if order else []
 
     out_dir = Path(out_dir)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(out_dir.parent / f".{out_dir.name}.staging")
-    if staging.exists():
-        import shutil
-
-        shutil.rmtree(staging)
-    (staging / "levels").mkdir(parents=True)
+    staging = staging_dir(out_dir)
+    (staging / "levels").mkdir()
     entries = []
     for rank, (index, seed, result) in enumerate(zip(order, seeds, results)):
         if result.failed:

@@ -4,14 +4,12 @@ from __future__ import annotations
 
 import io
 import json
-import shutil
-import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from dsage_ray.io import atomic_write_bytes, atomic_write_json, atomic_write_text
+from dsage_ray.io import atomic_write_bytes, atomic_write_json, atomic_write_text, replace_dir, staging_dir
 
 if TYPE_CHECKING:
     from dsage_ray.core.runner import DSAGE
@@ -77,6 +75,14 @@ def spread_elites(archive, count: int) -> list[int]:
     return [int(order[p]) for p in picks]
 
 
+def render_elites(archive, domain, count: int) -> list[tuple[int, bytes]]:
+    """``(index into archive.data(), PNG)`` for up to ``count`` elites spread along the first measure,
+    each drawn by ``domain.render`` with its occupancy."""
+    data = archive.data()
+    return [(index, domain.render(data["solution"][index], data["occupancy"][index]))
+            for index in spread_elites(archive, count)]
+
+
 def write_outputs(runner: "DSAGE", run_dir: str | Path, *, num_elites: int = 6) -> Path:
     """Writes the run folder; every file is written atomically, the elites folder swapped in whole."""
     from dsage_ray.qd.archives import archive_to_dataframe
@@ -93,23 +99,18 @@ def write_outputs(runner: "DSAGE", run_dir: str | Path, *, num_elites: int = 6) 
         heatmap_png(runner.archive, title=f"{runner.config.name}: {runner.evals} evaluations",
                     measure_names=domain.measure_names),
     )
-    render = getattr(domain, "render", None)
-    if render is not None:
+    if getattr(domain, "render", None) is not None:
+        staging = staging_dir(run_dir / "elites")
         data = runner.archive.data()
-        staging = Path(tempfile.mkdtemp(prefix=".elites.", dir=run_dir))
         summary = []
-        for rank, index in enumerate(spread_elites(runner.archive, num_elites)):
+        for rank, (index, png) in enumerate(render_elites(runner.archive, domain, num_elites)):
             name = f"elite_{rank:02d}.png"
-            solution = data["solution"][index]
-            (staging / name).write_bytes(render(solution, data["occupancy"][index]))
+            (staging / name).write_bytes(png)
             summary.append({
                 "file": name,
                 "objective": float(data["objective"][index]),
                 "measures": dict(zip(domain.measure_names, map(float, data["measures"][index]))),
             })
         (staging / "elites.json").write_text(json.dumps(summary, indent=2))
-        final = run_dir / "elites"
-        if final.exists():
-            shutil.rmtree(final)
-        staging.rename(final)
+        replace_dir(staging, run_dir / "elites")
     return run_dir

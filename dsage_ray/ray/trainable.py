@@ -108,7 +108,7 @@ class DSAGETrainable(tune.Trainable):
         predicted-vs-true measures (paper Fig. 9)."""
         from tensorboardX import SummaryWriter
 
-        from dsage_ray.core.outputs import heatmap_image, scatter_png, spread_elites
+        from dsage_ray.core.outputs import heatmap_image, render_elites, scatter_png
 
         if self._writer is None:
             self.output_dir.mkdir(parents=True, exist_ok=True)
@@ -118,12 +118,10 @@ class DSAGETrainable(tune.Trainable):
         if len(archive) > 0:
             heatmap = heatmap_image(archive, title=f"iteration {iteration}", measure_names=measure_names)
             self._writer.add_image("archive/heatmap", heatmap, iteration, dataformats="HWC")
-            render = getattr(self.runner.domain, "render", None)
-            if render is not None and self.run_config.image_levels > 0:
-                data = archive.data()
-                for rank, index in enumerate(spread_elites(archive, self.run_config.image_levels)):
-                    level = _png_to_array(render(data["solution"][index], data["occupancy"][index]))
-                    self._writer.add_image(f"levels/elite_{rank}", level, iteration, dataformats="HWC")
+            if getattr(self.runner.domain, "render", None) is not None:
+                elites = render_elites(archive, self.runner.domain, self.run_config.image_levels)
+                for rank, (_, png) in enumerate(elites):
+                    self._writer.add_image(f"levels/elite_{rank}", _png_to_array(png), iteration, dataformats="HWC")
         predictions = getattr(self.runner, "last_predictions", None)
         if predictions is not None:
             predicted, true = (np.asarray(a) for a in predictions)
