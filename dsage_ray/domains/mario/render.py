@@ -38,7 +38,8 @@ TILE_PX = 16  # the framework's tile size in pixels; agent events are in these u
 
 def render_level(level: np.ndarray | str | Sequence[str], *, scale: int = 8, path: np.ndarray | None = None,
                  occupancy: np.ndarray | None = None,
-                 path_colour: tuple[int, int, int] = (255, 0, 0)) -> np.ndarray:
+                 path_colour: tuple[int, int, int] = (255, 0, 0),
+                 occupancy_max: float | None = None) -> np.ndarray:
     """Draws a level as an RGB image.
 
     Args:
@@ -50,6 +51,8 @@ def render_level(level: np.ndarray | str | Sequence[str], *, scale: int = 8, pat
             visited tiles are tinted toward ``path_colour``, more for more ticks. Used when the
             path itself is not kept (archive elites keep only their occupancy).
         path_colour: RGB of the path line and the occupancy tint.
+        occupancy_max: Ticks per tile at which the tint is strongest; pass one value for a whole collection
+            so its pictures compare. None: this level's own maximum.
 
     Returns:
         ``(rows·scale, cols·scale, 3)`` uint8 array.
@@ -61,7 +64,9 @@ def render_level(level: np.ndarray | str | Sequence[str], *, scale: int = 8, pat
         if occupancy.shape != tiles.shape:
             raise ValueError(f"occupancy shape {occupancy.shape} does not match the level's {tiles.shape}")
         # Log scale: a tile Mario stood on for 100 ticks should not wash out one he passed once.
-        alpha = np.where(occupancy > 0, 0.35 + 0.5 * np.log1p(occupancy) / np.log1p(max(occupancy.max(), 1.0)), 0.0)
+        top = float(occupancy.max()) if occupancy_max is None else float(occupancy_max)
+        strength = np.minimum(np.log1p(occupancy) / np.log1p(max(top, 1.0)), 1.0)
+        alpha = np.where(occupancy > 0, 0.35 + 0.5 * strength, 0.0)
         colours = (1 - alpha[..., None]) * colours + alpha[..., None] * np.array(path_colour, np.float32)
     image = np.repeat(np.repeat(colours.round().astype(np.uint8), scale, axis=0), scale, axis=1)
     if path is None or len(path) == 0:
@@ -78,18 +83,49 @@ def render_level(level: np.ndarray | str | Sequence[str], *, scale: int = 8, pat
     return np.asarray(pil)
 
 
-def level_png(level: np.ndarray | str | Sequence[str], *, scale: int = 8, path: np.ndarray | None = None,
-              occupancy: np.ndarray | None = None) -> bytes:
-    """:func:`render_level`'s picture as PNG bytes."""
+def _titled_png(image: np.ndarray, *, scale: int, title: str) -> bytes:
+    """``image`` in a figure with a title and row/column ticks in tiles (the level text's coordinates)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    rows, cols = image.shape[0] // scale, image.shape[1] // scale
+    fig = Figure(figsize=(0.15 * cols + 0.8, 0.15 * rows + 0.9), dpi=100)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    ax.imshow(image, extent=(-0.5, cols - 0.5, rows - 0.5, -0.5), interpolation="nearest")
+    ax.set_xticks(range(0, cols, 5))
+    ax.set_yticks(range(0, rows, 5))
+    ax.tick_params(labelsize=8, length=2, pad=1)
+    ax.set_xlabel("column", fontsize=9)
+    ax.set_ylabel("row", fontsize=9)
+    ax.set_title(title, fontsize=11)
     buffer = io.BytesIO()
-    Image.fromarray(render_level(level, scale=scale, path=path, occupancy=occupancy)).save(buffer, format="PNG")
+    fig.savefig(buffer, format="png", bbox_inches="tight")
+    return buffer.getvalue()
+
+
+def level_png(level: np.ndarray | str | Sequence[str], *, scale: int = 8, path: np.ndarray | None = None,
+              occupancy: np.ndarray | None = None, occupancy_max: float | None = None,
+              title: str | None = None) -> bytes:
+    """:func:`render_level`'s picture as PNG bytes.
+
+    With a ``title``, the picture sits in a figure with the title and row/column ticks (for reports);
+    without, it is the bare tile image (for TensorBoard and level samples).
+    """
+    image = render_level(level, scale=scale, path=path, occupancy=occupancy, occupancy_max=occupancy_max)
+    if title is not None:
+        return _titled_png(image, scale=scale, title=title)
+    buffer = io.BytesIO()
+    Image.fromarray(image).save(buffer, format="PNG")
     return buffer.getvalue()
 
 
 def save_level_png(level: np.ndarray | str | Sequence[str], out: str | Path, *, scale: int = 8,
-                   path: np.ndarray | None = None, occupancy: np.ndarray | None = None) -> Path:
+                   path: np.ndarray | None = None, occupancy: np.ndarray | None = None,
+                   occupancy_max: float | None = None, title: str | None = None) -> Path:
     """Writes :func:`level_png` to ``out`` and returns the path."""
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_bytes(level_png(level, scale=scale, path=path, occupancy=occupancy))
+    out.write_bytes(level_png(level, scale=scale, path=path, occupancy=occupancy, occupancy_max=occupancy_max,
+                              title=title))
     return out
