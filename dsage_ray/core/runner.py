@@ -10,7 +10,17 @@ One :meth:`DSAGE.step` is one outer iteration:
 4. *Agent simulation*: the picks are evaluated for real and enter the ground-truth archive and the
    dataset.
 
-The first iteration evaluates ``n_rand`` random solutions instead. Without a surrogate
+The first iteration evaluates ``n_rand`` random solutions instead. With
+``selection.skip_filled`` (the ``dsage_novel`` variant, not the paper's) step 3 drops the picks
+the ground-truth archive already beats, by the surrogate's prediction.
+
+*Held-out accuracy* (``surrogate.holdout_levels > 0``): before the first outer iteration, that
+many random valid levels are evaluated for real, once. They are extra evaluations, counted as
+``holdout_evals`` and never in ``evals``: they use their own seed streams and never enter the
+dataset, the archive or the budget, so a run's search is the same with or without them. Every
+later iteration scores the freshly trained surrogate on them (``holdout_mae_*``,
+``holdout_spearman_*``), next to its error on the batch it selected (``mae_*``). Without a
+surrogate nothing is held out. Without
 (``surrogate.kind = "none"``) a step is one ask/evaluate/tell of the QD optimizer on the
 ground-truth archive: MAP-Elites, CMA-ME or, with the random emitter, domain randomisation.
 
@@ -24,13 +34,15 @@ import time
 from typing import Any, Callable
 
 import numpy as np
+from scipy import stats
 
 from dsage_ray.config import RunConfig
 from dsage_ray.core.evaluation import InProcessEvaluator, evaluate_with_retry
 from dsage_ray.domains import build_domain
 from dsage_ray.qd.archives import archive_stats, make_archive
 from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
-from dsage_ray.qd.selection import gather_elites, select_solutions
+from dsage_ray.qd.selection import gather_elites, select_solutions, skip_filled
+from dsage_ray.surrogate.dataset import Targets
 from dsage_ray.surrogate.models import pad_to_power_of_two
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
 
@@ -68,6 +80,10 @@ class DSAGE:
         self.rng = np.random.default_rng(streams[0])
         self._eval_seed_root = int(streams[1].generate_state(1)[0])
         self._qd_seed_root = streams[2]
+        # Spawned after the three above, which therefore do not depend on whether levels are held out.
+        holdout_levels_seed, holdout_evals_seed = self._seeds.spawn(1)[0].spawn(2)
+        self._holdout_levels_seed = holdout_levels_seed
+        self._holdout_eval_seed_root = int(holdout_evals_seed.generate_state(1)[0])
 
         self.archive = self._make_archive(with_occupancy=True, seed=self._next_qd_seed())
         self.evals = 0
@@ -76,6 +92,11 @@ class DSAGE:
         self.failures: list[dict[str, Any]] = []
         #: ``(predicted_measures, true_measures)`` for the batch evaluated last (Fig. 9 scatter).
         self.last_predictions: tuple[np.ndarray, np.ndarray] | None = None
+        #: Held-out levels and their real results (successful ones only), once evaluated.
+        self.holdout: dict[str, Any] | None = None
+        #: Real evaluations spent on held-out levels, outside the budget (retries not counted).
+        self.holdout_evals = 0
+        self._holdout_encoded: np.ndarray | None = None
 
         self.surrogate = None
         self.dataset = None
@@ -134,6 +155,10 @@ class DSAGE:
         if self.scheduler is not None:
             solutions = self.scheduler.ask()
         elif self.outer_iteration == 0:
+            if self.config.surrogate.holdout_levels and self.holdout is None:
+                tic = time.perf_counter()
+                self._evaluate_holdout()
+                times["holdout"] = time.perf_counter() - tic
             solutions = self.domain.random_solutions(self.config.n_rand, self.rng)
         else:
             tic = time.perf_counter()
@@ -141,6 +166,10 @@ class DSAGE:
             metrics["surrogate_loss"] = losses.pop("total")
             metrics.update({f"surrogate_loss_{self._head_name(k)}": v for k, v in losses.items()})
             times["train"] = time.perf_counter() - tic
+            if self.holdout is not None:
+                tic = time.perf_counter()
+                metrics.update(self._holdout_accuracy())
+                times["holdout"] = time.perf_counter() - tic
             tic = time.perf_counter()
             surrogate_archive = self._exploit()
             times["exploit"] = time.perf_counter() - tic
@@ -152,6 +181,11 @@ class DSAGE:
                 count=self.config.selection.count,
                 rng=self.rng,
             )
+            if self.config.selection.skip_filled:
+                skipped = skip_filled(surrogate_archive, picks, self.archive)
+                picks = skipped.kept
+                metrics["selection_filled"] = float(skipped.filled)
+                metrics["selection_fallback"] = float(skipped.fallback)
             solutions = gather_elites(surrogate_archive, picks)["solution"]
             times["select"] = time.perf_counter() - tic
             metrics["surrogate_archive_size"] = float(len(surrogate_archive))
@@ -205,6 +239,7 @@ class DSAGE:
             evaluated_this_iteration=float(len(solutions)),
             failed_evals=float(len(self.failures)),
             new_cell_share=float(new_cells) / max(len(solutions), 1),
+            holdout_evals=float(self.holdout_evals),
         )
         metrics.update({f"time_{k}": v for k, v in times.items()})
         self.history.append(metrics)
@@ -234,6 +269,55 @@ class DSAGE:
             progress = lambda _increment: self.progress("exploit", next(done), total)  # noqa: E731
         run_inner_loop(scheduler, predict, self.config.qd.exploit_iterations, progress=progress)
         return archive
+
+    def _evaluate_holdout(self) -> None:
+        """Evaluates the held-out levels for real, once; failed evaluations are left out of the set."""
+        count = self.config.surrogate.holdout_levels
+        # Random *valid* levels where the domain can make them (an invalid Maze has path length 0
+        # whatever the agent: it would flatter the surrogate), else its ordinary random solutions.
+        sample = getattr(self.domain, "random_valid_solutions", self.domain.random_solutions)
+        solutions = sample(count, np.random.default_rng(self._holdout_levels_seed))
+        seeds = [int(np.random.SeedSequence([self._holdout_eval_seed_root, i]).generate_state(1)[0])
+                 for i in range(count)]
+        if self.progress is not None:
+            self.progress("holdout", 0, count)
+        results = evaluate_with_retry(self.evaluator, solutions, seeds)
+        if self.progress is not None:
+            self.progress("holdout", count, count)
+        ok = [i for i, r in enumerate(results) if not r.failed]
+        # The results' info dicts are diagnostics; checkpoints keep only what scoring needs.
+        self.holdout = {
+            "solutions": solutions[ok],
+            "results": [EvaluationResult(objective=results[i].objective, measures=results[i].measures,
+                                         occupancy=results[i].occupancy) for i in ok],
+        }
+        self.holdout_evals = count
+        self._holdout_encoded = None
+
+    def _holdout_accuracy(self) -> dict[str, float]:
+        """The surrogate's MAE and Spearman ρ per head on the held-out levels.
+
+        ρ is left out for a head whose true or predicted values are all equal (it is undefined),
+        e.g. the Maze validity objective, which is 1 on every valid level.
+        """
+        if not self.holdout["results"]:
+            return {}
+        if self._holdout_encoded is None:
+            self._holdout_encoded = self._encode(self.holdout["solutions"])
+        prediction = self.surrogate.predict(self._holdout_encoded)
+        results = self.holdout["results"]
+        metrics = {f"holdout_mae_{self._head_name(k)}": v
+                   for k, v in self.surrogate.mae(self._holdout_encoded, results, prediction=prediction).items()}
+        targets = Targets.from_results(results, num_measures=len(self.domain.measure_names),
+                                       occupancy_shape=self.domain.occupancy_shape)
+        heads = {"objective": (prediction.objective, targets.objective)}
+        heads.update({f"measure_{i}": (prediction.measures[:, i], targets.measures[:, i])
+                      for i in range(len(self.domain.measure_names))})
+        for head, (predicted, true) in heads.items():
+            if np.ptp(predicted) > 0 and np.ptp(true) > 0:
+                rho = stats.spearmanr(predicted, true).statistic
+                metrics[f"holdout_spearman_{self._head_name(head)}"] = float(rho)
+        return metrics
 
     def _head_name(self, head: str) -> str:
         """``measure_1`` → the measure's name, so metrics read ``mae_mean_path_length``."""
@@ -304,6 +388,8 @@ class DSAGE:
             "surrogate": None if self.surrogate is None else self.surrogate.state_dict(),
             "dataset": None if self.dataset is None else self.dataset.state_dict(),
             "last_predictions": self.last_predictions,
+            "holdout": self.holdout,
+            "holdout_evals": self.holdout_evals,
         })
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -323,3 +409,7 @@ class DSAGE:
             self.surrogate.load_state_dict(state["surrogate"])
             self.dataset.load_state_dict(state["dataset"])
         self.last_predictions = state["last_predictions"]
+        # Checkpoints written before held-out levels existed have none.
+        self.holdout = state.get("holdout")
+        self.holdout_evals = state.get("holdout_evals", 0)
+        self._holdout_encoded = None

@@ -10,11 +10,19 @@ from dsage_ray.qd.archives import (
 )
 from dsage_ray.qd.emitters import MapElitesBitmapEmitter, RandomEmitter
 from dsage_ray.qd.optimizer import InnerLoopTimings, emitter_seeds, make_emitters, make_scheduler, run_inner_loop
-from dsage_ray.qd.selection import SELECTION_METHODS, block_ids, gather_elites, select_solutions
+from dsage_ray.qd.selection import (
+    SELECTION_METHODS,
+    FilledSkip,
+    block_ids,
+    gather_elites,
+    select_solutions,
+    skip_filled,
+)
 
 __all__ = [
     "OCCUPANCY_FIELD",
     "SELECTION_METHODS",
+    "FilledSkip",
     "InnerLoopTimings",
     "MapElitesBitmapEmitter",
     "RandomEmitter",
@@ -30,4 +38,5 @@ __all__ = [
     "make_scheduler",
     "run_inner_loop",
     "select_solutions",
+    "skip_filled",
 ]

@@ -1,7 +1,9 @@
-"""Which surrogate elites get a real evaluation: downsample, random or full (SPEC §1)."""
+"""Which surrogate elites get a real evaluation: downsample, random or full (SPEC §1), optionally
+skipping those the ground-truth archive already beats (the ``dsage_novel`` variant)."""
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Sequence
 
 import numpy as np
@@ -81,6 +83,56 @@ def _one_per_block(
     order = np.lexsort((keys, blocks))
     first_of_block = np.r_[True, blocks[order][1:] != blocks[order][:-1]]
     return np.sort(order[first_of_block])
+
+
+@dataclasses.dataclass
+class FilledSkip:
+    """What :func:`skip_filled` kept.
+
+    Attributes:
+        kept: Sorted archive indices to evaluate.
+        filled: Picks predicted to land in a ground-truth cell that already does at least as well.
+        fallback: Every pick was such a pick, so all of them were kept (see :func:`skip_filled`).
+    """
+
+    kept: np.ndarray
+    filled: int
+    fallback: bool
+
+
+def skip_filled(surrogate_archive: GridArchive, picks: np.ndarray, ground_truth_archive: GridArchive) -> FilledSkip:
+    """Drops picks that the ground-truth archive already beats, by the surrogate's own prediction.
+
+    A pick (an elite of ``surrogate_archive``, whose objective and measures are predictions) is
+    dropped when the ground-truth cell at its predicted measures is occupied with an objective
+    ``>=`` its predicted objective: evaluating it is expected to change nothing. Picks predicted to
+    land in empty cells or to improve an elite are kept.
+
+    When every pick would be dropped, all of them are kept instead: the surrogate then has nothing
+    it believes is new, and spending nothing would leave the run with no new data to correct it
+    (and an outer loop that never spends its budget).
+
+    Args:
+        surrogate_archive: The archive the picks index.
+        picks: Archive indices, e.g. from :func:`select_solutions`.
+        ground_truth_archive: Archive of real evaluations, with the same cells as ``surrogate_archive``.
+
+    Raises:
+        ValueError: The two archives do not have the same cells.
+        KeyError: A pick is not occupied.
+    """
+    if (tuple(surrogate_archive.dims) != tuple(ground_truth_archive.dims)
+            or not all(np.allclose(a, b) for a, b in zip(surrogate_archive.boundaries, ground_truth_archive.boundaries))):
+        raise ValueError("skip_filled needs a surrogate and a ground-truth archive with the same cells")
+    picks = np.sort(np.asarray(picks, dtype=np.int64))
+    if len(picks) == 0:
+        return FilledSkip(kept=picks, filled=0, fallback=False)
+    predicted = gather_elites(surrogate_archive, picks)
+    occupied, elites = ground_truth_archive.retrieve(predicted["measures"])
+    filled = occupied & (elites["objective"] >= predicted["objective"])
+    if filled.all():
+        return FilledSkip(kept=picks, filled=int(filled.sum()), fallback=True)
+    return FilledSkip(kept=picks[~filled], filled=int(filled.sum()), fallback=False)
 
 
 def gather_elites(archive: GridArchive, indices: np.ndarray) -> dict[str, np.ndarray]:

@@ -22,7 +22,7 @@ def archive_snapshot(archive) -> tuple:
 
 
 @pytest.mark.parametrize("variant", ["dsage", "dsage_only_anc", "dsage_only_down", "dsage_basic", "dsage_rsample",
-                                     "map_elites", "dr"])
+                                     "dsage_novel", "map_elites", "dr"])
 def test_every_variant_spends_exactly_the_budget(variant):
     runner = make_runner(variant=variant)
     history = runner.run()
@@ -133,3 +133,51 @@ def test_baseline_survives_batches_with_failed_evaluations(variant):
     assert history[-1]["evals"] == 100
     assert len(runner.archive) > 0
     assert {int(np.sum(f["solution"])) for f in runner.failures} <= set(range(28, 36))
+
+
+def test_novel_variant_evaluates_the_dsage_picks_minus_those_the_archive_already_beats(monkeypatch):
+    import dsage_ray.core.runner as runner_module
+
+    calls = []
+    original = runner_module.skip_filled
+
+    def spy(surrogate_archive, picks, ground_truth_archive):
+        result = original(surrogate_archive, picks, ground_truth_archive)
+        calls.append((np.array(picks), result))
+        return result
+
+    # Same seed, same everything up to selection (skipping draws no randomness).
+    dsage, novel = make_runner(variant="dsage"), make_runner(variant="dsage_novel")
+    for runner in (dsage, novel):
+        runner.step()
+    monkeypatch.setattr(runner_module, "skip_filled", spy)
+    plain, skipping = dsage.step(), novel.step()
+    assert len(calls) == 1  # only the novel run skips
+    picks, result = calls[0]
+    assert "selection_filled" not in plain and plain["evaluated_this_iteration"] == len(picks)
+    assert skipping["evaluated_this_iteration"] == len(result.kept)
+    assert skipping["selection_filled"] == result.filled and skipping["selection_fallback"] == result.fallback
+
+
+def test_novel_variant_falls_back_to_every_pick_when_the_archive_beats_them_all():
+    dsage, novel = make_runner(variant="dsage"), make_runner(variant="dsage_novel")
+    for runner in (dsage, novel):
+        runner.step()
+        # An unbeatable elite in every cell (real objectives are <= 1), in both runs alike.
+        dims = runner.archive.dims
+        cells = np.stack(np.meshgrid(*[np.arange(d) for d in dims], indexing="ij"), -1).reshape(-1, len(dims))
+        lows = np.array([b[0] for b in runner.archive.boundaries])
+        widths = np.array([b[1] - b[0] for b in runner.archive.boundaries])
+        measures = lows + (cells + 0.5) * widths
+        runner.archive.add(np.zeros((len(cells), 64)), np.full(len(cells), 10.0), measures,
+                           occupancy=np.zeros((len(cells), 8, 8)))
+    plain, skipping = dsage.step(), novel.step()
+    assert skipping["selection_fallback"] == 1.0
+    assert skipping["selection_filled"] == skipping["evaluated_this_iteration"] == plain["evaluated_this_iteration"]
+
+
+def test_skip_filled_needs_a_surrogate():
+    from dsage_ray.config import ConfigError
+
+    with pytest.raises(ConfigError, match="selection.skip_filled"):
+        RunConfig.build({**SMALL, "variant": "map_elites", "selection.skip_filled": True})

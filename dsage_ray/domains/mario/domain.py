@@ -99,8 +99,8 @@ class MarioDomain:
     # ---------------------------------------------------------------------------- the protocol
 
     def random_solutions(self, n: int, rng: np.random.Generator) -> Solutions:
-        """``n`` standard-normal latents (the GAN's prior)."""
-        return rng.standard_normal((n, self.solution_dim)).astype(self.solution_dtype)
+        """``n`` latents from N(0, ``config.latent_sigma``²) (the authors' 0.2, not the GAN's N(0, 1) prior)."""
+        return (self.config.latent_sigma * rng.standard_normal((n, self.solution_dim))).astype(self.solution_dtype)
 
     def encode(self, solutions: Solutions) -> EncodedLevels:
         """One-hot ``(n, 17, 64, 64)`` levels, padding on channel 0."""

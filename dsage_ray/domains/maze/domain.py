@@ -75,6 +75,13 @@ class MazeDomain:
         """``n`` uniformly random bitmaps, 0/1 rows of :attr:`solution_dtype`."""
         return rng.integers(0, 2, size=(n, self.solution_dim)).astype(self.solution_dtype)
 
+    def random_valid_solutions(self, n: int, rng: np.random.Generator) -> Solutions:
+        """``n`` valid levels from the project's random-valid-maze distribution (the surrogate's held-out set)."""
+        from dsage_ray.domains.maze.generator import random_valid_level
+
+        levels = [random_valid_level(rng, height=self.height, width=self.width) for _ in range(n)]
+        return np.array([level.walls.ravel() for level in levels], dtype=self.solution_dtype).reshape(n, -1)
+
     def encode(self, solutions: Solutions) -> EncodedLevels:
         return encode_levels(np.asarray(solutions).reshape(-1, self.solution_dim), self.height, self.width)
 

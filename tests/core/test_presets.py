@@ -1,0 +1,42 @@
+"""Paper fidelity of the presets and of Mario's random latents (issue 10, item 6)."""
+
+import numpy as np
+import pytest
+
+from dsage_ray.config import PAPER_COMPARISON, VARIANTS, MarioConfig, RunConfig
+
+
+def test_paper_budgets():
+    assert RunConfig.build({"domain": "maze", "preset": "paper"}).budget == 100_000
+    assert RunConfig.build({"domain": "mario", "preset": "paper"}).budget == 10_000
+
+
+def test_mario_paper_latents_are_the_authors_sigma():
+    assert RunConfig.build({"domain": "mario", "preset": "paper"}).mario.latent_sigma == 0.2
+    with pytest.raises(ValueError, match="mario.latent_sigma"):
+        RunConfig.build({"domain": "mario", "mario.latent_sigma": 0.0})
+
+
+@pytest.mark.parametrize("sigma", [0.2, 1.0])
+def test_mario_random_latents_follow_latent_sigma(sigma):
+    from dsage_ray.domains.mario.domain import MarioDomain
+
+    domain = MarioDomain(config=MarioConfig(latent_sigma=sigma))  # the generator is not needed to sample
+    latents = domain.random_solutions(4000, np.random.default_rng(0))
+    assert latents.shape == (4000, 32) and latents.dtype == np.float32
+    assert latents.std() == pytest.approx(sigma, rel=0.02) and abs(latents.mean()) < 0.02 * sigma
+
+
+@pytest.mark.parametrize("domain", ["maze", "mario"])
+def test_novel_variant_exists_beside_the_paper_comparison(domain):
+    config = RunConfig.build({"domain": domain, "variant": "dsage_novel"})
+    assert config.selection.skip_filled and config.surrogate.kind == "two_stage"
+    assert config.selection.method == "downsample"
+    assert "dsage_novel" not in PAPER_COMPARISON[domain]
+    assert not any(v.get("selection.skip_filled") for name, v in VARIANTS[domain].items() if name != "dsage_novel")
+
+
+def test_held_out_levels_are_on_in_the_maze_cpu_preset_only():
+    assert RunConfig.build({"domain": "maze", "preset": "cpu"}).surrogate.holdout_levels == 100
+    for domain, preset in (("maze", "paper"), ("maze", "tiny"), ("mario", "tiny")):
+        assert RunConfig.build({"domain": domain, "preset": preset}).surrogate.holdout_levels == 0
