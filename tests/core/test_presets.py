@@ -11,8 +11,10 @@ def test_paper_budgets():
     assert RunConfig.build({"domain": "mario", "preset": "paper"}).budget == 10_000
 
 
-def test_mario_paper_latents_are_the_authors_sigma():
-    assert RunConfig.build({"domain": "mario", "preset": "paper"}).mario.latent_sigma == 0.2
+def test_mario_latent_sigma_per_preset():
+    assert RunConfig.build({"domain": "mario", "preset": "paper"}).mario.latent_sigma == 0.2  # the authors'
+    # The shipped generator's own prior (benchmarks/bench_latent_sigma.py).
+    assert RunConfig.build({"domain": "mario", "preset": "cpu"}).mario.latent_sigma == 1.0
     with pytest.raises(ValueError, match="mario.latent_sigma"):
         RunConfig.build({"domain": "mario", "mario.latent_sigma": 0.0})
 
