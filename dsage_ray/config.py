@@ -34,8 +34,10 @@ class MazeConfig:
     height: int = 16
     width: int = 16
     see_through_walls: bool = True
-    #: ``validity`` (paper), ``failure_rate`` or ``regret`` (audits).
+    #: ``validity`` (paper), ``failure_rate``, ``regret`` or ``regression`` (audits).
     objective: str = "validity"
+    #: Reference agent spec of the ``regression`` objective (empty: none), run on the same seeds.
+    reference: str = ""
     measures: tuple[str, ...] = ("num_walls", "mean_path_length")
     #: Cells per measure; ``0`` means "one cell per integer value" (the paper's 256×162 uses 256 and 162).
     archive_dims: tuple[int, ...] = (256, 162)
@@ -55,6 +57,8 @@ class MarioConfig:
     #: Standard deviation of the random latents (DR's and DSAGE's ``n_rand`` initial ones); the
     #: authors drew them from N(0, 0.2²).
     latent_sigma: float = 0.2
+    #: ``completion`` (paper) or ``incompletion`` (1 − completion, audits).
+    objective: str = "completion"
     measures: tuple[str, ...] = ("sky_tiles", "mean_jumps")
     archive_dims: tuple[int, ...] = (150, 100)
     measure_ranges: tuple[tuple[float, float], ...] = ((0.0, 150.0), (0.0, 100.0))
@@ -277,9 +281,13 @@ class RunConfig:
         if isinstance(dom, MazeConfig):
             need(dom.episodes >= 1, "maze.episodes", "must be positive")
             need(dom.height >= 2 and dom.width >= 2, "maze.height", "maze must be at least 2x2")
-            need(dom.objective in ("validity", "failure_rate", "regret"), "maze.objective",
-                 "must be 'validity', 'failure_rate' or 'regret'")
+            need(dom.objective in ("validity", "failure_rate", "regret", "regression"), "maze.objective",
+                 "must be 'validity', 'failure_rate', 'regret' or 'regression'")
+            need(bool(dom.reference) == (dom.objective == "regression"), "maze.reference",
+                 "the 'regression' objective needs a reference agent spec, and only it uses one")
         else:
+            need(dom.objective in ("completion", "incompletion"), "mario.objective",
+                 "must be 'completion' or 'incompletion'")
             need(dom.runs >= 1, "mario.runs", "must be positive")
             need(dom.timer >= 1, "mario.timer", "must be positive")
             need(dom.astar_iterations >= 0, "mario.astar_iterations", "must be >= 0 (0: stock wall-clock timer)")

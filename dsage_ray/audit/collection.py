@@ -1,24 +1,27 @@
-"""Audits: a failure-eliciting DSAGE search, then a reproducible *collection* of the mazes it found.
+"""Audits: a failure-eliciting DSAGE search, then a reproducible *collection* of the levels it found.
 
-An audit is an ordinary DSAGE run (the runner, the Ray layer, the Maze domain: nothing re-implemented)
-whose objective rewards the agent doing badly on a valid level (``failure_rate`` by default, or
-``regret``) and whose measures describe the level (default ``num_walls`` × ``optimal_path_length``).
+An audit is an ordinary DSAGE run (the runner, the Ray layer, the domain: nothing re-implemented) whose
+objective rewards the agent doing badly on a valid level and whose measures describe the level. The
+domain decides what "badly" means (its ``AUDIT_OBJECTIVES``: Maze ``failure_rate``, ``regret`` or
+``regression`` against a reference agent; Mario ``incompletion``) and supplies the few hooks the
+collection needs (``is_valid``, ``level_text``, ``render_evaluation``, ``reproduce_command``,
+``entry_fields``, ``collection_fields``); everything else here is domain-generic.
 
 **Seeds and reproducibility.** The search archive keeps each elite's solution and the numbers of the
 evaluation that placed it, but not that evaluation's seed (the runner derives it from the run seed and the
 evaluation's index, which the archive does not store). Rather than widen the archive, the collection
 **re-evaluates every elite** with a fresh seed derived from the run seed and the elite's rank
 (:func:`level_seed`) and records that seed next to the numbers. Every number in ``collection.json`` is
-therefore the output of ``evaluate(level, agent, episodes=E, seed=S)`` for the level's layout file and the
-recorded ``E`` and ``S``: ``dsage-ray maze eval --agent A --layout levels/L.txt --episodes E --seed S``
-prints them again. A side effect is honest numbers: elites are the search's *luckiest* evaluations, and a
-fresh evaluation removes that selection bias (the search's own value is kept as ``search_objective``).
+therefore the output of one evaluation of the level file with the recorded seed and episodes, and each
+entry's ``reproduce`` command prints it again. A side effect is honest numbers: elites are the search's
+*luckiest* evaluations, and a fresh evaluation removes that selection bias (the search's own value is kept
+as ``search_objective``).
 
-Collection folder::
+Collection folder (format ``dsage_ray.collection.v2``; v1 folders still load)::
 
     collection.json        one entry per valid elite, worst first (see :func:`build_collection`)
-    levels/level_0000.txt  layout files (``dsage-ray maze eval --layout`` reads them)
-    levels/level_0000.png  the level with the agent's occupancy overlay
+    levels/level_0000.txt  level files (``dsage-ray maze eval --layout`` / ``dsage-ray mario eval --level``)
+    levels/level_0000.png  the level with the agent's occupancy (Mario: and path), one colour scale for all
     heatmap.png            the re-evaluated archive
     report.html            self-contained report (:mod:`dsage_ray.audit.report`)
 """
@@ -26,6 +29,8 @@ Collection folder::
 from __future__ import annotations
 
 import json
+import math
+import re
 import time
 from pathlib import Path
 from typing import Any, Sequence
@@ -33,60 +38,66 @@ from typing import Any, Sequence
 import numpy as np
 
 from dsage_ray.config import RunConfig
-from dsage_ray.domains import build_domain
+from dsage_ray.domains import build_domain, domain_class
 from dsage_ray.io import atomic_write_json, replace_dir, staging_dir
-from dsage_ray.types import Evaluator
+from dsage_ray.types import EvaluationResult, Evaluator, Solutions
 
 COLLECTION_FILE = "collection.json"
-FORMAT = "dsage_ray.collection.v1"
-#: Measures of the default audit: what the level looks like, not what the agent did.
-DEFAULT_MEASURES = ("num_walls", "optimal_path_length")
-#: The paper's Maze measures.
-PAPER_MEASURES = ("num_walls", "mean_path_length")
+FORMAT = "dsage_ray.collection.v2"
+#: Maze-only collections written before Mario audits and regression audits; :func:`load_collection` upgrades them.
+FORMAT_V1 = "dsage_ray.collection.v1"
 _SEED_TAG = 0xC011EC7  # keeps collection seeds apart from the runner's evaluation seeds
+SEED_RULE = "seed = SeedSequence([run_seed, 0xC011EC7, rank in the search's worst-first order])"
+#: Progress-bar updates a re-evaluation aims for (more chunks: a livelier bar, more batch barriers).
+PROGRESS_STEPS = 50
+
+
+def agent_slug(spec: str) -> str:
+    """A short file-name-safe name for an agent spec (``dcd:/x/accel.tar?a=1`` → ``accel_tar``)."""
+    return re.sub(r"[^A-Za-z0-9]+", "_", spec.split("?")[0].rstrip("/").split("/")[-1]).strip("_")[:40] or "agent"
 
 
 def audit_config(
     *,
-    agent: str,
+    domain: str = "maze",
+    agent: str | None = None,
+    reference: str | None = None,
     preset: str = "cpu",
-    objective: str = "failure_rate",
-    measures: Sequence[str] = DEFAULT_MEASURES,
+    objective: str | None = None,
+    measures: Sequence[str] | None = None,
     budget: int | None = None,
     seed: int = 0,
-    name: str = "audit",
+    name: str | None = None,
     overrides: dict[str, Any] | None = None,
 ) -> RunConfig:
-    """The run config of an audit: DSAGE on the Maze with a failure-eliciting objective.
+    """The run config of an audit: DSAGE on ``domain`` with one of the domain's failure-eliciting objectives.
 
     Args:
-        agent: The agent spec to audit.
-        preset: Maze preset (``cpu``, ``paper``, ``tiny``).
-        objective: ``failure_rate`` or ``regret`` (``validity`` would search for valid mazes, not failures).
-        measures: Measure names (:mod:`dsage_ray.domains.maze.measures`); archive cells are one per
-            integer value of each measure's natural range unless ``overrides`` set ``maze.archive_dims``.
+        domain: ``maze`` or ``mario``.
+        agent: The agent spec to audit (default: the domain's ``DEFAULT_AUDIT_AGENT``).
+        reference: Maze only: a reference agent spec; the audit then searches for levels where ``agent``
+            does worse than it (objective ``regression``).
+        preset: The domain's preset (``cpu``, ``tiny``, ...).
+        objective: One of the domain's ``AUDIT_OBJECTIVES`` (default: its first, or ``regression`` with a
+            reference).
+        measures: Measure names (default: the domain's ``AUDIT_MEASURES``).
         budget: Real evaluations (default: the preset's).
         seed: Run seed; also seeds the collection's re-evaluations.
-        name: Run name (the Tune experiment folder).
+        name: Run name, the Tune experiment folder (default ``audit_<agent>``).
         overrides: Further dotted config keys (``--set``), applied last.
+
+    Raises:
+        ValueError: An unknown domain, or an agent, objective or measure the domain cannot audit with.
     """
-    if objective not in ("failure_rate", "regret"):
-        raise ValueError(f"audit objective must be 'failure_rate' or 'regret', got {objective!r}")
-    from dsage_ray.domains.maze.measures import get_measure
-
-    def cells(name: str) -> int:
-        # One cell per integer value of the measure's natural range; 50 for the fractions in [0, 1].
-        low, high = get_measure(name).natural_range(16, 16)
-        return 50 if high - low <= 1 else int(round(high - low))
-
-    values: dict[str, Any] = {
-        "name": name, "domain": "maze", "variant": "dsage", "preset": preset, "seed": seed,
-        "maze.agent": agent, "maze.objective": objective, "maze.measures": tuple(measures),
-        "maze.archive_dims": tuple(cells(m) for m in measures),
-    }
-    if len(measures) != 2:
+    cls = domain_class(domain)
+    agent = agent or cls.DEFAULT_AUDIT_AGENT
+    values: dict[str, Any] = {"name": name or f"audit_{agent_slug(agent)}", "domain": domain, "variant": "dsage",
+                              "preset": preset, "seed": seed}
+    values.update(cls.audit_values(agent=agent, reference=reference, objective=objective, measures=measures))
+    num_measures = len(values[f"{domain}.measures"])
+    if num_measures != 2:
         # The presets' downsampling blocks are per measure for the usual two; keep their scale otherwise.
-        values["selection.block"] = (4,) * len(measures)
+        values["selection.block"] = (4,) * num_measures
     if budget is not None:
         values["budget"] = budget
     values.update(overrides or {})
@@ -98,93 +109,132 @@ def level_seed(run_seed: int, rank: int) -> int:
     return int(np.random.SeedSequence([int(run_seed), _SEED_TAG, int(rank)]).generate_state(1)[0])
 
 
+def reevaluate(evaluator: Evaluator, solutions: Solutions, seeds: Sequence[int], *, desc: str,
+               workers: int = 1) -> list[EvaluationResult]:
+    """Evaluates ``solutions`` with their seeds in chunks, with a progress bar; failures retried once.
+
+    Args:
+        evaluator: In-process or the Ray simulator pool (which replaces an actor that dies and re-runs its
+            work, so a dying simulator loses no level).
+        solutions: The levels.
+        seeds: One seed per level.
+        desc: The bar's label.
+        workers: Simulators behind ``evaluator``: a chunk keeps each of them busy.
+
+    Returns:
+        One result per solution, in order (failed twice: ``failed`` with the error).
+    """
+    from tqdm import tqdm
+
+    from dsage_ray.core.evaluation import evaluate_with_retry
+
+    n = len(solutions)
+    chunk = max(8, 2 * workers, math.ceil(n / PROGRESS_STEPS))
+    results: list[EvaluationResult] = []
+    with tqdm(total=n, desc=desc, unit="level", dynamic_ncols=True) as bar:
+        for start in range(0, n, chunk):
+            stop = min(start + chunk, n)
+            results += evaluate_with_retry(evaluator, solutions[start:stop], list(seeds[start:stop]))
+            bar.update(stop - start)
+    return results
+
+
 def build_collection(
     archive,
     *,
     config: RunConfig,
     out_dir: str | Path,
     evaluator: Evaluator | None = None,
+    workers: int = 1,
     max_levels: int | None = None,
     search_dir: str | Path | None = None,
 ) -> Path:
     """Re-evaluates the valid elites of ``archive`` and writes the collection folder (module docstring).
 
+    Entries are sorted worst first by their re-evaluated objective (for a regression audit: the largest
+    regression first), ties in the search's order. Each holds the generic keys of the collection format
+    (``id``, ``level_file``, ``image_file``, ``objective``, ``success_rate``, ``measures``, ``seed``,
+    ``episodes``, ``reproduce``, ``search_objective``, ``search_measures``), the domain's own numbers
+    (``entry_fields``) and, in a regression audit, ``reference`` (the reference agent's ``success_rate`` and
+    ``mean_path_length`` with the same ``seed``) and ``regression`` (reference − audited success rate).
+
     Args:
-        archive: The search's ground-truth archive (solutions are wall bitmaps).
-        config: The audit's run config (agent, objective, measures, ``maze.episodes`` per re-evaluation).
-        out_dir: The collection folder; written whole, then swapped in.
+        archive: The search's ground-truth archive.
+        config: The audit's run config (agent, objective, measures, episodes per re-evaluation).
+        out_dir: The collection folder; written whole, then swapped in. The ``reproduce`` commands name
+            the level files through this path as given.
         evaluator: Evaluates ``(solutions, seeds)`` with a domain built from ``config``; default in-process
             (the Ray simulator pool fits here too).
+        workers: Simulators behind ``evaluator`` (sizes the progress chunks).
         max_levels: Keep only the elites the search rated worst (all by default).
         search_dir: Recorded in the collection for provenance.
 
     Returns:
         ``out_dir``.
     """
-    from dsage_ray.core.evaluation import InProcessEvaluator, evaluate_with_retry
+    from dsage_ray.core.evaluation import InProcessEvaluator
     from dsage_ray.core.outputs import heatmap_png
-    from dsage_ray.domains.maze.layout import format_layout
-    from dsage_ray.domains.maze.render import render_level
     from dsage_ray.qd.archives import make_archive
 
     domain = build_domain(config)
     evaluator = evaluator or InProcessEvaluator(domain=domain)
+    objective_name = config.domain_config.objective
     data = archive.data()
     solutions = np.asarray(data["solution"])
-    valid = np.array([domain.level(s).valid for s in solutions], dtype=bool)
+    valid = np.array([domain.is_valid(s) for s in solutions], dtype=bool)
     # Worst first by the search's own verdict; the stable sort keeps archive order among ties.
     order = [int(i) for i in np.argsort(-np.asarray(data["objective"]), kind="stable") if valid[i]]
     if max_levels is not None:
         order = order[:max_levels]
     seeds = [level_seed(config.seed, rank) for rank in range(len(order))]
-    results = evaluate_with_retry(evaluator, solutions[order], seeds) if order else []
+    results = (reevaluate(evaluator, solutions[order], seeds, desc="re-evaluating the collection", workers=workers)
+               if order else [])
+
+    # A level whose evaluation failed twice has no numbers to reproduce; it is counted, not shown.
+    entries = [
+        {"solution": solutions[index], "result": result, "seed": seed,
+         "search_objective": float(data["objective"][index]),
+         "search_measures": np.asarray(data["measures"][index], dtype=float).tolist()}
+        for index, seed, result in zip(order, seeds, results) if not result.failed
+    ]
+    entries.sort(key=lambda e: (-e["result"].objective, e["result"].info["success_rate"]))
+    # One colour scale for every picture of the collection, so a dark cell means the same on each.
+    peak = max((float(np.max(e["result"].occupancy)) for e in entries), default=0.0)
+    occupancy_max = peak if peak > 0 else None
 
     out_dir = Path(out_dir)
     staging = staging_dir(out_dir)
     (staging / "levels").mkdir()
-    entries = []
-    for rank, (index, seed, result) in enumerate(zip(order, seeds, results)):
-        if result.failed:
-            continue  # failed twice (recorded by the evaluator's log); nothing reproducible to show
-        level = domain.level(solutions[index])
-        entries.append({
-            "solution": solutions[index], "level": level, "result": result, "seed": seed,
-            "search_objective": float(data["objective"][index]),
-            "search_measures": np.asarray(data["measures"][index], dtype=float).tolist(),
-        })
-    # Worst first by the re-evaluated numbers (what the report shows), ties by mean path length.
-    entries.sort(key=lambda e: (-e["result"].objective, -e["result"].info["mean_path_length"]))
-
     records = []
     for rank, entry in enumerate(entries):
-        level, result = entry["level"], entry["result"]
-        stem = f"level_{rank:04d}"
-        (staging / "levels" / f"{stem}.txt").write_text(format_layout(level))
-        info = result.info
-        title = (f"#{rank}: success {info['success_rate']:.2f}, mean path {info['mean_path_length']:.0f} "
-                 f"(optimal {info['optimal_path_length']})")
-        render_level(level, result.occupancy, staging / "levels" / f"{stem}.png", title=title)
-        records.append({
+        solution, result, seed = entry["solution"], entry["result"], entry["seed"]
+        stem = f"levels/level_{rank:04d}"
+        level_file, image_file = f"{stem}.txt", f"{stem}.png"
+        (staging / level_file).write_text(domain.level_text(solution))
+        success = float(result.info["success_rate"])
+        record: dict[str, Any] = {
             "id": rank,
-            "layout_file": f"levels/{stem}.txt",
-            "image_file": f"levels/{stem}.png",
-            "layout": format_layout(level),
-            "start": list(level.start),
-            "goal": list(level.goal),
-            "num_walls": level.num_walls,
-            "optimal_path_length": int(info["optimal_path_length"]),
+            "level_file": level_file,
+            "image_file": image_file,
             "objective": float(result.objective),
+            "success_rate": success,
             "measures": dict(zip(domain.measure_names, map(float, result.measures))),
-            "success_rate": float(info["success_rate"]),
-            "mean_path_length": float(info["mean_path_length"]),
-            "episode_lengths": [int(x) for x in info["episode_lengths"]],
-            "explored_fraction": float(info["explored_fraction"]),
-            "repeated_visits": float(info["repeated_visits"]),
-            "seed": int(entry["seed"]),
-            "episodes": int(config.maze.episodes),
+            "seed": int(seed),
+            "episodes": int(domain.episodes),
+            "reproduce": domain.reproduce_command(out_dir / level_file, seed=seed),
             "search_objective": entry["search_objective"],
             "search_measures": dict(zip(domain.measure_names, entry["search_measures"])),
-        })
+        }
+        title = f"#{rank}: {objective_name} {result.objective:.2f}, success {success:.2f}"
+        reference = result.info.get("reference")
+        if reference is not None:
+            record["reference"] = {**{key: float(value) for key, value in reference.items()}, "seed": int(seed)}
+            record["regression"] = float(reference["success_rate"]) - success
+            title += f" (reference {reference['success_rate']:.2f})"
+        record.update(domain.entry_fields(solution, result, level_file=level_file))
+        (staging / image_file).write_bytes(domain.render_evaluation(solution, result, title=title,
+                                                                    occupancy_max=occupancy_max))
+        records.append(record)
 
     heatmap_archive = make_archive(solution_dim=domain.solution_dim, dims=domain.archive_dims,
                                    ranges=domain.measure_ranges, solution_dtype=domain.solution_dtype)
@@ -192,27 +242,31 @@ def build_collection(
         heatmap_archive.add(np.array([e["solution"] for e in entries]),
                             np.array([e["result"].objective for e in entries]),
                             np.array([e["result"].measures for e in entries]))
+    against = f" vs {domain.reference_spec}" if domain.reference_spec else ""
     (staging / "heatmap.png").write_bytes(heatmap_png(
         heatmap_archive, measure_names=domain.measure_names,
-        title=f"{config.maze.objective} of {config.maze.agent} ({len(entries)} levels, re-evaluated)"))
+        title=f"{objective_name} of {domain.agent_spec}{against} ({len(entries)} levels, re-evaluated)"))
 
     collection = {
         "format": FORMAT,
-        "agent": config.maze.agent,
-        "objective": config.maze.objective,
+        "domain": config.domain,
+        "agent": domain.agent_spec,
+        "reference": domain.reference_spec,
+        "objective": objective_name,
         "measures": list(domain.measure_names),
         "measure_ranges": [list(r) for r in domain.measure_ranges],
         "archive_dims": list(domain.archive_dims),
-        "episodes": int(config.maze.episodes),
-        "see_through_walls": bool(config.maze.see_through_walls),
-        "seed_rule": "seed = SeedSequence([run_seed, 0xC011EC7, rank in the search's worst-first order])",
+        "episodes": int(domain.episodes),
+        "seed_rule": SEED_RULE,
         "run_seed": int(config.seed),
         "search_dir": None if search_dir is None else str(search_dir),
         "search_elites": int(len(solutions)),
         "search_invalid_elites": int((~valid).sum()),
+        "failed_reevaluations": len(order) - len(entries),
         "config": config.to_dict(),
         "created": time.strftime("%Y-%m-%d %H:%M:%S"),
         "levels": records,
+        **domain.collection_fields(),
     }
     atomic_write_json(staging / COLLECTION_FILE, collection)
     from dsage_ray.audit.report import write_report
@@ -223,23 +277,34 @@ def build_collection(
 
 
 def load_collection(path: str | Path) -> dict[str, Any]:
-    """Reads a collection folder's ``collection.json`` (or the file itself); ValueError when it is not one."""
+    """Reads a collection folder's ``collection.json`` (or the file itself); ValueError when it is not one.
+
+    A v1 collection (Maze only, before regression audits) comes back with the v2 keys filled in —
+    ``domain`` ``"maze"``, ``reference`` None, each level's ``level_file`` (its ``layout_file``) and
+    ``reproduce`` — and its ``format`` unchanged, so readers need only know v2.
+    """
     path = Path(path)
     file = path / COLLECTION_FILE if path.is_dir() else path
     try:
         collection = json.loads(file.read_text())
     except (OSError, json.JSONDecodeError) as exc:
         raise ValueError(f"{file}: not a readable collection ({exc})") from None
-    if not isinstance(collection, dict) or collection.get("format") != FORMAT:
-        raise ValueError(f"{file}: not a dsage_ray collection (expected format {FORMAT})")
+    if not isinstance(collection, dict) or collection.get("format") not in (FORMAT, FORMAT_V1):
+        raise ValueError(f"{file}: not a dsage_ray collection (expected format {FORMAT} or {FORMAT_V1})")
+    if collection["format"] == FORMAT_V1:
+        _upgrade_v1(collection, folder=file.parent)
     return collection
 
 
-def evaluate_entry(entry: dict[str, Any], agent, *, collection_dir: str | Path, see_through_walls: bool = True,
-                   episodes: int | None = None, seed: int | None = None):
-    """Re-runs one collection entry from its layout file: its recorded seed and episodes unless overridden."""
-    from dsage_ray.domains.maze import evaluate, load_layout
+def _upgrade_v1(collection: dict[str, Any], *, folder: Path) -> None:
+    from dsage_ray.config import MazeConfig
+    from dsage_ray.domains.maze.domain import MazeDomain
 
-    level = load_layout(Path(collection_dir) / entry["layout_file"])
-    return level, evaluate(level, agent, episodes=episodes or entry["episodes"],
-                           seed=entry["seed"] if seed is None else seed, see_through_walls=see_through_walls)
+    collection.setdefault("domain", "maze")
+    collection.setdefault("reference", None)
+    # The agent's evaluation as v1 recorded it, for its reproduce commands.
+    domain = MazeDomain(config=MazeConfig(agent=collection["agent"], episodes=collection["episodes"],
+                                          see_through_walls=collection.get("see_through_walls", True)))
+    for level in collection["levels"]:
+        level.setdefault("level_file", level["layout_file"])
+        level.setdefault("reproduce", domain.reproduce_command(folder / level["layout_file"], seed=level["seed"]))

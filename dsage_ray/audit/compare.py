@@ -1,7 +1,9 @@
 """Two agents on one saved collection, same levels, same seeds: where is B worse than A, and where better?
 
-Each level is re-run from its layout file with its recorded seed and episode count, for both agents, so the
-two evaluations share the initial headings (drawn first from the seed) and differ only in the policy.
+The comparison is the Maze domain's ``regression`` evaluation with B audited and A as the reference: each
+level is re-run from its layout file with its recorded seed and episode count for both agents, so the two
+evaluations share the initial headings (drawn first from the seed) and differ only in the policy. It runs
+in this process or on the Ray simulator pool (``workers``), whose replaced actors lose no level.
 """
 
 from __future__ import annotations
@@ -9,12 +11,32 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from dsage_ray.audit.collection import evaluate_entry, load_collection
+import numpy as np
+
+from dsage_ray.audit.collection import load_collection, reevaluate
+from dsage_ray.config import RunConfig, flatten
 
 #: A success-rate difference larger than this counts as "worse"/"better".
 DEFAULT_THRESHOLD = 0.1
 #: Levels pictured on the HTML page.
 PICTURED = 8
+
+
+def comparison_config(collection: dict[str, Any], agent_a: str, agent_b: str, *, episodes: int | None = None,
+                      workers: int | None = None) -> RunConfig:
+    """The collection's run config turned into B's regression evaluation against A (Maze collections only)."""
+    if collection["domain"] != "maze":
+        raise ValueError(f"compare needs a maze collection (this one is {collection['domain']!r}: one agent only)")
+    recorded = {int(level["episodes"]) for level in collection["levels"]} or {int(collection["episodes"])}
+    if episodes is None and len(recorded) > 1:
+        raise ValueError(f"the collection's levels were evaluated with different episode counts {sorted(recorded)}; "
+                         f"pass --episodes")
+    values = flatten(collection["config"])
+    values.update({"maze.agent": agent_b, "maze.reference": agent_a, "maze.objective": "regression",
+                   "maze.episodes": int(episodes or recorded.pop())})
+    if workers is not None:
+        values["ray.num_workers"] = workers
+    return RunConfig.build(values)
 
 
 def compare_agents(
@@ -25,6 +47,7 @@ def compare_agents(
     threshold: float = DEFAULT_THRESHOLD,
     episodes: int | None = None,
     html_path: str | Path | None = None,
+    workers: int | None = None,
 ) -> dict[str, Any]:
     """Evaluates both agents on every level of a collection and ranks the levels by B − A.
 
@@ -35,34 +58,68 @@ def compare_agents(
         threshold: Success-rate difference that counts as a change.
         episodes: Override the recorded episodes per level (seeds stay the recorded ones).
         html_path: Where to write the HTML page (none when None).
+        workers: Evaluate on this many Ray simulator actors (default: in this process).
 
     Returns:
         ``{"agent_a", "agent_b", "levels": [...], "summary": {...}}``; levels sorted with B's worst
         regressions first, each with ``success_a/b``, ``path_a/b`` and ``verdict``
         (``worse``/``better``/``same``).
+
+    Raises:
+        ValueError: Not a Maze collection, an agent that cannot be loaded, or a layout file that does not
+            match its level.
     """
-    from dsage_ray.agents import load_agent
-    from dsage_ray.domains.maze.render import render_level
+    from dsage_ray.core.evaluation import InProcessEvaluator
+    from dsage_ray.domains import build_domain
+    from dsage_ray.domains.maze.layout import load_layout
 
     collection_dir = Path(collection_dir)
     collection = load_collection(collection_dir)
-    agents = load_agent(agent_a), load_agent(agent_b)
-    see_through = collection["see_through_walls"]
-    rows, occupancy_b, levels = [], {}, {}
-    for entry in collection["levels"]:
-        (level, ra), (_, rb) = (evaluate_entry(entry, agent, collection_dir=collection_dir,
-                                               see_through_walls=see_through, episodes=episodes) for agent in agents)
-        delta = rb.success_rate - ra.success_rate
+    config = comparison_config(collection, agent_a, agent_b, episodes=episodes, workers=workers)
+    domain = build_domain(config)
+    domain.preflight()  # both agents load here, in one line if they cannot, before any simulator starts
+    entries = collection["levels"]
+    solutions = np.zeros((len(entries), domain.solution_dim), dtype=domain.solution_dtype)
+    for i, entry in enumerate(entries):
+        level = load_layout(collection_dir / entry["level_file"])
+        solutions[i] = level.walls.ravel()
+        # The domain places start and goal on the furthest pair; a layout that moved them would be
+        # evaluated on another level than the file shows.
+        if (domain.level(solutions[i]).start, domain.level(solutions[i]).goal) != (level.start, level.goal):
+            raise ValueError(f"{collection_dir / entry['level_file']}: start/goal are not the level's furthest pair "
+                             f"(edited by hand?); compare evaluates collection levels as the audit wrote them")
+    seeds = [int(entry["seed"]) for entry in entries]
+
+    pool = None
+    if workers:
+        from dsage_ray.ray.pool import SimulatorPool
+
+        pool = SimulatorPool(config=config)
+    try:
+        results = reevaluate(pool or InProcessEvaluator(domain=domain), solutions, seeds, desc="comparing",
+                             workers=workers or 1)
+    finally:
+        if pool is not None:
+            pool.close()
+
+    rows, failed = [], []
+    for i, (entry, result) in enumerate(zip(entries, results)):
+        if result.failed:
+            failed.append({"id": entry["id"], "error": result.error})
+            continue
+        reference, info = result.info["reference"], result.info
+        delta = info["success_rate"] - reference["success_rate"]
         verdict = "worse" if delta < -threshold else "better" if delta > threshold else "same"
-        rows.append({"id": entry["id"], "layout_file": entry["layout_file"], "seed": entry["seed"],
-                     "episodes": ra.episodes, "success_a": ra.success_rate, "success_b": rb.success_rate,
-                     "path_a": ra.mean_path_length, "path_b": rb.mean_path_length, "verdict": verdict})
-        occupancy_b[entry["id"]], levels[entry["id"]] = rb.occupancy, level
+        rows.append({"id": entry["id"], "layout_file": entry["level_file"], "seed": entry["seed"],
+                     "episodes": domain.episodes, "success_a": reference["success_rate"],
+                     "success_b": info["success_rate"], "path_a": reference["mean_path_length"],
+                     "path_b": info["mean_path_length"], "verdict": verdict, "_index": i})
     # B's biggest regressions first; among equal success, the larger path-length increase first.
     rows.sort(key=lambda r: (r["success_b"] - r["success_a"], -(r["path_b"] - r["path_a"])))
     n = max(len(rows), 1)
     summary = {
         "levels": len(rows),
+        "failed": len(failed),
         "threshold": threshold,
         "success_a": sum(r["success_a"] for r in rows) / n,
         "success_b": sum(r["success_b"] for r in rows) / n,
@@ -73,15 +130,20 @@ def compare_agents(
         "b_worse": sum(r["verdict"] == "worse" for r in rows),
         "b_better": sum(r["verdict"] == "better" for r in rows),
     }
+    indices = {r["id"]: r.pop("_index") for r in rows}
     comparison = {"agent_a": agent_a, "agent_b": agent_b, "collection": str(collection_dir), "levels": rows,
-                  "summary": summary,
+                  "summary": summary, "failed": failed,
                   "episodes_note": (f"{episodes} episodes" if episodes else "its recorded episode count")}
     if html_path is not None:
         from dsage_ray.audit.report import write_compare_report
 
         pictured = [r for r in rows if r["verdict"] == "worse"][:PICTURED]
-        images = {r["id"]: render_level(levels[r["id"]], occupancy_b[r["id"]],
-                                        title=f"B on #{r['id']}: success {r['success_b']:.2f} (A {r['success_a']:.2f})")
+        # One colour scale for all pictures of the page.
+        peak = max((float(results[indices[r["id"]]].occupancy.max()) for r in pictured), default=0.0)
+        images = {r["id"]: domain.render(solutions[indices[r["id"]]], results[indices[r["id"]]].occupancy,
+                                         title=f"B on #{r['id']}: success {r['success_b']:.2f} "
+                                               f"(A {r['success_a']:.2f})",
+                                         occupancy_max=peak if peak > 0 else None)
                   for r in pictured}
         write_compare_report(html_path, comparison, collection_dir=collection_dir, images=images)
     return comparison
@@ -98,6 +160,9 @@ def format_comparison(comparison: dict[str, Any], *, limit: int = 10) -> str:
         f"mean path A {s['path_a']:.1f}  B {s['path_b']:.1f}",
         f"B worse on {s['b_worse']} levels, better on {s['b_better']} (|Δ success| > {s['threshold']:.2f})",
     ]
+    if s.get("failed"):
+        lines.append(f"{s['failed']} levels left out: their evaluation failed twice "
+                     f"(first: {comparison['failed'][0]['error']})")
     header = f"{'id':>5}  {'layout':<22} {'succ A':>6} {'succ B':>6} {'Δ':>6} {'path A':>7} {'path B':>7}"
     for title, rows in (("B worse than A", [r for r in comparison["levels"] if r["verdict"] == "worse"][:limit]),
                         ("B better than A", [r for r in reversed(comparison["levels"])

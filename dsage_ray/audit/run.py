@@ -6,6 +6,28 @@ from pathlib import Path
 
 from dsage_ray.audit.collection import build_collection
 from dsage_ray.config import RunConfig
+from dsage_ray.domains import build_domain, domain_class
+
+#: Sub-folders of an audit folder.
+SEARCH_DIR, COLLECTION_DIR = "search", "collection"
+
+
+def check_audit_folder(out_dir: str | Path, *, resume: bool = False, collect_only: bool = False) -> None:
+    """Refuses to overwrite an audit by accident, or to continue one that is not there.
+
+    Raises:
+        ValueError: ``out_dir`` already holds an audit and neither ``resume`` nor ``collect_only`` is set,
+            or one of them is set and ``out_dir`` holds no search.
+    """
+    out_dir = Path(out_dir)
+    search = out_dir / SEARCH_DIR
+    if resume or collect_only:
+        if not search.is_dir():
+            raise ValueError(f"{out_dir} holds no audit search ({search} is missing): nothing to "
+                             f"{'resume' if resume else 'collect from'}")
+    elif search.exists() or (out_dir / COLLECTION_DIR).exists():
+        raise ValueError(f"{out_dir} already holds an audit: pass --resume to continue its search, --collect-only "
+                         f"to rebuild its collection, or choose another --out")
 
 
 def run_audit(
@@ -20,7 +42,10 @@ def run_audit(
     max_levels: int | None = None,
     collect_only: bool = False,
 ) -> Path:
-    """Searches for failures of ``config.maze.agent`` and writes the collection; returns its folder.
+    """Searches for failures of the config's agent and writes the collection; returns its folder.
+
+    Everything that can be checked without Ray is checked first (the audit folder, the agents, Java for
+    Mario), so bad input fails in one line before any search starts.
 
     Args:
         config: An audit config (:func:`dsage_ray.audit.collection.audit_config`).
@@ -29,24 +54,35 @@ def run_audit(
         workers: Simulator actors (sets ``ray.num_workers``).
         address: Ray cluster to join (default ``RAY_ADDRESS`` or a new local one).
         resume: Continue an interrupted search from its last checkpoint.
-        episodes: Episodes per re-evaluation in the collection (default ``config.maze.episodes``).
+        episodes: Episodes (Mario: runs) per re-evaluation in the collection (default: the config's).
         max_levels: Keep only this many of the worst elites.
         collect_only: Skip the search; build the collection from the last checkpoint of the search in
             ``out_dir`` (e.g. of an interrupted run, which ``resume`` could also continue).
+
+    Raises:
+        ValueError: An existing audit in ``out_dir`` (without ``resume``/``collect_only``), a missing one
+            (with them), or an agent or simulator that cannot be used.
     """
     out_dir = Path(out_dir)
-    search_dir = out_dir / "search"
+    search_dir = out_dir / SEARCH_DIR
+    check_audit_folder(out_dir, resume=resume, collect_only=collect_only)
     if workers is not None:
         config = config.replace(**{"ray.num_workers": workers})
-    collection_config = config if episodes is None else config.replace(**{"maze.episodes": int(episodes)})
+    collection_config = (config if episodes is None
+                         else config.replace(**{domain_class(config.domain).EPISODES_KEY: int(episodes)}))
+    build_domain(config).preflight()
     if local:
         from dsage_ray.cli import run_locally
         from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint
 
         if not collect_only:
             run_locally(config, out_dir=search_dir, resume=resume)
-        archive = load_checkpoint(search_dir / CHECKPOINT_NAME)["archive"]
-        return build_collection(archive, config=collection_config, out_dir=out_dir / "collection",
+        checkpoint = search_dir / CHECKPOINT_NAME
+        if not checkpoint.is_file():
+            raise RuntimeError(f"{search_dir}: the search left no checkpoint ({CHECKPOINT_NAME}) to read the archive "
+                               f"from (was it run with --local?)")
+        archive = load_checkpoint(checkpoint)["archive"]
+        return build_collection(archive, config=collection_config, out_dir=out_dir / COLLECTION_DIR,
                                 max_levels=max_levels, search_dir=search_dir)
 
     from dsage_ray.ray.cli import run_with_tune
@@ -57,10 +93,12 @@ def run_audit(
     else:
         experiment = Path(run_with_tune(config, address=address, resume=resume, out_dir=search_dir))
     archive = _final_archive(experiment)
-    pool = SimulatorPool(config=collection_config) if collection_config.ray.num_workers > 0 else None
+    workers = collection_config.ray.num_workers
+    pool = SimulatorPool(config=collection_config) if workers > 0 else None
     try:
-        return build_collection(archive, config=collection_config, out_dir=out_dir / "collection",
-                                evaluator=pool, max_levels=max_levels, search_dir=experiment)
+        return build_collection(archive, config=collection_config, out_dir=out_dir / COLLECTION_DIR,
+                                evaluator=pool, workers=max(workers, 1), max_levels=max_levels,
+                                search_dir=experiment)
     finally:
         if pool is not None:
             pool.close()

@@ -9,14 +9,23 @@ if TYPE_CHECKING:
     from dsage_ray.types import Domain
 
 
-def build_domain(config: "RunConfig") -> "Domain":
-    """Builds the domain a run config names; imported lazily so Maze users never need Java."""
-    if config.domain == "maze":
+#: The domains a config may name.
+DOMAINS = ("maze", "mario")
+
+
+def domain_class(name: str) -> type:
+    """The domain class called ``name``; imported lazily so Maze users never need Java."""
+    if name == "maze":
         from dsage_ray.domains.maze.domain import MazeDomain
 
-        return MazeDomain(config=config.maze)
-    if config.domain == "mario":
+        return MazeDomain
+    if name == "mario":
         from dsage_ray.domains.mario.domain import MarioDomain
 
-        return MarioDomain(config=config.mario)
-    raise ValueError(f"domain: unknown domain {config.domain!r}")
+        return MarioDomain
+    raise ValueError(f"domain: unknown domain {name!r} (known: {', '.join(DOMAINS)})")
+
+
+def build_domain(config: "RunConfig") -> "Domain":
+    """Builds the domain a run config names."""
+    return domain_class(config.domain)(config=config.domain_config)

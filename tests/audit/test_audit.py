@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import re
+import shlex
 from pathlib import Path
 
 import numpy as np
@@ -29,14 +30,21 @@ def collection(tmp_path_factory) -> Path:
 
 def test_collection_is_complete(collection):
     c = load_collection(collection)
+    assert c["format"] == "dsage_ray.collection.v2" and c["domain"] == "maze" and c["reference"] is None
     assert c["agent"] == AUDITED and c["objective"] == "failure_rate"
     assert c["measures"] == ["num_walls", "optimal_path_length"]
+    assert c["config"]["preset"] == "tiny" and c["config"]["budget"] == 24 and c["run_seed"] == 3
     levels = c["levels"]
     assert 0 < len(levels) <= c["search_elites"]
-    assert len(levels) == c["search_elites"] - c["search_invalid_elites"]
-    for key in ("layout", "start", "goal", "measures", "success_rate", "mean_path_length", "episode_lengths", "seed"):
+    assert len(levels) == c["search_elites"] - c["search_invalid_elites"] - c["failed_reevaluations"]
+    for key in ("id", "level_file", "image_file", "objective", "success_rate", "measures", "seed", "episodes",
+                "reproduce", "search_objective", "search_measures", "layout_file", "layout", "start", "goal",
+                "num_walls", "optimal_path_length", "mean_path_length", "episode_lengths", "explored_fraction",
+                "repeated_visits"):
         assert all(key in lv for lv in levels), key
+    assert not any("reference" in lv or "regression" in lv for lv in levels)
     for lv in levels:
+        assert lv["layout_file"] == lv["level_file"]
         assert (collection / lv["layout_file"]).read_text() == lv["layout"]
         assert (collection / lv["image_file"]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert len(lv["episode_lengths"]) == lv["episodes"] == 4
@@ -50,12 +58,13 @@ def test_collection_is_complete(collection):
 
 
 def test_every_level_re_evaluates_to_its_recorded_numbers(collection, capsys):
-    """Through the public CLI, exactly as the report tells a user to do it."""
+    """Through the public CLI, with each level's own reproduce command."""
     c = load_collection(collection)
     for lv in c["levels"]:
+        command = shlex.split(lv["reproduce"])
+        assert command[:3] == ["dsage-ray", "maze", "eval"] and str(collection / lv["level_file"]) in command
         capsys.readouterr()
-        assert main(["maze", "eval", "--agent", c["agent"], "--layout", str(collection / lv["layout_file"]),
-                     "--episodes", str(lv["episodes"]), "--seed", str(lv["seed"]), "--json"]) == 0
+        assert main(command[1:] + ["--json"]) == 0
         again = json.loads(capsys.readouterr().out)
         assert again["success_rate"] == lv["success_rate"]
         assert again["mean_path_length"] == lv["mean_path_length"]
@@ -112,7 +121,34 @@ def test_compare_cli(collection, tmp_path, capsys):
 
 
 def test_audit_config_rejects_non_failure_objectives():
-    with pytest.raises(ValueError, match="failure_rate' or 'regret"):
+    with pytest.raises(ValueError, match="'failure_rate', 'regret', 'regression', got 'validity'"):
         audit_config(agent=AUDITED, objective="validity")
     config = audit_config(agent=AUDITED, objective="regret", measures=("num_walls", "mean_path_length"))
     assert config.maze.objective == "regret" and config.maze.archive_dims == (256, 648)
+
+
+def test_v1_collections_still_load_and_compare(collection, tmp_path, capsys):
+    """A collection in the v1 format (Maze only, no domain/reference/level_file/reproduce) reads as v2."""
+    import shutil
+
+    v1 = tmp_path / "v1"
+    shutil.copytree(collection, v1)
+    data = json.loads((v1 / "collection.json").read_text())
+    data["format"] = "dsage_ray.collection.v1"
+    for key in ("domain", "reference", "failed_reevaluations"):
+        del data[key]
+    for lv in data["levels"]:
+        del lv["level_file"], lv["reproduce"]
+    (v1 / "collection.json").write_text(json.dumps(data))
+
+    c = load_collection(v1)
+    assert c["format"] == "dsage_ray.collection.v1" and c["domain"] == "maze" and c["reference"] is None
+    first = c["levels"][0]
+    assert first["level_file"] == first["layout_file"]
+    capsys.readouterr()
+    assert main(shlex.split(first["reproduce"])[1:] + ["--json"]) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert (again["success_rate"], again["episode_lengths"]) == (first["success_rate"], first["episode_lengths"])
+    comparison = compare_agents(AUDITED, "builtin:wall_follower", collection_dir=v1)
+    recorded = {lv["id"]: lv["success_rate"] for lv in c["levels"]}
+    assert {r["id"]: r["success_a"] for r in comparison["levels"]} == recorded

@@ -65,6 +65,7 @@ def run_eval(args: argparse.Namespace) -> int:
               f"{'deterministic' if all(e.deterministic for e in result.episodes) else 'wall-clock timer'})")
         print(f"status          {', '.join(result.statuses)}")
         print(f"completion      {result.objective:.3f}  (per run: {', '.join(f'{c:.3f}' for c in result.completion)})")
+        print(f"success rate    {result.success_rate:.3f}")
         print(f"mean jumps      {result.mean_jumps:.1f}")
         print(f"enemies killed  {result.enemies_killed:.1f}")
         if result.failed:

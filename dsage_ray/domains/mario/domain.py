@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Any
+import shlex
+from pathlib import Path
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -20,6 +22,25 @@ NATURAL_RANGES: dict[str, tuple[float, float]] = {
     "mean_jumps": (0.0, 100.0),
     "enemies_killed": (0.0, 25.0),
 }
+
+#: The agent specs a Mario audit accepts (the domain has one agent: the A* planner).
+AGENT_SPECS = ("astar", "astar:ITERATIONS")
+
+
+def parse_agent_spec(spec: str) -> int | None:
+    """The A* iterations per tick a Mario agent spec names: ``astar`` (None: keep the config's) or
+    ``astar:ITERATIONS`` (0: the stock wall-clock timer).
+
+    Raises:
+        ValueError: Any other spec; the message lists the ones that exist.
+    """
+    kind, _, iterations = spec.strip().partition(":")
+    if kind == "astar" and not iterations:
+        return None
+    if kind == "astar" and iterations.isdigit():
+        return int(iterations)
+    raise ValueError(f"unknown Mario agent {spec!r} (known: {', '.join(AGENT_SPECS)}; "
+                     f"ITERATIONS is a non-negative integer, 0 for the stock 40 ms timer)")
 
 
 class MarioDomain:
@@ -112,24 +133,160 @@ class MarioDomain:
         return evaluate_level(self.level(solution), simulator=self.simulator, runs=self.config.runs)
 
     def evaluate(self, solution: Solution, seed: int) -> EvaluationResult:
+        """Objective ``completion`` (mean completion) or ``incompletion`` (1 − it); ``info`` holds the
+        evaluation's summary and ``path``, Mario's ``(x, y)`` positions in the first run (for pictures)."""
         result = self.run(solution, seed)
         info = {key: value for key, value in result.to_dict().items() if key != "occupancy"}
+        info["path"] = result.episodes[0].path.tolist() if result.episodes else []
         if result.failed:
             failure = EvaluationResult.failure(error=result.error or "evaluation failed",
                                                num_measures=len(self.measure_names),
                                                occupancy_shape=self.occupancy_shape)
             failure.info = info
             return failure
+        completion = float(result.objective)
         return EvaluationResult(
-            objective=float(result.objective),
+            objective=completion if self.config.objective == "completion" else 1.0 - completion,
             measures=np.array([result.measure(m) for m in self.measure_names], dtype=np.float64),
             occupancy=result.occupancy.astype(np.float32),
             info=info,
         )
 
-    def render(self, solution: Solution, occupancy: np.ndarray | None = None) -> bytes:
-        """PNG of the level a latent decodes to, with the occupancy overlay when given."""
-        return level_png(self.level(solution), occupancy=occupancy)
+    def render(self, solution: Solution, occupancy: np.ndarray | None = None, *, path: np.ndarray | None = None,
+               title: str | None = None, occupancy_max: float | None = None) -> bytes:
+        """PNG of the level a latent decodes to, with the occupancy overlay and Mario's ``path`` when given.
+
+        Args:
+            solution: The latent.
+            occupancy: Ticks per tile to tint.
+            path: ``(ticks, 2)`` positions of Mario in framework pixels, drawn as a line.
+            title: A title above the level (with row/column ticks); none: the bare tile image.
+            occupancy_max: Top of the tint scale (default: this level's own maximum); one value for a set
+                of pictures makes their tints comparable.
+        """
+        return level_png(self.level(solution), occupancy=occupancy, path=path, title=title,
+                         occupancy_max=occupancy_max)
 
     def level_text(self, solution: Solution) -> str:
-        return indices_to_string(self.level(solution))
+        """The level file of a latent (``dsage-ray mario eval --level`` reads it)."""
+        return indices_to_string(self.level(solution)) + "\n"
+
+    # ------------------------------------------------------------------------------- audits
+    # What the domain-generic audit (dsage_ray.audit) asks of a domain.
+
+    #: Objectives an audit may maximise: 1 − completion.
+    AUDIT_OBJECTIVES = ("incompletion",)
+    #: The paper's measures.
+    AUDIT_MEASURES = ("sky_tiles", "mean_jumps")
+    DEFAULT_AUDIT_AGENT = "astar"
+    #: The config key of the runs per evaluation.
+    EPISODES_KEY = "mario.runs"
+
+    @classmethod
+    def audit_values(cls, *, agent: str, reference: str | None = None, objective: str | None = None,
+                     measures: Sequence[str] | None = None) -> dict[str, Any]:
+        """The dotted config keys of a Mario audit (:func:`dsage_ray.audit.collection.audit_config`).
+
+        Args:
+            agent: ``astar`` or ``astar:ITERATIONS`` (:func:`parse_agent_spec`).
+            reference: Must be None: regression audits compare two agents, and Mario has one.
+            objective: ``incompletion`` (the default).
+            measures: Measure names (default the paper's :attr:`AUDIT_MEASURES`); one archive cell per
+                integer value of each measure's natural range.
+
+        Raises:
+            ValueError: An unknown agent, objective or measure, or a reference agent.
+        """
+        if reference:
+            raise ValueError("regression audits (--reference) are Maze-only: the Mario domain has one agent, A*")
+        objective = objective or cls.AUDIT_OBJECTIVES[0]
+        if objective not in cls.AUDIT_OBJECTIVES:
+            raise ValueError(f"mario audit objective must be one of {', '.join(map(repr, cls.AUDIT_OBJECTIVES))}, "
+                             f"got {objective!r}")
+        iterations = parse_agent_spec(agent)
+        measures = tuple(measures or cls.AUDIT_MEASURES)
+        unknown = [m for m in measures if m not in NATURAL_RANGES]
+        if unknown:
+            raise ValueError(f"unknown Mario measure(s) {unknown} (known: {sorted(NATURAL_RANGES)})")
+        ranges = tuple(NATURAL_RANGES[m] for m in measures)
+        values: dict[str, Any] = {
+            "mario.objective": objective, "mario.measures": measures, "mario.measure_ranges": ranges,
+            "mario.archive_dims": tuple(max(1, int(round(high - low))) for low, high in ranges),
+        }
+        if iterations is not None:
+            values["mario.astar_iterations"] = iterations
+        return values
+
+    def preflight(self) -> None:
+        """Checks Java, the Mario AI jar and the generator now (without starting a JVM), so a machine
+        that cannot play Mario fails in one line before any search.
+
+        Raises:
+            ValueError: What is missing.
+        """
+        from dsage_ray.domains.mario.generator import GeneratorError
+        from dsage_ray.domains.mario.simulator import SimulatorError, jar_path
+
+        try:
+            import jpype
+        except ImportError:
+            raise ValueError("mario: JPype is not installed (pip install 'jpype1>=1.5')") from None
+        try:
+            jpype.getDefaultJVMPath()
+            jar_path()
+            self.generator
+        except jpype.JVMNotFoundException:
+            raise ValueError("mario: no Java runtime found (install a JDK 17, or set JAVA_HOME)") from None
+        except (SimulatorError, GeneratorError) as exc:
+            raise ValueError(f"mario: {exc}") from None
+
+    @property
+    def agent_spec(self) -> str:
+        return f"astar:{self.config.astar_iterations}"
+
+    @property
+    def reference_spec(self) -> None:
+        return None
+
+    @property
+    def episodes(self) -> int:
+        return self.config.runs
+
+    def is_valid(self, solution: Solution) -> bool:
+        """Every latent decodes to a playable 16 × 56 level."""
+        return True
+
+    def reproduce_command(self, level_file: str | Path, *, seed: int) -> str:
+        """The ``dsage-ray mario eval`` command that replays this domain's evaluation of ``level_file``.
+
+        ``seed`` is not part of it: the engine has no randomness, and with the iteration-count timer
+        (``astar_iterations > 0``) neither has the agent.
+        """
+        command = ["dsage-ray", "mario", "eval", "--level", str(level_file), "--runs", str(self.config.runs),
+                   "--timer", str(self.config.timer), "--astar-iterations", str(self.config.astar_iterations),
+                   "--timeout", f"{self.config.episode_timeout_s:g}"]
+        return shlex.join(command)
+
+    def render_evaluation(self, solution: Solution, result: EvaluationResult, *, title: str | None = None,
+                          occupancy_max: float | None = None) -> bytes:
+        """The level with Mario's occupancy and the path of the first run from ``result``."""
+        path = np.asarray(result.info.get("path") or np.zeros((0, 2)), dtype=np.float64).reshape(-1, 2)
+        return self.render(solution, result.occupancy, path=path, title=title, occupancy_max=occupancy_max)
+
+    def collection_fields(self) -> dict[str, Any]:
+        """Mario settings at the top level of a collection (beside the generic keys)."""
+        return {"timer": self.config.timer, "astar_iterations": self.config.astar_iterations}
+
+    def entry_fields(self, solution: Solution, result: EvaluationResult, *, level_file: str) -> dict[str, Any]:
+        """The Mario numbers of a collection entry beside the generic ones."""
+        info = result.info
+        completion = [float(c) for c in info["completion"]]
+        return {
+            "completion": float(np.mean(completion)),
+            "completion_per_run": completion,
+            "jumps": float(info["mean_jumps"]),
+            "kills": float(info["enemies_killed"]),
+            "sky_tiles": int(info["sky_tiles"]),
+            "status": list(info["status"]),
+            "ticks": [int(t) for t in info["ticks"]],
+        }

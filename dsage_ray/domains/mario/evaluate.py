@@ -71,6 +71,11 @@ class MarioEvaluation:
     def statuses(self) -> list[str]:
         return [e.status for e in self.episode_per_run()]
 
+    @property
+    def success_rate(self) -> float:
+        """Fraction of the runs that reached the flag (status ``WIN``)."""
+        return float(np.mean([status == "WIN" for status in self.statuses])) if self.episodes else 0.0
+
     def measure(self, name: str) -> float:
         """The named measure (see :data:`MEASURES`)."""
         try:
@@ -88,6 +93,7 @@ class MarioEvaluation:
             "runs": self.runs,
             "episodes_played": len(self.episodes),
             "completion": self.completion,
+            "success_rate": self.success_rate,
             "jumps": self.jumps,
             "kills": self.kills,
             "status": self.statuses,

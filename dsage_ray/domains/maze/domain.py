@@ -2,15 +2,18 @@
 
 from __future__ import annotations
 
-from typing import Any
+import shlex
+from pathlib import Path
+from typing import Any, Sequence
 
 import numpy as np
 
 from dsage_ray.config import MazeConfig
 from dsage_ray.domains.maze.encoding import CHANNELS, SPARE, encode_levels
 from dsage_ray.domains.maze.evaluate import MazeEvaluation, evaluate
+from dsage_ray.domains.maze.layout import format_layout
 from dsage_ray.domains.maze.level import MazeLevel
-from dsage_ray.domains.maze.measures import get_measure, get_objective
+from dsage_ray.domains.maze.measures import NEEDS_REFERENCE, get_measure, get_objective
 from dsage_ray.types import EncodedLevels, EvaluationResult, Solution, Solutions
 
 
@@ -18,8 +21,8 @@ class MazeDomain:
     """Wall bitmaps searched for how one agent behaves on them (SPEC §2).
 
     A solution is a flattened ``H·W`` bitmap (values > 0.5 are walls); its start and goal are the
-    furthest connected pair. The agent is loaded lazily, once per domain object, so building a
-    domain is cheap and the object pickles without it.
+    furthest connected pair. The agent (and the ``regression`` objective's reference agent) is loaded
+    lazily, once per domain object, so building a domain is cheap and the object pickles without it.
 
     Args:
         config: The Maze section of a run config.
@@ -51,6 +54,7 @@ class MazeDomain:
         # are marked "spare", which no real cell uses, so they never look like floor or wall.
         self.encoding_pad_channel = SPARE
         self._agent = None
+        self._reference_agent = None
 
     @property
     def agent(self):
@@ -61,9 +65,21 @@ class MazeDomain:
             self._agent = load_agent(self.config.agent)
         return self._agent
 
+    @property
+    def reference_agent(self):
+        """The agent ``config.reference`` names (the ``regression`` objective's baseline), loaded on first use."""
+        if self._reference_agent is None:
+            from dsage_ray.agents import load_agent
+
+            if not self.config.reference:
+                raise ValueError("maze.reference: no reference agent configured")
+            self._reference_agent = load_agent(self.config.reference)
+        return self._reference_agent
+
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
-        state["_agent"] = None  # agents hold torch modules; each process loads its own
+        # Agents hold torch modules; each process loads its own.
+        state["_agent"] = state["_reference_agent"] = None
         return state
 
     def level(self, solution: Solution) -> MazeLevel:
@@ -88,24 +104,168 @@ class MazeDomain:
     def run(self, solution: Solution, seed: int) -> MazeEvaluation:
         """The full evaluation of one solution (the agent is not loaded for an invalid level)."""
         level = self.level(solution)
-        return evaluate(level, self.agent if level.valid else None, episodes=self.config.episodes, seed=seed,
+        return self._run(level, self.agent if level.valid else None, seed)
+
+    def run_reference(self, solution: Solution, seed: int) -> MazeEvaluation:
+        """The reference agent's evaluation of one solution with the same seed and episodes as :meth:`run`.
+
+        The seed draws the initial headings first, so both agents start every episode alike and the two
+        evaluations differ only in the policy.
+        """
+        level = self.level(solution)
+        return self._run(level, self.reference_agent if level.valid else None, seed)
+
+    def _run(self, level: MazeLevel, agent, seed: int) -> MazeEvaluation:
+        return evaluate(level, agent, episodes=self.config.episodes, seed=seed,
                         see_through_walls=self.config.see_through_walls)
 
     def evaluate(self, solution: Solution, seed: int) -> EvaluationResult:
+        """The audited agent's numbers; with the ``regression`` objective also the reference's, under
+        ``info["reference"]`` (``success_rate``, ``mean_path_length``)."""
         result = self.run(solution, seed)
+        reference = (self.run_reference(solution, seed)
+                     if self.config.objective in NEEDS_REFERENCE and result.valid else None)
+        info = {
+            key: value for key, value in result.to_dict().items()
+            if key in ("success_rate", "mean_path_length", "episode_lengths", "successes",
+                       "optimal_path_length", "start", "goal", "valid", "explored_fraction", "repeated_visits")
+        }
+        if reference is not None:
+            info["reference"] = {"success_rate": reference.success_rate,
+                                 "mean_path_length": reference.mean_path_length}
         return EvaluationResult(
-            objective=float(get_objective(self.config.objective)(result)),
+            objective=float(get_objective(self.config.objective)(result, reference)),
             measures=np.array([get_measure(name).fn(result) for name in self.measure_names], dtype=np.float64),
             occupancy=result.occupancy,
-            info={
-                key: value for key, value in result.to_dict().items()
-                if key in ("success_rate", "mean_path_length", "episode_lengths", "successes",
-                           "optimal_path_length", "start", "goal", "valid", "explored_fraction", "repeated_visits")
-            },
+            info=info,
         )
 
-    def render(self, solution: Solution, occupancy: np.ndarray | None = None) -> bytes:
-        """A PNG of the level, with ``occupancy`` overlaid when given."""
+    def render(self, solution: Solution, occupancy: np.ndarray | None = None, *, title: str | None = None,
+               occupancy_max: float | None = None) -> bytes:
+        """A PNG of the level, with ``occupancy`` overlaid when given.
+
+        Args:
+            solution: The level's bitmap.
+            occupancy: Visits per cell to overlay.
+            title: Figure title.
+            occupancy_max: Top of the colour scale (default: this level's own maximum); one value for a
+                set of pictures makes their colours comparable.
+        """
         from dsage_ray.domains.maze.render import render_level
 
-        return render_level(self.level(solution), occupancy)
+        return render_level(self.level(solution), occupancy, title=title, occupancy_max=occupancy_max)
+
+    # ------------------------------------------------------------------------------- audits
+    # What the domain-generic audit (dsage_ray.audit) asks of a domain.
+
+    #: Objectives an audit may maximise; ``regression`` also needs a reference agent.
+    AUDIT_OBJECTIVES = ("failure_rate", "regret", "regression")
+    #: Measures of the default audit: what the level looks like, not what the agent did.
+    AUDIT_MEASURES = ("num_walls", "optimal_path_length")
+    #: The agent audited when none is named: the PPO agent shipped with the package.
+    DEFAULT_AUDIT_AGENT = "rllib:ppo_maze"
+    #: The config key of the episodes per evaluation.
+    EPISODES_KEY = "maze.episodes"
+
+    @classmethod
+    def audit_values(cls, *, agent: str, reference: str | None = None, objective: str | None = None,
+                     measures: Sequence[str] | None = None) -> dict[str, Any]:
+        """The dotted config keys of a Maze audit (:func:`dsage_ray.audit.collection.audit_config`).
+
+        Args:
+            agent: The audited agent's spec.
+            reference: A reference agent's spec: the audit then searches for regressions of ``agent``
+                against it (objective ``regression``, the default with a reference).
+            objective: One of :attr:`AUDIT_OBJECTIVES` (default ``failure_rate``, or ``regression``).
+            measures: Measure names (default :attr:`AUDIT_MEASURES`); archive cells are one per integer
+                value of each measure's natural range, 50 for the fractions in ``[0, 1]``.
+
+        Raises:
+            ValueError: An objective an audit cannot use, or a reference without ``regression`` (or the reverse).
+        """
+        objective = objective or ("regression" if reference else "failure_rate")
+        if objective not in cls.AUDIT_OBJECTIVES:
+            raise ValueError(f"maze audit objective must be one of {', '.join(map(repr, cls.AUDIT_OBJECTIVES))}, "
+                             f"got {objective!r}")
+        if (objective == "regression") != bool(reference):
+            raise ValueError("the 'regression' objective needs a reference agent (--reference), and a reference "
+                             f"agent needs the 'regression' objective (got objective {objective!r})")
+        measures = tuple(measures or cls.AUDIT_MEASURES)
+        for name in measures:
+            get_measure(name)
+
+        def cells(name: str) -> int:
+            low, high = get_measure(name).natural_range(16, 16)
+            return 50 if high - low <= 1 else int(round(high - low))
+
+        return {"maze.agent": agent, "maze.reference": reference or "", "maze.objective": objective,
+                "maze.measures": measures, "maze.archive_dims": tuple(cells(m) for m in measures)}
+
+    def preflight(self) -> None:
+        """Loads the agent (and the reference) now, so a bad spec fails in one line before any search.
+
+        Raises:
+            ValueError: An agent that cannot be loaded (:class:`~dsage_ray.agents.AgentError` or a file error).
+        """
+        roles = [("agent", self.config.agent, "agent")]
+        if self.config.reference:
+            roles.append(("reference agent", self.config.reference, "reference_agent"))
+        for role, spec, attribute in roles:
+            try:
+                getattr(self, attribute)
+            except (ValueError, OSError) as exc:  # AgentError is a ValueError
+                raise ValueError(f"{role} {spec!r}: {exc}") from None
+
+    @property
+    def agent_spec(self) -> str:
+        return self.config.agent
+
+    @property
+    def reference_spec(self) -> str | None:
+        return self.config.reference or None
+
+    @property
+    def episodes(self) -> int:
+        return self.config.episodes
+
+    def is_valid(self, solution: Solution) -> bool:
+        """A start and a goal connected by a path (invalid levels never reach a collection)."""
+        return self.level(solution).valid
+
+    def level_text(self, solution: Solution) -> str:
+        """The layout file of a valid level (``dsage-ray maze eval --layout`` reads it)."""
+        return format_layout(self.level(solution))
+
+    def reproduce_command(self, level_file: str | Path, *, seed: int) -> str:
+        """The shell command that re-runs this domain's evaluation of the layout in ``level_file``."""
+        command = ["dsage-ray", "maze", "eval", "--agent", self.config.agent, "--layout", str(level_file),
+                   "--episodes", str(self.config.episodes), "--seed", str(int(seed))]
+        if not self.config.see_through_walls:
+            command.append("--no-see-through-walls")
+        return shlex.join(command)
+
+    def render_evaluation(self, solution: Solution, result: EvaluationResult, *, title: str | None = None,
+                          occupancy_max: float | None = None) -> bytes:
+        """The level with the agent's occupancy from ``result``."""
+        return self.render(solution, result.occupancy, title=title, occupancy_max=occupancy_max)
+
+    def collection_fields(self) -> dict[str, Any]:
+        """Maze settings at the top level of a collection (beside the generic keys)."""
+        return {"see_through_walls": bool(self.config.see_through_walls)}
+
+    def entry_fields(self, solution: Solution, result: EvaluationResult, *, level_file: str) -> dict[str, Any]:
+        """The Maze numbers of a collection entry beside the generic ones (``layout_file`` and ``layout``
+        for collections written before level files had a domain-neutral name)."""
+        level, info = self.level(solution), result.info
+        return {
+            "layout_file": level_file,
+            "layout": format_layout(level),
+            "start": list(level.start),
+            "goal": list(level.goal),
+            "num_walls": level.num_walls,
+            "optimal_path_length": int(info["optimal_path_length"]),
+            "mean_path_length": float(info["mean_path_length"]),
+            "episode_lengths": [int(x) for x in info["episode_lengths"]],
+            "explored_fraction": float(info["explored_fraction"]),
+            "repeated_visits": float(info["repeated_visits"]),
+        }

@@ -1,0 +1,71 @@
+"""Bad audit input: one clear error line before any search starts, and nothing written."""
+
+from __future__ import annotations
+
+import pytest
+
+from dsage_ray.audit.collection import audit_config
+from dsage_ray.cli import main
+
+
+def audit_error(argv: list[str]) -> str:
+    with pytest.raises(SystemExit) as error:
+        main(["audit", *argv])
+    message = str(error.value)
+    assert message.startswith("dsage-ray audit: error: ") and "\n" not in message, message
+    return message
+
+
+def test_unknown_domain(tmp_path):
+    message = audit_error(["--domain", "zelda", "--out", str(tmp_path / "a")])
+    assert "unknown --domain 'zelda' (known: maze, mario)" in message
+    assert not (tmp_path / "a").exists()
+
+
+def test_reference_that_fails_to_load(tmp_path):
+    message = audit_error(["--agent", "builtin:random", "--reference", "builtin:nope", "--local",
+                           "--out", str(tmp_path / "a")])
+    assert "reference agent" in message and "builtin:nope" in message
+    assert not (tmp_path / "a").exists()
+
+
+def test_agent_that_fails_to_load(tmp_path):
+    message = audit_error(["--agent", f"dcd:{tmp_path / 'missing.tar'}", "--local", "--out", str(tmp_path / "a")])
+    assert message.startswith("dsage-ray audit: error: agent 'dcd:") and "missing.tar" in message
+    assert not (tmp_path / "a").exists()
+
+
+def test_mario_agent_that_does_not_exist(tmp_path):
+    message = audit_error(["--domain", "mario", "--agent", "dijkstra", "--out", str(tmp_path / "a")])
+    assert "unknown Mario agent 'dijkstra' (known: astar, astar:ITERATIONS" in message
+    audit_error(["--domain", "mario", "--agent", "astar:fast", "--out", str(tmp_path / "a")])
+    assert not (tmp_path / "a").exists()
+
+
+def test_objectives_and_references_that_do_not_fit(tmp_path):
+    assert "needs a reference agent" in audit_error(["--objective", "regression", "--out", str(tmp_path / "a")])
+    assert "Maze-only" in audit_error(["--domain", "mario", "--reference", "astar", "--out", str(tmp_path / "a")])
+    assert "'incompletion', got 'failure_rate'" in audit_error(
+        ["--domain", "mario", "--objective", "failure_rate", "--out", str(tmp_path / "a")])
+    assert "unknown maze measure 'walls'" in audit_error(["--measures", "walls", "--out", str(tmp_path / "a")])
+    assert not (tmp_path / "a").exists()
+
+
+def test_out_folder_rules(tmp_path):
+    existing = tmp_path / "old"
+    (existing / "collection").mkdir(parents=True)
+    message = audit_error(["--agent", "builtin:random", "--local", "--out", str(existing)])
+    assert "already holds an audit: pass --resume" in message
+    assert "nothing to resume" in audit_error(["--agent", "builtin:random", "--local", "--resume",
+                                               "--out", str(tmp_path / "empty")])
+    assert "nothing to collect from" in audit_error(["--agent", "builtin:random", "--local", "--collect-only",
+                                                     "--out", str(tmp_path / "empty")])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old"]
+
+
+def test_mario_audit_config_uses_the_paper_measures_and_the_agent_spec():
+    config = audit_config(domain="mario", agent="astar:250", preset="tiny")
+    assert config.mario.objective == "incompletion" and config.mario.astar_iterations == 250
+    assert config.mario.measures == ("sky_tiles", "mean_jumps")
+    assert config.mario.archive_dims == (150, 100) and config.mario.measure_ranges == ((0.0, 150.0), (0.0, 100.0))
+    assert audit_config(domain="mario").mario.astar_iterations == 1000  # plain "astar": the config's default
