@@ -1,60 +1,184 @@
 """Self-contained HTML pages for a collection (``report.html``) and an agent comparison.
 
-Images of the heatmap and the worst levels are embedded as base64 so the page shows them wherever it
-is opened; the full level table links to the collection's own files by relative path.
+One file that opens anywhere, with no network: inline CSS, a small inline script (sortable tables, a text
+filter, "never solved" and per-measure range filters), base64-embedded heatmaps and worst-level pictures.
+The full table links to the collection's own level files and pictures by relative path, which keeps the page
+small for a thousand levels and working wherever the collection folder is moved.
+
+Reads both collection formats: v1 (Maze only, no ``reference``, no per-level ``reproduce``; the Maze eval
+command is rebuilt from the agent, layout file, episodes and seed) and v2 (``COLLECTION_SCHEMA``).
 """
 
 from __future__ import annotations
 
 import base64
 import html
+import io
+import math
 import os
+import shlex
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from dsage_ray.audit.summary import FAILURE_CELL_RATE, failure_summary, grid_indices
 from dsage_ray.io import atomic_write_text
 
 #: Levels shown with their picture at the top of a report.
 WORST_SHOWN = 12
 #: Regions per measure in the per-region statistics.
 REGIONS_PER_MEASURE = 4
+#: Margin of the zoomed heatmap around the occupied cells: this fraction of their span, at least
+#: :data:`HEATMAP_MIN_MARGIN` cells.
+HEATMAP_MARGIN = 0.1
+HEATMAP_MIN_MARGIN = 2
+#: Entry keys every domain has; other numeric top-level keys are the domain's own numbers.
+_GENERIC_KEYS = {"id", "objective", "success_rate", "seed", "episodes", "search_objective", "regression"}
 
 _STYLE = """
-body { font-family: system-ui, sans-serif; margin: 2em; color: #222; }
-table { border-collapse: collapse; margin: 1em 0; font-size: 0.9em; }
-th, td { border: 1px solid #ccc; padding: 3px 8px; text-align: right; }
-th { background: #f0f0f0; }
-td.l, th.l { text-align: left; }
-.grid { display: flex; flex-wrap: wrap; gap: 1em; }
-.card { border: 1px solid #ddd; padding: 0.5em; font-size: 0.85em; }
-.card img { width: 280px; }
-.worse { background: #fde0dc; } .better { background: #e0f5e0; }
-code { background: #f5f5f5; padding: 1px 4px; }
+:root { --line: #d8dbe0; --head: #eef1f5; --muted: #5b6470; --accent: #b03a2e; }
+body { font: 15px/1.45 system-ui, -apple-system, "Segoe UI", sans-serif; margin: 0 auto; padding: 1.5rem 2rem;
+       max-width: 1600px; color: #1d232a; }
+h1 { font-size: 1.6rem; margin: 0 0 .3rem; } h2 { font-size: 1.25rem; margin: 2rem 0 .6rem; }
+p.lead { color: var(--muted); margin-top: 0; }
+code { font: 0.86em/1.3 ui-monospace, "DejaVu Sans Mono", monospace; background: #f3f4f6; padding: 1px 4px;
+       border-radius: 3px; }
+code.cmd { user-select: all; white-space: pre-wrap; overflow-wrap: anywhere; }
+dl.meta { display: grid; grid-template-columns: max-content 1fr; gap: .2rem 1.2rem; margin: 0; }
+dl.meta dt { color: var(--muted); } dl.meta dd { margin: 0; }
+.stats { display: flex; flex-wrap: wrap; gap: .8rem; }
+.stat { border: 1px solid var(--line); border-radius: 6px; padding: .5rem .9rem; min-width: 9rem; }
+.stat b { display: block; font-size: 1.6rem; } .stat span { color: var(--muted); font-size: .85rem; }
+.figs { display: grid; grid-template-columns: repeat(auto-fit, minmax(480px, 1fr)); gap: 1rem; }
+.figs img { width: 100%; max-width: 760px; height: auto; }
+.cards { display: grid; grid-template-columns: repeat(auto-fill, minmax(330px, 1fr)); gap: 1rem; }
+.cards.wide { grid-template-columns: repeat(auto-fill, minmax(520px, 1fr)); }
+.card { border: 1px solid var(--line); border-radius: 6px; padding: .7rem; display: flex; flex-direction: column;
+        gap: .4rem; font-size: .9rem; }
+.card img { width: 100%; height: auto; } .card .pics { display: flex; gap: .5rem; }
+.card .pics figure { flex: 1; margin: 0; } .card figcaption { text-align: center; color: var(--muted); }
+.card h3 { margin: 0; font-size: 1.05rem; }
+.card table { margin: 0; font-size: .85rem; width: 100%; } .card td, .card th { padding: 1px 6px; }
+button { font: inherit; font-size: .8rem; padding: 1px 8px; cursor: pointer; }
+table { border-collapse: collapse; margin: .5rem 0; font-size: .88rem; }
+th, td { border: 1px solid var(--line); padding: 3px 8px; text-align: right; white-space: nowrap; }
+th { background: var(--head); } td.l, th.l { text-align: left; }
+tbody tr:nth-child(even) { background: #fafbfc; } tbody tr:hover { background: #fff6d6; }
+table.sortable th { cursor: pointer; user-select: none; position: sticky; top: 0; z-index: 1; }
+table.sortable th[aria-sort=ascending]::after { content: " \\25B2"; }
+table.sortable th[aria-sort=descending]::after { content: " \\25BC"; }
+.scroll { max-height: 80vh; overflow: auto; border: 1px solid var(--line); }
+.scroll table { margin: 0; } .scroll td code.cmd { font-size: .8em; white-space: nowrap; }
+.filters { display: flex; flex-wrap: wrap; gap: .6rem 1.4rem; align-items: center; margin: .4rem 0 .6rem; }
+.filters input[type=number] { width: 5.5rem; } .filters input[type=search] { width: 16rem; }
+.worse { background: #fde0dc !important; } .better { background: #e0f5e0 !important; }
+.bad { color: var(--accent); font-weight: 600; }
+"""
+
+# Sorting for every table.sortable; filters for the table with id "levels" when the page has one.
+_SCRIPT = """
+(function () {
+  document.querySelectorAll('table.sortable').forEach(function (table) {
+    var body = table.tBodies[0];
+    table.tHead.addEventListener('click', function (event) {
+      var th = event.target.closest('th');
+      if (!th) return;
+      var col = th.cellIndex, numeric = th.classList.contains('num');
+      var dir = th.getAttribute('aria-sort') === 'ascending' ? -1 : 1;
+      table.tHead.querySelectorAll('th').forEach(function (h) { h.removeAttribute('aria-sort'); });
+      th.setAttribute('aria-sort', dir === 1 ? 'ascending' : 'descending');
+      var keyed = Array.from(body.rows, function (row) {
+        var text = row.cells[col].textContent.trim(), value = parseFloat(text);
+        return [numeric ? (isNaN(value) ? -Infinity : value) : text.toLowerCase(), row];
+      });
+      keyed.sort(function (a, b) { return a[0] < b[0] ? -dir : a[0] > b[0] ? dir : 0; });
+      body.append.apply(body, keyed.map(function (k) { return k[1]; }));
+    });
+  });
+  document.querySelectorAll('button.copy').forEach(function (button) {
+    button.addEventListener('click', function () {
+      var text = button.previousElementSibling.textContent;
+      var done = function () { button.textContent = 'copied'; };
+      if (navigator.clipboard) navigator.clipboard.writeText(text).then(done, function () {});
+    });
+  });
+  var table = document.getElementById('levels');
+  if (!table) return;
+  var rows = Array.from(table.tBodies[0].rows), query = document.getElementById('query');
+  var never = document.getElementById('never'), regressed = document.getElementById('regressed');
+  var lows = Array.from(document.querySelectorAll('input.lo')), highs = Array.from(document.querySelectorAll('input.hi'));
+  var shown = document.getElementById('shown');
+  function apply() {
+    var q = query.value.trim().toLowerCase(), count = 0;
+    var lo = lows.map(function (i) { return parseFloat(i.value); }), hi = highs.map(function (i) { return parseFloat(i.value); });
+    rows.forEach(function (row) {
+      var m = row.dataset.m.split(' ').map(Number);
+      var ok = (!q || row.textContent.toLowerCase().indexOf(q) >= 0) &&
+               (!never.checked || Number(row.dataset.s) === 0) &&
+               (!regressed || !regressed.checked || Number(row.dataset.r) > 0) &&
+               m.every(function (v, j) { return !(v < lo[j]) && !(v > hi[j]); });
+      row.hidden = !ok;
+      if (ok) count++;
+    });
+    shown.textContent = count + ' of ' + rows.length + ' levels shown';
+  }
+  document.querySelectorAll('.filters input').forEach(function (input) { input.addEventListener('input', apply); });
+  document.getElementById('reset').addEventListener('click', function () {
+    document.querySelectorAll('.filters input').forEach(function (i) { if (i.type === 'checkbox') i.checked = false; else i.value = ''; });
+    apply();
+  });
+  document.querySelectorAll('button.region').forEach(function (button) {
+    button.addEventListener('click', function () {
+      var lo = button.dataset.lo.split(' '), hi = button.dataset.hi.split(' ');
+      lows.forEach(function (i, j) { i.value = lo[j]; });
+      highs.forEach(function (i, j) { i.value = hi[j]; });
+      apply();
+      table.scrollIntoView();
+    });
+  });
+  apply();
+})();
 """
 
 
-def _img(path: Path, *, width: int | None = None) -> str:
-    data = base64.b64encode(path.read_bytes()).decode("ascii")
-    style = f' style="width:{width}px"' if width else ""
-    return f'<img src="data:image/png;base64,{data}" alt="{html.escape(path.name)}"{style}>'
+def _esc(value: Any) -> str:
+    return html.escape(str(value), quote=True)
 
 
-def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]], *, left: int = 0,
-           row_classes: Sequence[str] | None = None) -> str:
-    head = "".join(f'<th class="{"l" if i < left else ""}">{html.escape(h)}</th>' for i, h in enumerate(headers))
+def _img(data: bytes, *, alt: str) -> str:
+    return f"<img src='data:image/png;base64,{base64.b64encode(data).decode('ascii')}' alt='{_esc(alt)}'>"
+
+
+def _formatter(values: Sequence[Any]) -> Callable[[Any], str]:
+    """One number format per column: integers as such, else decimals suited to the column's magnitude."""
+    numbers = [v for v in values if isinstance(v, (int, float)) and not isinstance(v, bool)]
+    if numbers and all(float(v).is_integer() for v in numbers):
+        return lambda v: "" if v is None else str(int(v))
+    top = max((abs(float(v)) for v in numbers), default=0.0)
+    decimals = 3 if top < 10 else 2 if top < 100 else 1
+    return lambda v: "" if v is None else f"{float(v):.{decimals}f}"
+
+
+def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]], *, left: int = 0, numeric: Sequence[bool] = (),
+           row_attrs: Sequence[str] | None = None, table_attrs: str = "class='sortable'") -> str:
+    """A table with a ``thead`` (clickable when sortable); cells are HTML, headers plain text."""
+    def cls(i: int, is_head: bool) -> str:
+        names = (["l"] if i < left else []) + (["num"] if is_head and i < len(numeric) and numeric[i] else [])
+        return f" class='{' '.join(names)}'" if names else ""
+
+    head = "".join(f"<th{cls(i, True)}>{_esc(h)}</th>" for i, h in enumerate(headers))
     body = []
     for r, row in enumerate(rows):
-        cls = f' class="{row_classes[r]}"' if row_classes and row_classes[r] else ""
-        cells = "".join(f'<td class="{"l" if i < left else ""}">{c}</td>' for i, c in enumerate(row))
-        body.append(f"<tr{cls}>{cells}</tr>")
-    return f"<table><tr>{head}</tr>{''.join(body)}</table>"
+        attrs = f" {row_attrs[r]}" if row_attrs and row_attrs[r] else ""
+        body.append(f"<tr{attrs}>" + "".join(f"<td{cls(i, False)}>{c}</td>" for i, c in enumerate(row)) + "</tr>")
+    return f"<table {table_attrs}><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
 
 
 def _page(title: str, body: str) -> str:
-    return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-            f"<style>{_STYLE}</style></head><body><h1>{html.escape(title)}</h1>{body}</body></html>\n")
+    return (f"<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
+            f"<meta name='viewport' content='width=device-width, initial-scale=1'><title>{_esc(title)}</title>"
+            f"<style>{_STYLE}</style></head><body>{body}<script>{_SCRIPT}</script></body></html>\n")
 
 
 def region_statistics(levels: Sequence[dict[str, Any]], measures: Sequence[str],
@@ -63,7 +187,8 @@ def region_statistics(levels: Sequence[dict[str, Any]], measures: Sequence[str],
 
     Returns:
         One record per non-empty region: ``ranges`` per measure, ``levels``, mean ``objective``, mean and
-        min ``success_rate``, mean ``mean_path_length`` and the ``worst`` level id; worst regions first.
+        min ``success_rate``, mean ``mean_path_length`` (Maze collections only) and the ``worst`` level id;
+        worst regions first.
     """
     if not levels:
         return []
@@ -71,21 +196,277 @@ def region_statistics(levels: Sequence[dict[str, Any]], measures: Sequence[str],
     edges = [np.linspace(values[:, j].min(), values[:, j].max() + 1e-9, bins + 1) for j in range(len(measures))]
     keys = np.stack([np.clip(np.searchsorted(e, values[:, j], side="right") - 1, 0, bins - 1)
                      for j, e in enumerate(edges)], axis=1)
+    with_paths = all("mean_path_length" in lv for lv in levels)
     regions = []
     for key in sorted({tuple(k) for k in keys.tolist()}):
         members = [lv for lv, k in zip(levels, keys.tolist()) if tuple(k) == key]
-        worst = max(members, key=lambda lv: (lv["objective"], lv["mean_path_length"]))
-        regions.append({
+        worst = max(members, key=lambda lv: (lv["objective"], -lv["success_rate"]))
+        region = {
             "ranges": {m: (float(edges[j][key[j]]), float(edges[j][key[j] + 1])) for j, m in enumerate(measures)},
             "levels": len(members),
             "objective": float(np.mean([lv["objective"] for lv in members])),
             "success_rate": float(np.mean([lv["success_rate"] for lv in members])),
             "min_success_rate": float(min(lv["success_rate"] for lv in members)),
-            "mean_path_length": float(np.mean([lv["mean_path_length"] for lv in members])),
             "worst": worst["id"],
-        })
+        }
+        if with_paths:
+            region["mean_path_length"] = float(np.mean([lv["mean_path_length"] for lv in members]))
+        regions.append(region)
     regions.sort(key=lambda r: -r["objective"])
     return regions
+
+
+def reproduce_command(collection: dict[str, Any], entry: dict[str, Any], *, collection_dir: str | Path) -> str:
+    """The shell command that prints ``entry``'s numbers again: its own ``reproduce`` (v2), else the Maze eval
+    command rebuilt from the v1 collection's agent, layout file, episodes and seed."""
+    if entry.get("reproduce"):
+        return entry["reproduce"]
+    layout = Path(collection_dir) / entry.get("level_file", entry.get("layout_file", ""))
+    command = (f"dsage-ray maze eval --agent {shlex.quote(collection['agent'])} --layout {shlex.quote(str(layout))} "
+               f"--episodes {int(entry['episodes'])} --seed {int(entry['seed'])}")
+    return command if collection.get("see_through_walls", True) else command + " --no-see-through-walls"
+
+
+def _reference_command(collection: dict[str, Any], entry: dict[str, Any], command: str) -> str | None:
+    """The reference agent's command for ``entry``: recorded, or the agent's with the agent spec swapped."""
+    reference = entry.get("reference") or {}
+    if reference.get("reproduce"):
+        return reference["reproduce"]
+    flag = f"--agent {shlex.quote(collection['agent'])}"
+    if collection.get("reference") and command.count(flag) == 1:
+        return command.replace(flag, f"--agent {shlex.quote(collection['reference'])}")
+    return None
+
+
+def _domain_numbers(collection: dict[str, Any]) -> list[str]:
+    """The domain's own scalar numbers of the entries (mean path length, completion, ...), measures excluded."""
+    levels = collection["levels"]
+    if not levels:
+        return []
+    return [key for key, value in levels[0].items()
+            if key not in _GENERIC_KEYS and key not in collection["measures"]
+            and isinstance(value, (int, float)) and not isinstance(value, bool)
+            and all(isinstance(lv.get(key), (int, float)) for lv in levels)]
+
+
+def _reference_numbers(collection: dict[str, Any]) -> list[str]:
+    """Numeric keys of the entries' ``reference`` records (success rate first), the shared seed excluded."""
+    levels = collection["levels"]
+    if not collection.get("reference") or not levels or not isinstance(levels[0].get("reference"), dict):
+        return []
+    keys = [k for k, v in levels[0]["reference"].items()
+            if k != "seed" and isinstance(v, (int, float)) and not isinstance(v, bool)]
+    return sorted(keys, key=lambda k: k != "success_rate")
+
+
+def zoom_window(low: int, high: int, cells: int) -> tuple[int, int]:
+    """The cells ``low..high`` (inclusive) that levels occupy along one measure, padded by
+    :data:`HEATMAP_MARGIN` of their span (at least :data:`HEATMAP_MIN_MARGIN` cells) and clipped to the grid."""
+    pad = max(HEATMAP_MIN_MARGIN, math.ceil(HEATMAP_MARGIN * (high - low + 1)))
+    return max(0, low - pad), min(cells - 1, high + pad)
+
+
+def heatmap_pngs(collection: dict[str, Any]) -> dict[str, bytes]:
+    """The collection's levels as archive heatmaps over the first two measures: ``zoomed`` to the cells the
+    levels occupy (plus a margin) and ``full`` over the measures' whole ranges, one colour scale for both.
+
+    Each cell shows the highest objective among its levels. Empty when there are no levels or fewer than two
+    measures.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    levels, measures = collection["levels"], collection["measures"]
+    if not levels or len(measures) < 2:
+        return {}
+    ranges = np.asarray(collection["measure_ranges"], dtype=float)[:2]
+    dims = [int(d) for d in collection["archive_dims"][:2]]
+    values = np.array([[lv["measures"][m] for m in measures[:2]] for lv in levels], dtype=float)
+    cells = grid_indices(values, ranges=ranges, dims=dims)
+    grid = np.full(dims, np.nan)
+    for (i, j), lv in zip(cells.tolist(), levels):
+        grid[i, j] = lv["objective"] if np.isnan(grid[i, j]) else max(grid[i, j], lv["objective"])
+    low, high = float(np.nanmin(grid)), float(np.nanmax(grid))
+    vmin = min(0.0, low)
+    vmax = high if high > vmin else vmin + 1.0
+    edges = [np.linspace(lo, hi, d + 1) for (lo, hi), d in zip(ranges, dims)]
+    occupied = [(int(cells[:, k].min()), int(cells[:, k].max())) for k in range(2)]
+
+    def draw(window: list[tuple[int, int]], title: str) -> bytes:
+        fig = Figure(figsize=(7.0, 5.6), dpi=100)
+        FigureCanvasAgg(fig)
+        ax = fig.add_subplot()
+        ax.set_facecolor("#ececec")  # empty cells
+        mesh = ax.pcolormesh(edges[0], edges[1], np.ma.masked_invalid(grid.T), cmap="viridis", vmin=vmin,
+                             vmax=vmax)
+        ax.set_xlim(edges[0][window[0][0]], edges[0][window[0][1] + 1])
+        ax.set_ylim(edges[1][window[1][0]], edges[1][window[1][1] + 1])
+        ax.set_xlabel(measures[0], fontsize=13)
+        ax.set_ylabel(measures[1], fontsize=13)
+        ax.tick_params(labelsize=11)
+        ax.set_title(title, fontsize=13)
+        bar = fig.colorbar(mesh, ax=ax)
+        bar.set_label(f"{collection['objective']} (highest in the cell)", fontsize=12)
+        bar.ax.tick_params(labelsize=11)
+        fig.tight_layout()
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format="png")
+        return buffer.getvalue()
+
+    zoom = [zoom_window(lo, hi, d) for (lo, hi), d in zip(occupied, dims)]
+    return {"zoomed": draw(zoom, f"{len(levels)} levels, zoomed to where they are"),
+            "full": draw([(0, dims[0] - 1), (0, dims[1] - 1)], "Full measure range")}
+
+
+def _metadata(c: dict[str, Any], collection_dir: Path) -> str:
+    config = c.get("config") or {}
+    ranges = ", ".join(f"{m} [{lo:g}, {hi:g}] in {d} cells"
+                       for m, (lo, hi), d in zip(c["measures"], c["measure_ranges"], c["archive_dims"]))
+    items = [
+        ("domain", c.get("domain", "maze")),
+        ("agent", f"<code>{_esc(c['agent'])}</code>"),
+        ("reference", f"<code>{_esc(c['reference'])}</code>" if c.get("reference") else "none"),
+        ("objective", _esc(c["objective"])),
+        ("measures", _esc(ranges)),
+        ("preset", _esc(config.get("preset", "?"))),
+        ("budget", f"{_esc(config.get('budget', '?'))} real evaluations in the search"),
+        ("episodes", f"{_esc(c['episodes'])} per level (re-evaluation)"),
+        ("seed", f"{_esc(c.get('run_seed', '?'))} (each level's evaluation seed is in the table)"),
+        ("search folder", f"<code>{_esc(c.get('search_dir') or '?')}</code>, {_esc(c.get('search_elites', '?'))} "
+                          f"elites"),
+        ("collection", f"<code>{_esc(collection_dir)}</code>"),
+        ("created", _esc(c.get("created", "?"))),
+    ]
+    if c.get("notes"):
+        items.append(("notes", _esc(c["notes"])))
+    return "<dl class='meta'>" + "".join(f"<dt>{k}</dt><dd>{v}</dd>" for k, v in items) + "</dl>"
+
+
+def _summary(s: dict[str, Any]) -> str:
+    cvar = "n/a" if s["cvar10"] is None else f"{s['cvar10']:.3f}"
+    tiles = [
+        (s["levels"], "levels"),
+        (s["with_failures"], "with at least one failure"),
+        (s["never_solved"], "never solved"),
+        (s["failure_cells"], f"archive cells with failure rate ≥ {FAILURE_CELL_RATE:g}"),
+        (cvar, "mean success rate of the worst 10% (CVaR)"),
+    ]
+    if "regressed" in s:
+        top = s["mean_regression_top10"]
+        tiles += [(s["regressed"], "levels where the agent does worse than the reference"),
+                  ("n/a" if top is None else f"{top:+.3f}", "mean regression of the worst 10%")]
+    return ("<div class='stats' id='summary'>"
+            + "".join(f"<div class='stat'><b>{_esc(v)}</b><span>{_esc(label)}</span></div>" for v, label in tiles)
+            + "</div>")
+
+
+def _command(text: str) -> str:
+    return f"<div><code class='cmd'>{_esc(text)}</code> <button class='copy' type='button'>copy</button></div>"
+
+
+def _card(c: dict[str, Any], lv: dict[str, Any], collection_dir: Path, numbers: list[str],
+          formats: dict[str, Callable[[Any], str]]) -> str:
+    """One worst-level card: picture(s), the level's numbers (next to the reference's), its command(s)."""
+    reference = lv.get("reference") if c.get("reference") else None
+    pictures = [(c["agent"], collection_dir / lv["image_file"])]
+    if reference and reference.get("image_file"):
+        pictures.append((c["reference"], collection_dir / reference["image_file"]))
+    figures = "".join(
+        f"<figure>{_img(p.read_bytes(), alt=p.name) if p.is_file() else '(missing picture)'}"
+        f"{f'<figcaption>{_esc(name)}</figcaption>' if len(pictures) > 1 else ''}</figure>" for name, p in pictures)
+    rows = [("success rate", "success_rate", lv["success_rate"])]
+    rows += [(m, m, v) for m, v in lv["measures"].items()]
+    rows += [(k, k, lv[k]) for k in numbers]
+    if reference:
+        rows += [(k, k, None) for k in _reference_numbers(c) if k not in lv and k != "success_rate"]
+    cell = lambda key, v: "" if v is None else formats.get(key, _formatter([v]))(v)  # noqa: E731
+    if reference:
+        body = "".join(f"<tr><td class='l'>{_esc(name)}</td><td>{cell(key, v)}</td>"
+                       f"<td>{cell(key, reference.get(key))}</td></tr>" for name, key, v in rows)
+        head = f"<tr><th class='l'></th><th>{_esc(c['agent'])}</th><th>{_esc(c['reference'])}</th></tr>"
+    else:
+        body = "".join(f"<tr><td class='l'>{_esc(name)}</td><td>{cell(key, v)}</td></tr>" for name, key, v in rows)
+        head = ""
+    headline = f"#{lv['id']}: {_esc(c['objective'])} {lv['objective']:.3f}"
+    if "regression" in lv:
+        headline += f", <span class='bad'>regression {lv['regression']:+.2f}</span>"
+    command = reproduce_command(c, lv, collection_dir=collection_dir)
+    parts = [f"<div class='card'><h3>{headline}</h3><div class='pics'>{figures}</div>",
+             f"<table>{head}{body}</table>", f"<div>seed {lv['seed']}, {lv['episodes']} episodes:</div>",
+             _command(command)]
+    reference_command = _reference_command(c, lv, command) if reference else None
+    if reference_command:
+        parts += ["<div>the reference, same seed:</div>", _command(reference_command)]
+    return "".join(parts) + "</div>"
+
+
+def _levels_table(c: dict[str, Any], collection_dir: Path, numbers: list[str]) -> str:
+    levels, measures = c["levels"], c["measures"]
+    reference_keys = _reference_numbers(c)
+    columns: list[tuple[str, Callable[[dict[str, Any]], Any]]] = [
+        ("id", lambda lv: lv["id"]),
+        (c["objective"], lambda lv: lv["objective"]),
+        ("success rate", lambda lv: lv["success_rate"]),
+    ]
+    if reference_keys:
+        columns += [(f"reference {k.replace('_', ' ')}", lambda lv, k=k: lv["reference"].get(k))
+                    for k in reference_keys]
+        columns.append(("regression", lambda lv: lv.get("regression")))
+    columns += [(m, lambda lv, m=m: lv["measures"][m]) for m in measures]
+    columns += [(k, lambda lv, k=k: lv[k]) for k in numbers]
+    columns += [("seed", lambda lv: lv["seed"]), ("search objective", lambda lv: lv.get("search_objective"))]
+    formats = [_formatter([get(lv) for lv in levels]) for _, get in columns]
+    rows, attrs = [], []
+    for lv in levels:
+        level_file = lv.get("level_file", lv.get("layout_file"))
+        cells = [f(get(lv)) for (_, get), f in zip(columns, formats)]
+        cells.append(f"<a href='{_esc(level_file)}'>level</a> <a href='{_esc(lv['image_file'])}'>picture</a>")
+        cells.append(f"<code class='cmd'>{_esc(reproduce_command(c, lv, collection_dir=collection_dir))}</code>")
+        rows.append(cells)
+        regression = f" data-r='{lv['regression']}'" if "regression" in lv else ""
+        attrs.append(f"data-s='{lv['success_rate']}' data-m='{' '.join(str(lv['measures'][m]) for m in measures)}'"
+                     f"{regression}")
+    headers = [name for name, _ in columns] + ["files", "reproduce"]
+    numeric = [True] * len(columns) + [False, False]
+    return ("<div class='scroll'>"
+            + _table(headers, rows, left=0, numeric=numeric, row_attrs=attrs,
+                     table_attrs="class='sortable' id='levels'")
+            + "</div>")
+
+
+def _filters(c: dict[str, Any]) -> str:
+    parts = ["<div class='filters'>",
+             "<input type='search' id='query' placeholder='filter: any text in a row' aria-label='filter'>",
+             "<label><input type='checkbox' id='never'> never solved only</label>"]
+    if c.get("reference"):
+        parts.append("<label><input type='checkbox' id='regressed'> regressed only</label>")
+    for j, m in enumerate(c["measures"]):
+        values = [lv["measures"][m] for lv in c["levels"]] or [0.0]
+        parts.append(f"<label>{_esc(m)} <input type='number' step='any' class='lo' data-j='{j}' "
+                     f"placeholder='{min(values):g}' aria-label='{_esc(m)} from'> to "
+                     f"<input type='number' step='any' class='hi' data-j='{j}' placeholder='{max(values):g}' "
+                     f"aria-label='{_esc(m)} to'></label>")
+    parts.append("<button type='button' id='reset'>reset</button> <span id='shown'></span></div>")
+    return "".join(parts)
+
+
+def _regions(c: dict[str, Any]) -> str:
+    measures = c["measures"]
+    regions = region_statistics(c["levels"], measures)
+    with_paths = bool(regions) and "mean_path_length" in regions[0]
+    headers = [*(f"{m} range" for m in measures), "levels", f"mean {c['objective']}", "mean success", "min success",
+               *(["mean path length"] if with_paths else []), "worst level", ""]
+    rows = []
+    for r in regions:
+        # Filter bounds: the region's edges, rounded outward so the range inputs keep every member.
+        lo = " ".join(f"{math.floor(a * 1000) / 1000:g}" for a, _ in r["ranges"].values())
+        hi = " ".join(f"{math.ceil(b * 1000) / 1000:g}" for _, b in r["ranges"].values())
+        rows.append([*(f"{a:.1f} – {b:.1f}" for a, b in r["ranges"].values()), r["levels"], f"{r['objective']:.3f}",
+                     f"{r['success_rate']:.3f}", f"{r['min_success_rate']:.3f}",
+                     *([f"{r['mean_path_length']:.1f}"] if with_paths else []), f"#{r['worst']}",
+                     f"<button type='button' class='region' data-lo='{lo}' data-hi='{hi}'>show these</button>"])
+    numeric = [False] * len(measures) + [True] * (len(headers) - len(measures) - 2) + [False, False]
+    return _table(headers, rows, left=len(measures), numeric=numeric)
 
 
 def write_report(collection_dir: str | Path) -> Path:
@@ -94,43 +475,41 @@ def write_report(collection_dir: str | Path) -> Path:
 
     collection_dir = Path(collection_dir)
     c = load_collection(collection_dir)
-    levels, measures = c["levels"], c["measures"]
-    failing = [lv for lv in levels if lv["success_rate"] < 1.0]
-    parts = [
-        f"<p>Agent <code>{html.escape(c['agent'])}</code>; objective <b>{html.escape(c['objective'])}</b>; "
-        f"measures {', '.join(map(html.escape, measures))}. {len(levels)} valid levels from "
-        f"{c['search_elites']} search elites, each re-evaluated for {c['episodes']} episodes with its recorded seed "
-        f"({len(failing)} with at least one failed episode). Created {html.escape(c['created'])}.</p>",
-        "<p>Reproduce any row: <code>dsage-ray maze eval --agent "
-        f"{html.escape(c['agent'])} --layout LAYOUT --episodes {c['episodes']} --seed SEED"
-        f"{'' if c['see_through_walls'] else ' --no-see-through-walls'}</code></p>",
-        "<h2>Archive</h2>", _img(collection_dir / "heatmap.png"),
-        "<h2>Worst levels</h2><div class='grid'>",
-    ]
-    for lv in levels[:WORST_SHOWN]:
-        parts.append(
-            f"<div class='card'>{_img(collection_dir / lv['image_file'])}<br>"
-            f"#{lv['id']}: {html.escape(c['objective'])} {lv['objective']:.3f}, success {lv['success_rate']:.2f}, "
-            f"mean path {lv['mean_path_length']:.1f} (optimal {lv['optimal_path_length']}), {lv['num_walls']} walls, "
-            f"seed {lv['seed']}<br><a href='{lv['layout_file']}'>{lv['layout_file']}</a></div>")
-    parts.append("</div><h2>Per-region statistics</h2>")
-    regions = region_statistics(levels, measures)
-    parts.append(_table(
-        [*(f"{m} range" for m in measures), "levels", f"mean {c['objective']}", "mean success", "min success",
-         "mean path length", "worst level"],
-        [[*(f"{lo:.1f} – {hi:.1f}" for lo, hi in r["ranges"].values()), r["levels"], f"{r['objective']:.3f}",
-          f"{r['success_rate']:.3f}", f"{r['min_success_rate']:.3f}", f"{r['mean_path_length']:.1f}",
-          f"#{r['worst']}"] for r in regions], left=len(measures)))
-    parts.append("<h2>All levels</h2>")
-    parts.append(_table(
-        ["id", "layout", "image", c["objective"], "success", "mean path", "optimal", "walls",
-         *measures, "seed", "search objective"],
-        [[lv["id"], f"<a href='{lv['layout_file']}'>{lv['layout_file']}</a>", f"<a href='{lv['image_file']}'>png</a>",
-          f"{lv['objective']:.3f}", f"{lv['success_rate']:.2f}", f"{lv['mean_path_length']:.1f}",
-          lv["optimal_path_length"], lv["num_walls"], *(f"{lv['measures'][m]:.1f}" for m in measures),
-          lv["seed"], f"{lv['search_objective']:.3f}"] for lv in levels], left=0))
+    levels = c["levels"]
+    numbers = _domain_numbers(c)
+    summary = failure_summary(c)
+    if c.get("reference"):
+        title = f"Regression audit of {c['agent']} against {c['reference']}"
+        lead = (f"Levels where <code>{_esc(c['agent'])}</code> does worse than <code>{_esc(c['reference'])}</code>, "
+                f"both evaluated with the same seeds; largest regression first.")
+    else:
+        title = f"Audit of {c['agent']}"
+        lead = f"Levels where <code>{_esc(c['agent'])}</code> fails, worst first."
+    lead += (f" Every number was measured again after the search with the level's recorded seed and "
+             f"{_esc(c['episodes'])} episodes; each level's command prints it again.")
+    parts = [f"<h1>{_esc(title)}</h1><p class='lead'>{lead}</p>", "<h2>Failure diversity</h2>", _summary(summary),
+             "<h2>Run</h2>", _metadata(c, collection_dir)]
+    heatmaps = heatmap_pngs(c)
+    if heatmaps:
+        parts += ["<h2>Where the levels are</h2><div class='figs'>",
+                  _img(heatmaps["zoomed"], alt="heatmap, zoomed"), _img(heatmaps["full"], alt="heatmap, full range"),
+                  "</div>"]
+    shown = levels[:WORST_SHOWN]
+    # One number format per key across the collection, so the cards line up with each other and the table.
+    formats = {key: _formatter([lv.get(key) for lv in levels] + [(lv.get("reference") or {}).get(key) for lv in levels])
+               for key in ["success_rate", *numbers, *_reference_numbers(c)]}
+    formats.update({m: _formatter([lv["measures"][m] for lv in levels]) for m in c["measures"]})
+    wide = " wide" if c.get("reference") else ""
+    parts += [f"<h2>Worst {len(shown)} levels</h2><div class='cards{wide}'>",
+              *(_card(c, lv, collection_dir, numbers, formats) for lv in shown), "</div>",
+              "<h2>Per-region statistics</h2>",
+              "<p class='lead'>Levels grouped by equal-width ranges of each measure; "
+              "<i>show these</i> filters the table below to the region.</p>", _regions(c),
+              f"<h2>All {len(levels)} levels</h2>",
+              "<p class='lead'>Click a column header to sort. Select a command to copy it.</p>",
+              _filters(c), _levels_table(c, collection_dir, numbers)]
     path = collection_dir / "report.html"
-    atomic_write_text(path, _page(f"Audit of {c['agent']}", "".join(parts)))
+    atomic_write_text(path, _page(title, "".join(parts)))
     return path
 
 
@@ -140,36 +519,38 @@ def write_compare_report(path: str | Path, comparison: dict[str, Any], *, collec
     collection_dir = Path(collection_dir)
     path = Path(path)
     # Links relative to the page, so they work wherever the collection and the page are moved together.
-    link = lambda file: html.escape(os.path.relpath(collection_dir / file, path.parent))  # noqa: E731
+    link = lambda file: _esc(os.path.relpath(collection_dir / file, path.parent))  # noqa: E731
     a, b = comparison["agent_a"], comparison["agent_b"]
     rows = comparison["levels"]
     summary = comparison["summary"]
+    title = f"Compare {a} vs {b}"
     parts = [
-        f"<p>A = <code>{html.escape(a)}</code>, B = <code>{html.escape(b)}</code>, on the "
-        f"{len(rows)} levels of <code>{html.escape(str(collection_dir))}</code>, each with its recorded seed and "
-        f"{comparison['episodes_note']}.</p>",
+        f"<h1>{_esc(title)}</h1><p class='lead'>A = <code>{_esc(a)}</code>, B = <code>{_esc(b)}</code>, on the "
+        f"{len(rows)} levels of <code>{_esc(collection_dir)}</code>, each with its recorded seed and "
+        f"{_esc(comparison['episodes_note'])}.</p>",
         _table(["", "A", "B"], [
             ["mean success rate", f"{summary['success_a']:.3f}", f"{summary['success_b']:.3f}"],
             ["mean path length", f"{summary['path_a']:.1f}", f"{summary['path_b']:.1f}"],
             ["levels solved every episode", summary["solved_a"], summary["solved_b"]],
-        ], left=1),
+        ], left=1, table_attrs=""),
         f"<p>B is worse on <b>{summary['b_worse']}</b> levels and better on <b>{summary['b_better']}</b> "
         f"(success-rate difference beyond {summary['threshold']:.2f}).</p>",
-        "<h2>Where B is worst relative to A</h2><div class='grid'>",
+        "<h2>Where B is worst relative to A</h2><div class='cards'>",
     ]
     for row in rows:
         if row["id"] in images:
-            data = base64.b64encode(images[row["id"]]).decode("ascii")
-            parts.append(f"<div class='card'><img src='data:image/png;base64,{data}'><br>#{row['id']}: success "
-                         f"A {row['success_a']:.2f} → B {row['success_b']:.2f}; path {row['path_a']:.0f} → "
-                         f"{row['path_b']:.0f}</div>")
-    parts.append("</div><h2>All levels (B − A)</h2>")
-    classes = ["worse" if r["verdict"] == "worse" else "better" if r["verdict"] == "better" else "" for r in rows]
+            alt = f"level {row['id']}"
+            parts.append(f"<div class='card'>{_img(images[row['id']], alt=alt)}"
+                         f"<div>#{row['id']}: success A {row['success_a']:.2f} → B {row['success_b']:.2f}; path "
+                         f"{row['path_a']:.0f} → {row['path_b']:.0f}</div></div>")
+    parts.append("</div><h2>All levels (B − A)</h2><p class='lead'>Click a column header to sort.</p>")
+    classes = [f"class='{r['verdict']}'" if r["verdict"] in ("worse", "better") else "" for r in rows]
     parts.append(_table(
         ["id", "layout", "success A", "success B", "Δ success", "path A", "path B", "Δ path", "verdict"],
-        [[r["id"], f"<a href='{link(r['layout_file'])}'>{r['layout_file']}</a>",
+        [[r["id"], f"<a href='{link(r['layout_file'])}'>{_esc(r['layout_file'])}</a>",
           f"{r['success_a']:.2f}", f"{r['success_b']:.2f}", f"{r['success_b'] - r['success_a']:+.2f}",
           f"{r['path_a']:.1f}", f"{r['path_b']:.1f}", f"{r['path_b'] - r['path_a']:+.1f}", r["verdict"]]
-         for r in rows], left=0, row_classes=classes))
-    atomic_write_text(path, _page(f"Compare {a} vs {b}", "".join(parts)))
+         for r in rows], left=0, numeric=[True, False, True, True, True, True, True, True, False],
+        row_attrs=classes))
+    atomic_write_text(path, _page(title, "".join(parts)))
     return path
