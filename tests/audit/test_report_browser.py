@@ -1,0 +1,117 @@
+"""report.html in a real browser: headless Chromium from the distribution's packages, driven by Selenium.
+
+Sorts and filters the level table the way a person would and checks that the page logs no console error.
+Skips where Chromium, its driver or the ``selenium`` package (the ``dev`` extra) is missing.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from .test_report import make_collection
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMEDRIVER = Path("/usr/bin/chromedriver")
+#: No network, no first-run or background services: the page must work offline, as a file.
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                  "--window-size=1400,1000")
+
+
+@pytest.fixture
+def browser(tmp_path):
+    if not CHROMIUM.is_file() or not CHROMEDRIVER.is_file():
+        pytest.skip(f"no chromium at {CHROMIUM} or no driver at {CHROMEDRIVER} "
+                    "(apt-get install chromium chromium-driver)")
+    webdriver = pytest.importorskip("selenium.webdriver", reason="selenium is not installed (pip install -e .[dev])")
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = str(CHROMIUM)
+    for flag in (*CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / 'chromium-profile'}"):
+        options.add_argument(flag)
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    driver = webdriver.Chrome(service=Service(str(CHROMEDRIVER)), options=options)
+    try:
+        yield driver
+    finally:
+        driver.quit()
+        shutil.rmtree(tmp_path / "chromium-profile", ignore_errors=True)
+
+
+def _visible_ids(driver) -> list[int]:
+    return [int(v) for v in driver.execute_script(
+        "return Array.from(document.querySelectorAll('#levels tbody tr'))"
+        ".filter(r => !r.hidden).map(r => r.cells[0].textContent);")]
+
+
+def _header(driver, text: str):
+    from selenium.webdriver.common.by import By
+
+    return next(th for th in driver.find_elements(By.CSS_SELECTOR, "#levels thead th") if th.text.startswith(text))
+
+
+def test_report_sorts_filters_and_logs_no_error(browser, tmp_path):
+    from selenium.webdriver.common.by import By
+
+    from dsage_ray.audit.report import write_report
+
+    folder = make_collection(tmp_path / "c", levels=15)
+    browser.get(write_report(folder).resolve().as_uri())
+    assert _visible_ids(browser) == list(range(15))
+    assert browser.find_element(By.ID, "shown").text == "15 of 15 levels shown"
+
+    # mean_path_length = 50.5 + id: ascending, then descending on a second click.
+    header = _header(browser, "mean_path_length")
+    header.click()
+    assert _visible_ids(browser) == list(range(15))
+    assert header.get_attribute("aria-sort") == "ascending"
+    header.click()
+    assert _visible_ids(browser) == list(range(14, -1, -1))
+    # Numbers sort as numbers: 10 after 9, not after 1.
+    _header(browser, "id").click()
+    assert _visible_ids(browser) == list(range(15))
+
+    # Success rates cycle 0, 0.25, 0.5, 0.75, 1: never solved = ids 0, 5, 10.
+    browser.find_element(By.ID, "never").click()
+    assert _visible_ids(browser) == [0, 5, 10]
+    assert browser.find_element(By.ID, "shown").text == "3 of 15 levels shown"
+    # Text filter on top: the level file name.
+    browser.find_element(By.ID, "query").send_keys("level_0005.")
+    assert _visible_ids(browser) == [5]
+    browser.find_element(By.ID, "reset").click()
+    assert _visible_ids(browser) == list(range(15))
+
+    # Range filter on the first measure (num_walls = 100 + 3 id): 106 to 112 keeps ids 2, 3, 4.
+    browser.find_element(By.CSS_SELECTOR, "input.lo[data-j='0']").send_keys("106")
+    browser.find_element(By.CSS_SELECTOR, "input.hi[data-j='0']").send_keys("112")
+    assert _visible_ids(browser) == [2, 3, 4]
+    browser.find_element(By.ID, "reset").click()
+    # A region button fills the range inputs with its region: every level it shows lies in that region.
+    button = browser.find_element(By.CSS_SELECTOR, "button.region")
+    lows = [float(v) for v in button.get_attribute("data-lo").split()]
+    highs = [float(v) for v in button.get_attribute("data-hi").split()]
+    button.click()
+    shown = _visible_ids(browser)
+    assert 0 < len(shown) < 15
+    assert all(lows[0] <= 100 + 3 * i <= highs[0] and lows[1] <= 20 + i % 7 <= highs[1] for i in shown)
+
+    errors = [entry for entry in browser.get_log("browser") if entry["level"] == "SEVERE"]
+    assert errors == [], errors
+
+
+def test_regression_report_filters_regressed_levels(browser, tmp_path):
+    from selenium.webdriver.common.by import By
+
+    from dsage_ray.audit.report import write_report
+
+    folder = make_collection(tmp_path / "r", levels=9, regression=True)
+    browser.get(write_report(folder).resolve().as_uri())
+    browser.find_element(By.ID, "regressed").click()
+    # Regression 0.5 where id % 3 != 0 and the success rate leaves room, else 0.
+    expected = {i for i in range(9) if i % 3 and (i % 5) / 4 < 1}
+    assert set(_visible_ids(browser)) == expected
+    assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
