@@ -86,7 +86,10 @@ def _run(args: argparse.Namespace) -> int:
 
         run_dir = run_with_tune(config, workers=args.workers, address=args.address, resume=args.resume,
                                 out_dir=Path(args.out or "tb_logs").resolve())
-    print(f"run folder: {run_dir}")
+    from dsage_ray.core.tensorboard_log import tensorboard_hint
+
+    # Last, so that it is what the terminal shows when the run ends.
+    print(f"run folder: {run_dir}\nopen it in TensorBoard: {tensorboard_hint(run_dir)}")
     return 0
 
 
@@ -97,7 +100,10 @@ def _ablate(args: argparse.Namespace) -> int:
     variants = args.variants.split(",") if args.variants else None
     folder = ablate(config, seeds=args.seeds, variants=variants, workers=args.workers, address=args.address,
                     resume=args.resume, out_dir=Path(args.out).resolve(), api=args.api)
-    print(f"experiment folder: {folder}\nsummarise it with: python experiments/summarize.py {folder}")
+    from dsage_ray.core.tensorboard_log import tensorboard_hint
+
+    print(f"experiment folder: {folder}\nsummarise it with: python experiments/summarize.py {folder}\n"
+          f"open it in TensorBoard: {tensorboard_hint(folder)}")
     return 0
 
 
@@ -106,7 +112,9 @@ def run_locally(config, *, out_dir: Path, resume: bool = False) -> Path:
     from tqdm import tqdm
 
     from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
+    from dsage_ray.core.progress import EvaluationRate, progress_line
     from dsage_ray.core.runner import DSAGE
+    from dsage_ray.core.tensorboard_log import RunTensorBoard
 
     bars: dict[str, tqdm] = {}
 
@@ -125,12 +133,17 @@ def run_locally(config, *, out_dir: Path, resume: bool = False) -> Path:
     if resume:
         runner.load_state_dict(load_checkpoint(checkpoint))
         print(f"resumed at {runner.evals} evaluations, outer iteration {runner.outer_iteration}")
+    tensorboard = RunTensorBoard(logdir=out_dir, image_every=config.image_every, image_levels=config.image_levels)
+    started, evals_at_start, rate = time.monotonic(), runner.evals, EvaluationRate()
     while not runner.done:
         metrics = runner.step()
         if runner.outer_iteration % config.checkpoint_every == 0 or runner.done:
             save_checkpoint(runner.state_dict(), checkpoint)
-        tqdm.write(f"iter {runner.outer_iteration:4d}  evals {int(metrics['evals']):6d}  "
-                   f"qd_score {metrics['qd_score']:9.1f}  coverage {metrics['coverage']:.3f}")
+        tensorboard.log(runner, metrics)  # flushed every iteration, so a crash loses nothing logged
+        elapsed = time.monotonic() - started
+        evals_per_s = rate.update(evals=runner.evals - evals_at_start, running_s=elapsed)
+        tqdm.write(progress_line(metrics, budget=config.budget, elapsed_s=elapsed, evals_per_s=evals_per_s))
+    tensorboard.close()
     for bar in bars.values():
         bar.close()
     runner.write_outputs(out_dir)

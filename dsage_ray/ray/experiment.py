@@ -21,6 +21,7 @@ from ray import tune
 from dsage_ray.config import RunConfig
 from dsage_ray.domains import build_domain
 from dsage_ray.ray.pool import DomainFactory, check_cluster_fits
+from dsage_ray.ray.progress import ProgressLines, quiet_tune_output
 from dsage_ray.ray.trainable import DSAGETrainable, resource_request
 
 #: Which Tune entry point runs the trials.
@@ -88,7 +89,7 @@ def run_experiment(
     max_failures: int = 2,
     checkpoint_every: int = 1,
     domain_factory: DomainFactory = build_domain,
-    verbose: int = 1,
+    verbose: int = 0,
 ) -> Path:
     """Runs every trial of ``param_space`` to its evaluation budget; returns the experiment folder.
 
@@ -102,7 +103,8 @@ def run_experiment(
         max_failures: Times a crashed trial is restored from its last checkpoint.
         checkpoint_every: Outer iterations between checkpoints.
         domain_factory: Builds the domain in the trial and in each simulator actor.
-        verbose: Tune's console verbosity.
+        verbose: Tune's own console verbosity (1 adds its status tables). A progress line per
+            trial result is printed at every verbosity (:class:`~dsage_ray.ray.progress.ProgressLines`).
 
     Raises:
         ray.tune.TuneError: A trial failed more than ``max_failures`` times.
@@ -115,16 +117,18 @@ def run_experiment(
                                               num_to_keep=2)
 
     if api == "run":
-        analysis = tune.run(
-            trainable,
-            name=name,
-            config=param_space,
-            storage_path=storage_path,
-            checkpoint_config=checkpoint_config,
-            max_failures=max_failures,
-            resume="AUTO+ERRORED" if resume else False,
-            verbose=verbose,
-        )
+        with quiet_tune_output():
+            analysis = tune.run(
+                trainable,
+                name=name,
+                config=param_space,
+                storage_path=storage_path,
+                checkpoint_config=checkpoint_config,
+                max_failures=max_failures,
+                resume="AUTO+ERRORED" if resume else False,
+                verbose=verbose,
+                callbacks=[ProgressLines()],
+            )
         _check_finished(name, [trial.last_result for trial in analysis.trials])
         return Path(analysis.experiment_path)
 
@@ -140,9 +144,11 @@ def run_experiment(
                 checkpoint_config=checkpoint_config,
                 failure_config=tune.FailureConfig(max_failures=max_failures),
                 verbose=verbose,
+                callbacks=[ProgressLines()],
             ),
         )
-    results = tuner.fit()
+    with quiet_tune_output():
+        results = tuner.fit()
     errors = [result.error for result in results if result.error is not None]
     if errors:
         raise tune.TuneError(f"{len(errors)} trial(s) failed; first error: {errors[0]}")

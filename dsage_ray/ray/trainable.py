@@ -12,15 +12,16 @@ as an uninterrupted one would.
 from __future__ import annotations
 
 import io
+import logging
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import ray
 import torch
 from ray import tune
 
 from dsage_ray.config import RunConfig
+from dsage_ray.core.tensorboard_log import RunTensorBoard
 from dsage_ray.domains import build_domain
 from dsage_ray.io import atomic_write_bytes
 from dsage_ray.ray.pool import DomainFactory, SimulatorPool
@@ -41,14 +42,19 @@ class DSAGETrainable(tune.Trainable):
     Its Tune config is a flat :meth:`RunConfig.to_flat` dict, so every config key can be a
     ``tune.grid_search`` axis. Extra constructor arguments go through ``tune.with_parameters``.
 
-    Results: the runner's metrics, ``done`` once the evaluation budget is spent, and the pool's
-    fault counters (``pool_actor_deaths``, ``pool_resubmitted_chunks``).
+    Results: the runner's metrics, ``done`` once the evaluation budget is spent, ``budget``, and
+    the pool's fault counters (``pool_actor_deaths``, ``pool_resubmitted_chunks``). The trial also
+    writes its own TensorBoard events (``dsage/*`` scalars against evaluations, and images) into
+    its folder; see :class:`~dsage_ray.core.tensorboard_log.RunTensorBoard`.
     """
 
     def setup(self, config: dict[str, Any], domain_factory: DomainFactory = build_domain) -> None:
         from dsage_ray.core.runner import DSAGE
 
         self.run_config = RunConfig.build(config)
+        # Tune logs every checkpoint at INFO from this process ("Checkpoint successfully created at");
+        # one per outer iteration buries the driver's progress lines. Warnings still show.
+        logging.getLogger("ray.train._internal.storage").setLevel(logging.WARNING)
         # One torch thread per reserved CPU unless told otherwise: several trials and simulators
         # share the cores, and oversubscribed intra-op threads slow surrogate training down
         # several times over.
@@ -59,7 +65,8 @@ class DSAGETrainable(tune.Trainable):
         self.pool = (SimulatorPool(config=self.run_config, domain_factory=domain_factory)
                      if self.run_config.ray.num_workers > 0 else None)
         self.runner = DSAGE(config=self.run_config, evaluator=self.pool, domain=domain)
-        self._writer = None
+        self._tensorboard = RunTensorBoard(logdir=self.output_dir, image_every=self.run_config.image_every,
+                                           image_levels=self.run_config.image_levels)
         # Reported so that a misplaced pool (actors outside the trial's bundles) is visible.
         trial_group = ray.get_runtime_context().get_placement_group_id()
         self._pool_in_trial_group = float(self.pool is not None and trial_group is not None and all(
@@ -75,13 +82,13 @@ class DSAGETrainable(tune.Trainable):
         metrics = self.runner.step()
         result: dict[str, Any] = dict(metrics)
         result["done"] = self.runner.done
+        # The driver's progress line needs it, and an ablation's flat config may leave it at its default.
+        result["budget"] = self.run_config.budget
         if self.pool is not None:
             result["pool_actor_deaths"] = self.pool.stats.actor_deaths
             result["pool_resubmitted_chunks"] = self.pool.stats.resubmitted_chunks
             result["pool_in_trial_placement_group"] = self._pool_in_trial_group
-        iteration = int(metrics.get("outer_iteration", self.iteration + 1))
-        if iteration % self.run_config.image_every == 0 or self.runner.done:
-            self._log_images(iteration)
+        self._tensorboard.log(self.runner, metrics)
         if self.runner.done:
             self.runner.write_outputs(self.output_dir)
         return result
@@ -103,34 +110,6 @@ class DSAGETrainable(tune.Trainable):
                 return Path(storage.trial_fs_path)
         return Path(self.logdir)
 
-    def _log_images(self, iteration: int) -> None:
-        """Archive heatmap, sample elite levels spread over the archive, and the surrogate's
-        predicted-vs-true measures (paper Fig. 9)."""
-        from tensorboardX import SummaryWriter
-
-        from dsage_ray.core.outputs import heatmap_image, render_elites, scatter_png
-
-        if self._writer is None:
-            self.output_dir.mkdir(parents=True, exist_ok=True)
-            self._writer = SummaryWriter(logdir=str(self.output_dir), filename_suffix=".images")
-        measure_names = tuple(self.runner.domain.measure_names)
-        archive = self.runner.ground_truth_archive
-        if len(archive) > 0:
-            heatmap = heatmap_image(archive, title=f"iteration {iteration}", measure_names=measure_names)
-            self._writer.add_image("archive/heatmap", heatmap, iteration, dataformats="HWC")
-            if getattr(self.runner.domain, "render", None) is not None:
-                elites = render_elites(archive, self.runner.domain, self.run_config.image_levels)
-                for rank, (_, png) in enumerate(elites):
-                    self._writer.add_image(f"levels/elite_{rank}", _png_to_array(png), iteration, dataformats="HWC")
-        predictions = getattr(self.runner, "last_predictions", None)
-        if predictions is not None:
-            predicted, true = (np.asarray(a) for a in predictions)
-            if len(true):
-                scatter = _png_to_array(scatter_png(predicted, true, measure_names))
-                self._writer.add_image("surrogate/predicted_vs_true_measures", scatter, iteration,
-                                       dataformats="HWC")
-        self._writer.flush()
-
     # ------------------------------------------------------------------------------ checkpoints
 
     def save_checkpoint(self, checkpoint_dir: str) -> None:
@@ -146,14 +125,7 @@ class DSAGETrainable(tune.Trainable):
         self.runner.load_state_dict(state)
 
     def cleanup(self) -> None:
-        if self._writer is not None:
-            self._writer.close()
+        self._tensorboard.close()
         if self.pool is not None:
             self.pool.close()
-
-
-def _png_to_array(png: bytes) -> np.ndarray:
-    from PIL import Image
-
-    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,8 @@ from dsage_ray.ray.experiment import check_resources, run_experiment
 from dsage_ray.ray.pool import PoolResourceError
 from dsage_ray.ray.trainable import STATE_FILE, DSAGETrainable
 from tests.fakes import BitmapDomain
-from tests.ray.helpers import CrashOnceTrainable, archive_snapshot, bitmap_domain, small_config, tensorboard_tags
+from tests.ray.helpers import (CrashOnceTrainable, archive_snapshot, bitmap_domain, small_config,
+                               tensorboard_scalars, tensorboard_tags)
 
 pytestmark = pytest.mark.usefixtures("ray_session")
 
@@ -91,7 +93,7 @@ def test_an_impossible_trial_request_fails_with_a_clear_message(tmp_path):
         check_resources(config)
 
 
-def test_tune_run_grid_writes_tensorboard_scalars_and_images(tmp_path):
+def test_tune_run_grid_writes_tensorboard_scalars_and_images(tmp_path, capsys):
     """``tune.run`` here; the Tuner path is exercised by the crash test and the ablation test."""
 
     config = small_config(budget=70)
@@ -101,8 +103,24 @@ def test_tune_run_grid_writes_tensorboard_scalars_and_images(tmp_path):
                               domain_factory=bitmap_domain, verbose=0)
         trial_dirs = sorted(p.parent for p in path.glob("*/params.json"))
         assert len(trial_dirs) == 2
+        lines = capsys.readouterr().out.splitlines()
         for trial_dir in trial_dirs:
             scalars, images = tensorboard_tags(trial_dir)
-            assert "ray/tune/qd_score" in scalars
+            assert "ray/tune/qd_score" in scalars  # Tune's own scalars stay
             assert {"archive/heatmap", "surrogate/predicted_vs_true_measures", "levels/elite_0"} <= images
             assert (trial_dir / "archive.csv").exists() and (trial_dir / "metrics.json").exists()
+            # Ours: the runner's metrics under dsage/, one point per outer iteration at its evaluation count.
+            history = json.loads((trial_dir / "metrics.json").read_text())
+            ours = tensorboard_scalars(trial_dir, prefix="dsage/")
+            assert {"dsage/qd_score", "dsage/coverage", "dsage/archive_size", "dsage/surrogate_loss",
+                    "dsage/time_total", "dsage/new_cell_share"} <= set(ours)
+            assert [step for step, _ in ours["dsage/qd_score"]] == [int(m["evals"]) for m in history]
+            assert [value for _, value in ours["dsage/qd_score"]] == pytest.approx([m["qd_score"] for m in history])
+            assert ours["dsage/qd_score"][-1][0] == config.budget
+            # One progress line per result of each trial, labelled with its grid value.
+            seed = json.loads((trial_dir / "params.json").read_text())["seed"]
+            progress = [line for line in lines if line.startswith(f"seed={seed}  iter ")]
+            assert len(progress) == len(history)
+            assert progress[-1].startswith(f"seed={seed}  iter {len(history)}/{len(history)}  "
+                                           f"evals {config.budget}/{config.budget}  ")
+            assert "ETA done" in progress[-1]

@@ -1,0 +1,69 @@
+"""One progress line per outer iteration, shared by local runs and Tune trials.
+
+``iter 3/~12  evals 400/2000  qd_score 812.0  coverage 0.031  elapsed 2m10s  ETA 6m30s``
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Mapping
+
+
+def format_duration(seconds: float) -> str:
+    """``42s``, ``2m10s`` or ``1h05m``: short enough for a progress line."""
+    if not math.isfinite(seconds):
+        return "?"
+    seconds = max(0, round(seconds))
+    if seconds < 60:
+        return f"{seconds}s"
+    minutes, seconds = divmod(seconds, 60)
+    if minutes < 60:
+        return f"{minutes}m{seconds:02d}s"
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours}h{minutes:02d}m"
+
+
+def progress_line(metrics: Mapping[str, float], *, budget: int, elapsed_s: float, evals_per_s: float) -> str:
+    """The progress line of one outer iteration.
+
+    The iteration total is an estimate (``~``): later iterations are assumed to evaluate as many
+    levels as the last one, which holds once the random initial batch is past.
+
+    Args:
+        metrics: The runner's metrics of the iteration just finished (``outer_iteration``, ``evals``,
+            ``evaluated_this_iteration``, ``qd_score``, ``coverage``).
+        budget: The run's evaluation budget.
+        elapsed_s: Wall time shown as ``elapsed``.
+        evals_per_s: Evaluation rate so far; the ETA is the remaining budget at this rate.
+    """
+    iteration = int(metrics["outer_iteration"])
+    evals = int(metrics["evals"])
+    remaining = max(budget - evals, 0)
+    if remaining == 0:
+        iterations, eta = f"{iteration}", "done"
+    else:
+        per_iteration = max(int(metrics.get("evaluated_this_iteration", 0)), 1)
+        iterations = f"~{iteration + math.ceil(remaining / per_iteration)}"
+        eta = format_duration(remaining / evals_per_s) if evals_per_s > 0 else "?"
+    return (f"iter {iteration}/{iterations}  evals {evals}/{budget}  qd_score {metrics['qd_score']:.1f}  "
+            f"coverage {metrics['coverage']:.3f}  elapsed {format_duration(elapsed_s)}  ETA {eta}")
+
+
+class EvaluationRate:
+    """Evaluations per second of one run, measured from the first iteration seen.
+
+    The first iteration evaluates random levels without training a surrogate, so it is far cheaper
+    per evaluation than the rest; once a later iteration is seen, the rate counts only what came
+    after the first one, so the ETA does not promise a DSAGE run the speed of its random start.
+    """
+
+    def __init__(self) -> None:
+        self._first: tuple[float, float] | None = None
+
+    def update(self, *, evals: float, running_s: float) -> float:
+        """The rate after an iteration that ended at ``evals`` after ``running_s`` of running time."""
+        if self._first is None:
+            self._first = (evals, running_s)
+            return evals / running_s if running_s > 0 else 0.0
+        first_evals, first_s = self._first
+        return (evals - first_evals) / (running_s - first_s) if running_s > first_s else 0.0

@@ -1,0 +1,118 @@
+"""Our TensorBoard events for one run, and the command that opens them.
+
+Scalars go under ``dsage/`` with the number of real evaluations as the step, so runs with
+different batch sizes (DSAGE, MAP-Elites, a resumed run) line up on the same axis; images
+(``archive/heatmap``, ``levels/elite_K``, ``surrogate/predicted_vs_true_measures``) use the same
+step. Under Tune these events sit next to Tune's own ``ray/tune/*`` scalars in the trial folder.
+"""
+
+from __future__ import annotations
+
+import io
+import numbers
+import os
+import shlex
+import shutil
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING, Mapping
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from dsage_ray.core.runner import DSAGE
+
+#: Group of our scalars in TensorBoard (``dsage/qd_score``, ``dsage/coverage``, ...).
+SCALAR_GROUP = "dsage"
+
+
+class RunTensorBoard:
+    """Writes one run's scalars every outer iteration and its images every ``image_every``.
+
+    The event file is created on the first :meth:`log`, so a run that never steps leaves none.
+
+    Args:
+        logdir: Folder of the event file (the run or trial folder).
+        image_every: Outer iterations between images (images are also written once the budget is spent).
+        image_levels: Elite levels drawn per image step.
+    """
+
+    def __init__(self, *, logdir: str | Path, image_every: int, image_levels: int) -> None:
+        self.logdir = Path(logdir)
+        self.image_every = image_every
+        self.image_levels = image_levels
+        self._writer = None
+
+    def log(self, runner: "DSAGE", metrics: Mapping[str, float]) -> None:
+        """Logs the metrics of the iteration ``runner`` just finished (and its images when due)."""
+        if self._writer is None:
+            from tensorboardX import SummaryWriter
+
+            self.logdir.mkdir(parents=True, exist_ok=True)
+            self._writer = SummaryWriter(logdir=str(self.logdir), filename_suffix=".dsage")
+        step = int(metrics["evals"])
+        for key, value in metrics.items():
+            if isinstance(value, numbers.Real) and not isinstance(value, bool):
+                self._writer.add_scalar(f"{SCALAR_GROUP}/{key}", float(value), step)
+        iteration = int(metrics["outer_iteration"])
+        if iteration % self.image_every == 0 or runner.done:
+            self._log_images(runner, iteration=iteration, step=step)
+        self._writer.flush()
+
+    def close(self) -> None:
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+
+    def _log_images(self, runner: "DSAGE", *, iteration: int, step: int) -> None:
+        """Archive heatmap, sample elite levels spread over the archive, and the surrogate's
+        predicted-vs-true measures (paper Fig. 9)."""
+        from dsage_ray.core.outputs import heatmap_image, render_elites, scatter_png
+
+        measure_names = tuple(runner.domain.measure_names)
+        archive = runner.ground_truth_archive
+        if len(archive) > 0:
+            heatmap = heatmap_image(archive, title=f"{step} evaluations (iteration {iteration})",
+                                    measure_names=measure_names)
+            self._writer.add_image("archive/heatmap", heatmap, step, dataformats="HWC")
+            if getattr(runner.domain, "render", None) is not None:
+                for rank, (_, png) in enumerate(render_elites(archive, runner.domain, self.image_levels)):
+                    self._writer.add_image(f"levels/elite_{rank}", png_to_array(png), step, dataformats="HWC")
+        predictions = getattr(runner, "last_predictions", None)
+        if predictions is not None:
+            predicted, true = (np.asarray(a) for a in predictions)
+            if len(true):
+                scatter = png_to_array(scatter_png(predicted, true, measure_names))
+                self._writer.add_image("surrogate/predicted_vs_true_measures", scatter, step, dataformats="HWC")
+
+
+def png_to_array(png: bytes) -> np.ndarray:
+    """A PNG as an ``(H, W, 3)`` uint8 array."""
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
+
+
+def tensorboard_hint(folder: str | Path) -> str:
+    """The exact shell command that opens ``folder`` in TensorBoard, e.g.
+    ``.venv/bin/tensorboard --logdir tb_logs/maze_dsage/DSAGETrainable_1a2b3_00000_0_...``.
+
+    The folder is relative to the working directory when it lies below it (absolute otherwise), and
+    quoted for the shell. The executable is plain ``tensorboard`` when it is on the ``PATH``, else
+    the one installed next to this Python (``make`` installs into ``.venv`` without activating it).
+    """
+    executable = "tensorboard"
+    if shutil.which(executable) is None:
+        beside_python = Path(sys.executable).parent / executable
+        if beside_python.exists():
+            executable = _relative_to_cwd(beside_python)
+    return f"{shlex.quote(executable)} --logdir {shlex.quote(_relative_to_cwd(Path(folder)))}"
+
+
+def _relative_to_cwd(path: Path) -> str:
+    # os.path.abspath, not resolve(): a venv's bin/python is a symlink that must stay unresolved.
+    absolute = Path(os.path.abspath(path))
+    try:
+        return str(absolute.relative_to(Path.cwd()))
+    except ValueError:
+        return str(absolute)

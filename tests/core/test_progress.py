@@ -1,0 +1,60 @@
+"""The progress line, its ETA, and the TensorBoard command printed at the end of a run."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+from dsage_ray.core.progress import EvaluationRate, format_duration, progress_line
+from dsage_ray.core.tensorboard_log import tensorboard_hint
+
+
+@pytest.mark.parametrize("seconds, text", [(0, "0s"), (42.4, "42s"), (130, "2m10s"), (3600 + 5 * 60 + 59, "1h05m"),
+                                           (float("inf"), "?")])
+def test_format_duration(seconds, text):
+    assert format_duration(seconds) == text
+
+
+def test_progress_line_estimates_iterations_and_eta_from_the_evaluation_rate():
+    metrics = {"outer_iteration": 3.0, "evals": 400.0, "evaluated_this_iteration": 160.0, "qd_score": 812.04,
+               "coverage": 0.0312}
+    line = progress_line(metrics, budget=2000, elapsed_s=130, evals_per_s=1600 / 390)
+    # 1600 evaluations left at 160 per iteration: 10 more iterations; at 4.1/s: 6m30s.
+    assert line == "iter 3/~13  evals 400/2000  qd_score 812.0  coverage 0.031  elapsed 2m10s  ETA 6m30s"
+
+
+def test_progress_line_of_a_finished_run_and_of_an_unknown_rate():
+    metrics = {"outer_iteration": 7.0, "evals": 150.0, "evaluated_this_iteration": 23.0, "qd_score": 1.0,
+               "coverage": 0.5}
+    assert progress_line(metrics, budget=150, elapsed_s=29, evals_per_s=5.0).startswith("iter 7/7  evals 150/150")
+    assert progress_line(metrics, budget=150, elapsed_s=29, evals_per_s=5.0).endswith("ETA done")
+    assert progress_line({**metrics, "evals": 100.0}, budget=150, elapsed_s=1, evals_per_s=0.0).endswith("ETA ?")
+
+
+def test_evaluation_rate_leaves_the_cheap_first_iteration_out_once_a_later_one_is_seen():
+    rate = EvaluationRate()
+    assert rate.update(evals=100, running_s=2.0) == 50.0  # only the first iteration so far
+    # 20 more evaluations in 8 s: 2.5/s, not the 120/10 = 12/s the whole run would suggest.
+    assert rate.update(evals=120, running_s=10.0) == 2.5
+    assert rate.update(evals=140, running_s=18.0) == 2.5
+
+
+def test_tensorboard_hint_is_relative_below_the_working_directory(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))  # no tensorboard on the PATH
+    hint = tensorboard_hint(tmp_path / "tb_logs" / "run a")
+    executable = Path(sys.executable).parent / "tensorboard"
+    assert hint == f"{os.path.abspath(executable)} --logdir 'tb_logs/run a'"
+
+
+def test_tensorboard_hint_uses_tensorboard_from_the_path(tmp_path, monkeypatch):
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    (bin_dir / "tensorboard").write_text("#!/bin/sh\n")
+    (bin_dir / "tensorboard").chmod(0o755)
+    monkeypatch.setenv("PATH", str(bin_dir))
+    monkeypatch.chdir(bin_dir)
+    assert tensorboard_hint(tmp_path / "runs") == f"tensorboard --logdir {tmp_path / 'runs'}"

@@ -1,0 +1,78 @@
+"""What a run prints and where it points: progress lines, no Ray TensorBoard hint, our command last."""
+
+from __future__ import annotations
+
+import json
+import os
+import shlex
+from pathlib import Path
+
+import pytest
+
+from dsage_ray.cli import main
+from dsage_ray.core.tensorboard_log import tensorboard_hint
+from dsage_ray.ray.experiment import run_experiment
+from tests.ray.helpers import bitmap_domain, small_config, tensorboard_scalars, tensorboard_tags
+
+#: A maze run through the real CLI, as small as it gets: 2 outer iterations.
+MAZE_RUN = ["run", "experiments/configs/maze_dsage.toml", "--preset", "tiny", "--set", "maze.agent=builtin:wall_follower",
+            "--set", "budget=30", "--set", "n_rand=20", "--set", "selection.count=10", "--set", "maze.episodes=1"]
+
+
+@pytest.mark.usefixtures("ray_session")
+def test_tune_with_its_new_console_output_prints_our_progress_lines_and_not_its_tensorboard_hint(
+        tmp_path, monkeypatch, capfd):
+    # The conftest selects the legacy engine for every test; a user's shell does not.
+    monkeypatch.delenv("RAY_AIR_NEW_OUTPUT", raising=False)
+    config = small_config(budget=50)
+    run_experiment(config.to_flat(), name="quiet", storage_path=tmp_path, max_failures=0,
+                   domain_factory=bitmap_domain)
+    captured = capfd.readouterr()
+    output = captured.out + captured.err
+    assert "tensorboard --logdir" not in output
+    assert "Trial status" not in output  # Tune's periodic status table
+    lines = [line for line in captured.out.splitlines() if line.startswith("iter ")]
+    assert lines[0].startswith("iter 1/~") and lines[-1].startswith(f"iter {len(lines)}/{len(lines)}  evals 50/50")
+    assert "RAY_AIR_NEW_OUTPUT" not in os.environ  # set for the run only
+
+
+def _pointer_lines(stdout: str) -> tuple[str, str]:
+    *_, folder_line, tensorboard_line = stdout.rstrip().splitlines()
+    return folder_line, tensorboard_line
+
+
+def _logdir(tensorboard_line: str) -> Path:
+    prefix = "open it in TensorBoard: "
+    assert tensorboard_line.startswith(prefix)
+    words = shlex.split(tensorboard_line[len(prefix):])
+    assert words[0].endswith("tensorboard") and words[1] == "--logdir"
+    return Path(words[2])
+
+
+@pytest.mark.usefixtures("ray_session")
+def test_run_through_tune_ends_with_the_run_folder_and_the_tensorboard_command_to_open(tmp_path, capsys):
+    assert main([*MAZE_RUN, "--out", str(tmp_path)]) == 0
+    folder_line, tensorboard_line = _pointer_lines(capsys.readouterr().out)
+    run_dir = tmp_path / folder_line.removeprefix("run folder: ")
+    assert (run_dir / "metrics.json").exists()
+    assert tensorboard_line == f"open it in TensorBoard: {tensorboard_hint(run_dir)}"
+    # The folder it names holds the images, our scalars and Tune's.
+    scalars, images = tensorboard_tags(_logdir(tensorboard_line).resolve())
+    assert {"archive/heatmap", "levels/elite_0"} <= images
+    assert {"dsage/qd_score", "ray/tune/qd_score"} <= scalars
+
+
+def test_a_local_run_writes_the_same_tensorboard_events_and_points_at_them(tmp_path, capsys):
+    out = tmp_path / "local"
+    assert main([*MAZE_RUN, "--local", "--out", str(out)]) == 0
+    stdout = capsys.readouterr().out
+    folder_line, tensorboard_line = _pointer_lines(stdout)
+    assert folder_line == f"run folder: {out}"
+    assert _logdir(tensorboard_line).resolve() == out.resolve()
+    history = json.loads((out / "metrics.json").read_text())
+    ours = tensorboard_scalars(out, prefix="dsage/")
+    assert [step for step, _ in ours["dsage/coverage"]] == [int(m["evals"]) for m in history]
+    _, images = tensorboard_tags(out)
+    assert "archive/heatmap" in images
+    progress = [line for line in stdout.splitlines() if line.startswith("iter ")]
+    assert len(progress) == len(history) and progress[-1].endswith("ETA done")
