@@ -71,7 +71,9 @@ class ProgressLines(tune.Callback):
         line = progress_line(result, budget=int(result.get("budget", evals)),
                              elapsed_s=time.monotonic() - self._started, evals_per_s=rate)
         if len(trials) > 1:
-            finished = sum(other.status == "TERMINATED" for other in trials)
+            # This trial is still RUNNING while Tune hands out its last result.
+            finished = sum(other.status == "TERMINATED" or (other is trial and bool(result.get("done")))
+                           for other in trials)
             line = f"{_label(trial)}  {line}  trials done {finished}/{len(trials)}"
         _print(line)
 

@@ -103,7 +103,7 @@ def test_tune_run_grid_writes_tensorboard_scalars_and_images(tmp_path, capsys):
                               domain_factory=bitmap_domain, verbose=0)
         trial_dirs = sorted(p.parent for p in path.glob("*/params.json"))
         assert len(trial_dirs) == 2
-        lines = capsys.readouterr().out.splitlines()
+        lines, finals = capsys.readouterr().out.splitlines(), []
         for trial_dir in trial_dirs:
             scalars, images = tensorboard_tags(trial_dir)
             assert "ray/tune/qd_score" in scalars  # Tune's own scalars stay
@@ -124,3 +124,5 @@ def test_tune_run_grid_writes_tensorboard_scalars_and_images(tmp_path, capsys):
             assert progress[-1].startswith(f"seed={seed}  iter {len(history)}/{len(history)}  "
                                            f"evals {config.budget}/{config.budget}  ")
             assert "ETA done" in progress[-1]
+            finals.append(progress[-1].rsplit("trials done ", 1)[1])
+        assert sorted(finals) == ["1/2", "2/2"]  # a trial counts as done with its last result
