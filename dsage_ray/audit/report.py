@@ -44,7 +44,7 @@ h1 { font-size: 1.6rem; margin: 0 0 .3rem; } h2 { font-size: 1.25rem; margin: 2r
 p.lead { color: var(--muted); margin-top: 0; }
 code { font: 0.86em/1.3 ui-monospace, "DejaVu Sans Mono", monospace; background: #f3f4f6; padding: 1px 4px;
        border-radius: 3px; }
-code.cmd { user-select: all; white-space: pre-wrap; overflow-wrap: anywhere; }
+code.cmd { user-select: all; } code.cmd span { display: inline-block; max-width: 100%; overflow-wrap: anywhere; }
 dl.meta { display: grid; grid-template-columns: max-content 1fr; gap: .2rem 1.2rem; margin: 0; }
 dl.meta dt { color: var(--muted); } dl.meta dd { margin: 0; }
 .stats { display: flex; flex-wrap: wrap; gap: .8rem; }
@@ -61,6 +61,7 @@ dl.meta dt { color: var(--muted); } dl.meta dd { margin: 0; }
 .card h3 { margin: 0; font-size: 1.05rem; }
 .card table { margin: 0; font-size: .85rem; width: 100%; } .card td, .card th { padding: 1px 6px; }
 button { font: inherit; font-size: .8rem; padding: 1px 8px; cursor: pointer; }
+#levels td button.copy { font-size: .75rem; padding: 0 6px; line-height: 1.25; } #levels td:nth-child(2) { text-align: left; }
 table { border-collapse: collapse; margin: .5rem 0; font-size: .88rem; }
 th, td { border: 1px solid var(--line); padding: 3px 8px; text-align: right; white-space: nowrap; }
 th { background: var(--head); } td.l, th.l { text-align: left; }
@@ -96,12 +97,21 @@ _SCRIPT = """
       body.append.apply(body, keyed.map(function (k) { return k[1]; }));
     });
   });
-  document.querySelectorAll('button.copy').forEach(function (button) {
-    button.addEventListener('click', function () {
-      var text = button.previousElementSibling.textContent;
-      var done = function () { button.textContent = 'copied'; };
-      if (navigator.clipboard) navigator.clipboard.writeText(text).then(done, function () {});
-    });
+  // Copy buttons: the command beside the button, or the one in the button's table row.
+  document.addEventListener('click', function (event) {
+    var button = event.target.closest('button.copy');
+    if (!button) return;
+    var row = button.closest('tr'), code = row ? row.querySelector('code.cmd') : button.previousElementSibling;
+    var done = function () { button.textContent = 'copied'; };
+    var fallback = function () {
+      var range = document.createRange();
+      range.selectNodeContents(code);
+      window.getSelection().removeAllRanges();
+      window.getSelection().addRange(range);
+      if (document.execCommand('copy')) done();
+    };
+    if (navigator.clipboard) navigator.clipboard.writeText(code.textContent).then(done, fallback);
+    else fallback();
   });
   var table = document.getElementById('levels');
   if (!table) return;
@@ -146,8 +156,20 @@ def _esc(value: Any) -> str:
     return html.escape(str(value), quote=True)
 
 
+def _compact_png(data: bytes) -> bytes:
+    """``data`` re-encoded with a 256-colour palette when that is smaller: figures of flat colours and one
+    colour bar lose nothing visible and shrink about threefold, which is what keeps the page light."""
+    from PIL import Image
+
+    buffer = io.BytesIO()
+    Image.open(io.BytesIO(data)).convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(
+        buffer, format="PNG", optimize=True)
+    return min(data, buffer.getvalue(), key=len)
+
+
 def _img(data: bytes, *, alt: str) -> str:
-    return f"<img src='data:image/png;base64,{base64.b64encode(data).decode('ascii')}' alt='{_esc(alt)}'>"
+    encoded = base64.b64encode(_compact_png(data)).decode("ascii")
+    return f"<img src='data:image/png;base64,{encoded}' alt='{_esc(alt)}'>"
 
 
 def _formatter(values: Sequence[Any]) -> Callable[[Any], str]:
@@ -318,7 +340,7 @@ def heatmap_pngs(collection: dict[str, Any]) -> dict[str, bytes]:
             "full": draw([(0, dims[0] - 1), (0, dims[1] - 1)], "Full measure range")}
 
 
-def _metadata(c: dict[str, Any], collection_dir: Path) -> str:
+def _metadata(c: dict[str, Any]) -> str:
     config = c.get("config") or {}
     ranges = ", ".join(f"{m} [{lo:g}, {hi:g}] in {d} cells"
                        for m, (lo, hi), d in zip(c["measures"], c["measure_ranges"], c["archive_dims"]))
@@ -334,7 +356,6 @@ def _metadata(c: dict[str, Any], collection_dir: Path) -> str:
         ("seed", f"{_esc(c.get('run_seed', '?'))} (each level's evaluation seed is in the table)"),
         ("search folder", f"<code>{_esc(c.get('search_dir') or '?')}</code>, {_esc(c.get('search_elites', '?'))} "
                           f"elites"),
-        ("collection", f"<code>{_esc(collection_dir)}</code>"),
         ("created", _esc(c.get("created", "?"))),
     ]
     if c.get("notes"):
@@ -361,7 +382,9 @@ def _summary(s: dict[str, Any]) -> str:
 
 
 def _command(text: str) -> str:
-    return f"<div><code class='cmd'>{_esc(text)}</code> <button class='copy' type='button'>copy</button></div>"
+    # One inline block per word: lines wrap between words, never inside "--layout" at its hyphens.
+    words = " ".join(f"<span>{_esc(word)}</span>" for word in text.split(" "))
+    return f"<div><code class='cmd'>{words}</code> <button class='copy' type='button'>copy</button></div>"
 
 
 def _card(c: dict[str, Any], lv: dict[str, Any], collection_dir: Path, numbers: list[str],
@@ -420,14 +443,15 @@ def _levels_table(c: dict[str, Any], collection_dir: Path, numbers: list[str]) -
     for lv in levels:
         level_file = lv.get("level_file", lv.get("layout_file"))
         cells = [f(get(lv)) for (_, get), f in zip(columns, formats)]
-        cells.append(f"<a href='{_esc(level_file)}'>level</a> <a href='{_esc(lv['image_file'])}'>picture</a>")
+        cells.insert(1, f"<a href='{_esc(level_file)}'>level</a> <a href='{_esc(lv['image_file'])}'>picture</a> "
+                        "<button class='copy' type='button' title='copy the reproduce command'>copy</button>")
         cells.append(f"<code class='cmd'>{_esc(reproduce_command(c, lv, collection_dir=collection_dir))}</code>")
         rows.append(cells)
         regression = f" data-r='{lv['regression']}'" if "regression" in lv else ""
         attrs.append(f"data-s='{lv['success_rate']}' data-m='{' '.join(str(lv['measures'][m]) for m in measures)}'"
                      f"{regression}")
-    headers = [name for name, _ in columns] + ["files", "reproduce"]
-    numeric = [True] * len(columns) + [False, False]
+    headers = ["id", "files", *(name for name, _ in columns[1:]), "reproduce"]
+    numeric = [True, False] + [True] * (len(columns) - 1) + [False]
     return ("<div class='scroll'>"
             + _table(headers, rows, left=0, numeric=numeric, row_attrs=attrs,
                      table_attrs="class='sortable' id='levels'")
@@ -488,7 +512,7 @@ def write_report(collection_dir: str | Path) -> Path:
     lead += (f" Every number was measured again after the search with the level's recorded seed and "
              f"{_esc(c['episodes'])} episodes; each level's command prints it again.")
     parts = [f"<h1>{_esc(title)}</h1><p class='lead'>{lead}</p>", "<h2>Failure diversity</h2>", _summary(summary),
-             "<h2>Run</h2>", _metadata(c, collection_dir)]
+             "<h2>Run</h2>", _metadata(c)]
     heatmaps = heatmap_pngs(c)
     if heatmaps:
         parts += ["<h2>Where the levels are</h2><div class='figs'>",
@@ -506,7 +530,8 @@ def write_report(collection_dir: str | Path) -> Path:
               "<p class='lead'>Levels grouped by equal-width ranges of each measure; "
               "<i>show these</i> filters the table below to the region.</p>", _regions(c),
               f"<h2>All {len(levels)} levels</h2>",
-              "<p class='lead'>Click a column header to sort. Select a command to copy it.</p>",
+              "<p class='lead'>Click a column header to sort; <i>copy</i> copies the level's reproduce command "
+              "(the last column).</p>",
               _filters(c), _levels_table(c, collection_dir, numbers)]
     path = collection_dir / "report.html"
     atomic_write_text(path, _page(title, "".join(parts)))

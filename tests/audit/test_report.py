@@ -131,7 +131,11 @@ def test_regression_collection_shows_both_agents(tmp_path):
     assert f"Regression audit of {AGENT} against {REFERENCE}" in page
     # Each card: a column per agent, and both commands with the same seed.
     assert page.count(f"<tr><th class='l'></th><th>{AGENT}</th><th>{REFERENCE}</th></tr>") == 9
-    assert re.search(rf"--agent {REFERENCE} --layout \S+ --episodes 4 --seed 100\d", page)
+    for card in page.split("<h2>Per-region")[0].split("<div class='card'>")[1:]:
+        commands = [re.sub(r"</?span>", "", code) for code in re.findall(r"<code class='cmd'>(.*?)</code>", card)]
+        assert len(commands) == 2
+        assert [c.replace(REFERENCE, AGENT) for c in commands[1:]] == commands[:1]
+        assert f"--agent {REFERENCE} --layout" in commands[1]
     for header in ("reference success rate", "reference mean path length", "regression"):
         assert f">{header}</th>" in page, header
     assert "id='regressed'" in page

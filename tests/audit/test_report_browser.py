@@ -99,6 +99,15 @@ def test_report_sorts_filters_and_logs_no_error(browser, tmp_path):
     assert 0 < len(shown) < 15
     assert all(lows[0] <= 100 + 3 * i <= highs[0] and lows[1] <= 20 + i % 7 <= highs[1] for i in shown)
 
+    # A row's copy button copies that row's reproduce command (the clipboard is stubbed to read it back).
+    browser.execute_script("navigator.clipboard.writeText = function (text) { window.copied = text; "
+                           "return Promise.resolve(); };")
+    browser.find_element(By.ID, "reset").click()
+    row = browser.find_elements(By.CSS_SELECTOR, "#levels tbody tr")[3]
+    row.find_element(By.CSS_SELECTOR, "button.copy").click()
+    assert browser.execute_script("return window.copied;") == row.find_element(By.CSS_SELECTOR, "code.cmd").text
+    assert "--seed 1003" in browser.execute_script("return window.copied;")
+
     errors = [entry for entry in browser.get_log("browser") if entry["level"] == "SEVERE"]
     assert errors == [], errors
 
