@@ -1,5 +1,8 @@
 """The DCD/ACCEL MiniGrid policy (``dcd:PATH``), loaded from its ``model.tar`` state_dict.
 
+``dcd:accel`` loads the ACCEL checkpoint shipped with the package (``dsage_ray/assets/agents/accel/``: the DSAGE
+authors' agent, MIT-licensed, sha256-verified on load); any other target is a checkpoint path.
+
 The network (SPEC §2) is rebuilt here with the checkpoint's exact parameter names so the weights load with
 strict key matching::
 
@@ -41,7 +44,8 @@ import torch
 from torch import nn
 
 from dsage_ray.agents.base import Agent, AgentError, AgentState, Observation
-from dsage_ray.agents.loader import SpecOptions, describe_exception, require_file
+from dsage_ray.agents.loader import (CHECKSUMS_FILE, SpecOptions, describe_exception, require_file, shipped_agent_dir,
+                                     shipped_agent_names, verified_files)
 from dsage_ray.agents.sampling import sample_from_logits
 
 NUM_HEADINGS = 4
@@ -230,12 +234,37 @@ def build_dcd_network(state_dict: Mapping[str, torch.Tensor], *, source: str) ->
 
 
 def load_dcd_agent(target: str, options: SpecOptions) -> DCDAgent:
-    """Factory for ``dcd:PATH[?heading_quirk=0|1&quirk_group=N]``."""
+    """Factory for ``dcd:PATH[?heading_quirk=0|1&quirk_group=N]``; ``dcd:NAME`` is a shipped checkpoint."""
     heading_quirk = options.get_bool("heading_quirk", False)
     quirk_group = options.get_int("quirk_group", 10, minimum=0)
-    path = require_file(target, what="dcd checkpoint")
+    path = resolve_dcd_checkpoint(target)
     network = build_dcd_network(load_dcd_state_dict(path), source=str(path))
     return DCDAgent(network=network, heading_quirk=heading_quirk, quirk_group=quirk_group)
+
+
+def resolve_dcd_checkpoint(target: str) -> pathlib.Path:
+    """The checkpoint file ``target`` names: a path, or the one sha256-verified ``.tar`` of a shipped agent.
+
+    Raises:
+        AgentError: A missing file (naming the shipped checkpoints when ``target`` is a bare name), a shipped
+            agent that is not a dcd checkpoint, or a shipped file that fails its checksum.
+    """
+    folder = shipped_agent_dir(target)
+    if folder is None:
+        try:
+            return require_file(target, what="dcd checkpoint")
+        except AgentError as exc:
+            shipped = shipped_agent_names(holding="*.tar")
+            if "/" in target or not shipped:
+                raise
+            raise AgentError(f"{exc} (shipped: {', '.join(f'dcd:{name}' for name in shipped)})") from None
+    what = f"dcd checkpoint {target!r}"
+    if not (folder / CHECKSUMS_FILE).is_file():
+        raise AgentError(f"{what}: the shipped agent {target!r} is not a dcd checkpoint (no {CHECKSUMS_FILE})")
+    checkpoints = [path for path in verified_files(folder, what=what) if path.suffix == ".tar"]
+    if len(checkpoints) != 1:
+        raise AgentError(f"{what}: {CHECKSUMS_FILE} lists {len(checkpoints)} .tar checkpoints, expected 1")
+    return checkpoints[0]
 
 
 def _is_state_dict(blob: Mapping) -> bool:

@@ -4,11 +4,17 @@ A spec is ``KIND:TARGET[?OPTION=VALUE&OPTION=VALUE...]``, for example::
 
     builtin:random
     builtin:wall_follower
-    dcd:../shared/models/accel_seed_1/model_20000.tar?heading_quirk=1&quirk_group=10
+    dcd:accel
+    dcd:checkpoints/model_20000.tar?heading_quirk=1&quirk_group=10
     torchscript:policies/my_policy.pt
 
 The text after the last ``?`` holds the options (URL-query style); each kind documents its own, and an
 option a kind does not use is an error rather than silently ignored.
+
+Agents shipped with the package live in :data:`ASSETS_DIR`, one folder each, and a kind loads one by its
+bare folder name (``dcd:accel``, ``rllib:ppo_maze``; :func:`shipped_agent_dir`). A folder may list its files'
+sha256 in ``SHA256SUMS`` (``sha256sum`` format); :func:`verified_files` checks them on every load, so a
+corrupted install fails with one clear line instead of loading wrong weights.
 
 Kinds live in a small registry that maps the prefix to a factory. The built-in kinds are registered by
 import path, so loading ``builtin:random`` never imports torch. A new kind (e.g. ``rllib:PATH``) is one
@@ -17,6 +23,7 @@ import path, so loading ``builtin:random`` never imports torch. A new kind (e.g.
 
 from __future__ import annotations
 
+import hashlib
 import importlib
 import pathlib
 from typing import Callable, Union
@@ -34,6 +41,10 @@ _BUILTIN_KINDS: dict[str, str] = {
     "rllib": "dsage_ray.agents.rllib:load_rllib_agent",
 }
 _REGISTRY: dict[str, Union[str, AgentFactory]] = dict(_BUILTIN_KINDS)
+#: Agents shipped inside the package, one folder each (module docstring).
+ASSETS_DIR = pathlib.Path(__file__).resolve().parent.parent / "assets" / "agents"
+#: A shipped agent folder's checksum file, in ``sha256sum`` format (``<hex>  <file name>`` per line).
+CHECKSUMS_FILE = "SHA256SUMS"
 
 
 class SpecOptions:
@@ -138,6 +149,63 @@ def require_file(path: str, *, what: str) -> pathlib.Path:
     if not p.is_file():
         raise AgentError(f"{what} {str(p)!r}: not a regular file")
     return p
+
+
+def shipped_agent_dir(target: str) -> pathlib.Path | None:
+    """The shipped agent folder that ``target`` names, or None.
+
+    Only a bare name (no ``/``) that is not also a file or folder in the working directory names a shipped
+    agent: a local path always wins, so shipping an agent never changes what an existing spec loads.
+    """
+    if "/" in target or pathlib.Path(target).expanduser().exists():
+        return None
+    folder = ASSETS_DIR / target
+    return folder if folder.is_dir() else None
+
+
+def shipped_agent_names(holding: str = "*") -> list[str]:
+    """Names of the agents shipped in :data:`ASSETS_DIR` whose folder holds a file matching the glob ``holding``.
+
+    Kinds pass their own file pattern (``"*.tar"`` for dcd) so that an error lists only agents of that kind.
+    """
+    if not ASSETS_DIR.is_dir():
+        return []
+    return sorted(p.name for p in ASSETS_DIR.iterdir() if p.is_dir() and any(p.glob(holding)))
+
+
+def verified_files(folder: pathlib.Path, *, what: str) -> list[pathlib.Path]:
+    """The files ``folder/SHA256SUMS`` lists, each checked against its recorded sha256.
+
+    Args:
+        folder: A folder holding :data:`CHECKSUMS_FILE`.
+        what: What the folder is, for error messages (e.g. ``"shipped agent 'accel'"``).
+
+    Raises:
+        AgentError: No checksum file, a malformed line, a listed file missing, or a file whose sha256 differs
+            from the recorded one (a corrupt or modified install).
+    """
+    checksums = folder / CHECKSUMS_FILE
+    try:
+        lines = checksums.read_text().splitlines()
+    except OSError as exc:
+        raise AgentError(f"{what}: cannot read {str(checksums)!r} ({describe_exception(exc)})") from None
+    files = []
+    for line in filter(str.strip, lines):
+        expected, _, name = line.partition("  ")
+        if len(expected) != 64 or not name:
+            raise AgentError(f"{what}: {str(checksums)!r} line {line!r} is not '<sha256>  <file>'")
+        path = folder / name.lstrip("*")  # sha256sum marks binary-mode entries with '*'
+        try:
+            actual = hashlib.sha256(path.read_bytes()).hexdigest()
+        except OSError as exc:
+            raise AgentError(f"{what}: cannot read {str(path)!r} ({describe_exception(exc)})") from None
+        if actual != expected.lower():
+            raise AgentError(f"{what}: {str(path)!r} is corrupt: sha256 {actual} does not match the recorded "
+                             f"{expected} (reinstall dsage-ray)")
+        files.append(path)
+    if not files:
+        raise AgentError(f"{what}: {str(checksums)!r} lists no files")
+    return files
 
 
 def describe_exception(exc: BaseException, *, limit: int = 160) -> str:

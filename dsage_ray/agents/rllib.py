@@ -36,13 +36,11 @@ import numpy as np
 import torch
 
 from dsage_ray.agents.base import Agent, AgentError, AgentState, Observation
-from dsage_ray.agents.loader import SpecOptions, describe_exception
+from dsage_ray.agents.loader import SpecOptions, describe_exception, shipped_agent_dir, shipped_agent_names
 from dsage_ray.agents.sampling import sample_from_logits
 
 #: Where an algorithm checkpoint keeps its modules (``<ckpt>/<this>/<module id>``).
 MODULES_SUBDIR = Path("learner_group") / "learner" / "rl_module"
-#: Agents shipped inside the package, loadable as ``rllib:<name>``.
-ASSETS_DIR = Path(__file__).resolve().parent.parent / "assets" / "agents"
 _CTOR_FILE = "class_and_ctor_args.pkl"
 _MAX_ACTIONS = 7
 
@@ -98,11 +96,9 @@ class RLlibAgent(Agent):
 
 def resolve_module_dir(target: str, *, policy: str = "default_policy") -> Path:
     """The RLModule folder that ``target`` names (module docstring); AgentError when there is none."""
-    path = Path(target).expanduser()
-    if not path.exists() and "/" not in target and (ASSETS_DIR / target).is_dir():
-        path = ASSETS_DIR / target
+    path = shipped_agent_dir(target) or Path(target).expanduser()
     if not path.exists():
-        shipped = sorted(p.name for p in ASSETS_DIR.iterdir()) if ASSETS_DIR.is_dir() else []
+        shipped = shipped_agent_names(holding=_CTOR_FILE)
         raise AgentError(f"rllib checkpoint {str(path)!r}: not found"
                          + (f" (shipped agents: {', '.join(shipped)})" if shipped else ""))
     if not path.is_dir():

@@ -1,4 +1,4 @@
-"""Fixtures for agent tests: small checkpoints written on the fly, and the real ACCEL checkpoint when present."""
+"""Fixtures for agent tests: small checkpoints written on the fly, and the shipped ACCEL checkpoint."""
 
 from __future__ import annotations
 
@@ -8,13 +8,15 @@ import pathlib
 import pytest
 import torch
 
-from dsage_ray.agents.dcd import DCDNetwork
+from dsage_ray.agents.dcd import DCDNetwork, resolve_dcd_checkpoint
 
 REPO_ROOT = pathlib.Path(__file__).resolve().parents[2]
+#: The ACCEL agent shipped with the package; the tests need nothing outside the repository.
+ACCEL_SPEC = "dcd:accel"
 
 
 def shared_dir() -> pathlib.Path:
-    """``$DSAGE_SHARED_DIR``, else ``../shared`` next to the repository root."""
+    """``$DSAGE_SHARED_DIR``, else ``../shared`` next to the repository root (optional: the original files)."""
     return pathlib.Path(os.environ.get("DSAGE_SHARED_DIR", REPO_ROOT.parent / "shared"))
 
 
@@ -29,11 +31,8 @@ def one_torch_thread():
 
 @pytest.fixture(scope="session")
 def accel_checkpoint() -> pathlib.Path:
-    """The real ACCEL checkpoint, read in place (never copied into the repo); skips when it is absent."""
-    path = shared_dir() / "models" / "accel_seed_1" / "model_20000.tar"
-    if not path.is_file():
-        pytest.skip(f"ACCEL checkpoint not found at {path} (set DSAGE_SHARED_DIR to the shared folder)")
-    return path
+    """The shipped ACCEL checkpoint file, sha256-verified (what ``dcd:accel`` loads)."""
+    return resolve_dcd_checkpoint("accel")
 
 
 @pytest.fixture

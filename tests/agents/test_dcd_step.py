@@ -14,6 +14,7 @@ import torch
 from dsage_ray.agents import load_agent
 from dsage_ray.agents.dcd import DCDAgent
 from dsage_ray.domains.maze import MazeLevel, evaluate
+from tests.agents.conftest import ACCEL_SPEC
 from tests.agents.mazes import labyrinth13, open_maze, perfect_maze
 from tests.agents.test_dcd import random_obs
 
@@ -66,9 +67,9 @@ def _random_16x16(seed: int) -> MazeLevel:
      lambda: _random_16x16(1)],
     ids=["labyrinth13", "open13", "perfect15", "random16-0", "random16-1"],
 )
-def test_accel_evaluations_are_unchanged(accel_checkpoint, make):
+def test_accel_evaluations_are_unchanged(make):
     """Same seed, same level: the fast step and the module computation take identical actions in every episode."""
-    fast = load_agent(f"dcd:{accel_checkpoint}")
+    fast = load_agent(ACCEL_SPEC)
     slow = ModuleDCDAgent(fast)
     level = make()
     a, b = evaluate(level, fast, episodes=50, seed=3), evaluate(level, slow, episodes=50, seed=3)

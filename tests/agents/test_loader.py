@@ -2,17 +2,24 @@
 
 from __future__ import annotations
 
+import hashlib
 import pickle
+import shutil
 
 import numpy as np
 import pytest
 import torch
 from torch import nn
 
-from dsage_ray.agents import Agent, AgentError, load_agent, register_agent_kind
+from dsage_ray.agents import Agent, AgentError, load_agent, loader, register_agent_kind
 from dsage_ray.agents.builtin import RandomAgent, WallFollowerAgent
 from dsage_ray.agents.dcd import DCDAgent, DCDNetwork
+from dsage_ray.agents.loader import ASSETS_DIR
 from dsage_ray.agents.torchscript import TorchScriptAgent
+from tests.agents.conftest import ACCEL_SPEC, shared_dir
+
+#: The published ACCEL checkpoint (SPEC §2: sha256 5ad0ce09…634ae).
+ACCEL_SHA256 = "5ad0ce09ce1f1763f4b2c16f2ec08da1abb6a0564b0cf715e9be4c0ac7a634ae"
 
 
 def load_error(spec: str) -> AgentError:
@@ -142,9 +149,57 @@ def test_dcd_wrong_shape(random_dcd_checkpoint):
 def test_real_accel_checkpoint_loads_strictly(accel_checkpoint):
     state = torch.load(accel_checkpoint, map_location="cpu", weights_only=True)
     assert set(state) == set(DCDNetwork().state_dict()), "the real file is a bare state_dict with exactly our keys"
-    agent = load_agent(f"dcd:{accel_checkpoint}")
+    agent = load_agent(ACCEL_SPEC)
+    assert agent.spec == ACCEL_SPEC
     for key, tensor in agent.network.state_dict().items():
         assert torch.equal(tensor, state[key])
+
+
+# --- shipped agents -----------------------------------------------------------------------------------------
+
+
+def test_shipped_accel_is_the_published_file_with_its_notice():
+    folder = ASSETS_DIR / "accel"
+    assert hashlib.sha256((folder / "model_20000.tar").read_bytes()).hexdigest() == ACCEL_SHA256
+    assert f"{ACCEL_SHA256}  model_20000.tar" in (folder / "SHA256SUMS").read_text()
+    assert ACCEL_SHA256 in (folder / "README.md").read_text()
+    license_text = (folder / "LICENSE").read_text()
+    assert "MIT License" in license_text and "Copyright (c) 2022 ICAROS Lab" in license_text
+    original = shared_dir() / "models" / "accel_seed_1" / "model_20000.tar"
+    if original.is_file():  # optional: the authors' file as distributed beside the repository
+        assert (folder / "model_20000.tar").read_bytes() == original.read_bytes()
+
+
+@pytest.fixture
+def assets_copy(tmp_path, monkeypatch):
+    """A writable copy of the shipped agents, installed in place of the package's."""
+    copy = tmp_path / "agents"
+    shutil.copytree(ASSETS_DIR, copy)
+    monkeypatch.setattr(loader, "ASSETS_DIR", copy)
+    return copy
+
+
+def test_corrupt_shipped_checkpoint_is_refused(assets_copy):
+    checkpoint = assets_copy / "accel" / "model_20000.tar"
+    data = bytearray(checkpoint.read_bytes())
+    data[len(data) // 2] ^= 0x01  # one flipped bit in the weights: torch would load it without complaint
+    checkpoint.write_bytes(bytes(data))
+    err = str(load_error("dcd:accel"))
+    assert "model_20000.tar" in err and "is corrupt" in err and ACCEL_SHA256 in err
+    checkpoint.unlink()
+    assert "cannot read" in str(load_error("dcd:accel"))
+    (assets_copy / "accel" / "SHA256SUMS").write_text("not a checksum line\n")
+    assert "is not '<sha256>  <file>'" in str(load_error("dcd:accel"))
+
+
+def test_shipped_names_resolve_only_as_bare_names(assets_copy, tmp_path, monkeypatch):
+    assert "file not found (shipped: dcd:accel)" in str(load_error("dcd:acel"))
+    assert "not a dcd checkpoint" in str(load_error("dcd:ppo_maze"))
+    assert "file not found" in str(load_error("dcd:./accel"))  # a path, not a name
+    # A local file of the same name wins over the shipped agent: shipping never changes what a spec loads.
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "accel").write_bytes(b"not a checkpoint")
+    assert "not a readable PyTorch checkpoint" in str(load_error("dcd:accel"))
 
 
 # --- torchscript files --------------------------------------------------------------------------------------

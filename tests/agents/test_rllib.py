@@ -21,7 +21,8 @@ import torch
 from dsage_ray.agents import AgentError, load_agent
 from dsage_ray.agents.maze_training import RandomMazeEnv
 from dsage_ray.domains.maze.generator import random_valid_levels
-from dsage_ray.agents.rllib import ASSETS_DIR, MODULES_SUBDIR, RLlibAgent
+from dsage_ray.agents.loader import ASSETS_DIR
+from dsage_ray.agents.rllib import MODULES_SUBDIR, RLlibAgent
 from dsage_ray.agents.rllib_module import MAZE_ACTION_SPACE, MAZE_OBSERVATION_SPACE, MazeRLModule
 from dsage_ray.domains.maze import evaluate
 
