@@ -61,7 +61,8 @@ dl.meta dt { color: var(--muted); } dl.meta dd { margin: 0; }
 .card h3 { margin: 0; font-size: 1.05rem; }
 .card table { margin: 0; font-size: .85rem; width: 100%; } .card td, .card th { padding: 1px 6px; }
 button { font: inherit; font-size: .8rem; padding: 1px 8px; cursor: pointer; }
-#levels td button.copy { font-size: .75rem; padding: 0 6px; line-height: 1.25; } #levels td:nth-child(2) { text-align: left; }
+#levels td button.copy { font-size: .75rem; padding: 0 6px; line-height: 1.25; }
+#levels td:nth-child(2), #levels th:nth-child(2) { text-align: left; }
 table { border-collapse: collapse; margin: .5rem 0; font-size: .88rem; }
 th, td { border: 1px solid var(--line); padding: 3px 8px; text-align: right; white-space: nowrap; }
 th { background: var(--head); } td.l, th.l { text-align: left; }
@@ -117,11 +118,12 @@ _SCRIPT = """
   if (!table) return;
   var rows = Array.from(table.tBodies[0].rows), query = document.getElementById('query');
   var never = document.getElementById('never'), regressed = document.getElementById('regressed');
-  var lows = Array.from(document.querySelectorAll('input.lo')), highs = Array.from(document.querySelectorAll('input.hi'));
+  var lows = Array.from(document.querySelectorAll('input.lo'));
+  var highs = Array.from(document.querySelectorAll('input.hi'));
   var shown = document.getElementById('shown');
+  function values(inputs) { return inputs.map(function (i) { return parseFloat(i.value); }); }
   function apply() {
-    var q = query.value.trim().toLowerCase(), count = 0;
-    var lo = lows.map(function (i) { return parseFloat(i.value); }), hi = highs.map(function (i) { return parseFloat(i.value); });
+    var q = query.value.trim().toLowerCase(), count = 0, lo = values(lows), hi = values(highs);
     rows.forEach(function (row) {
       var m = row.dataset.m.split(' ').map(Number);
       var ok = (!q || row.textContent.toLowerCase().indexOf(q) >= 0) &&
@@ -135,7 +137,9 @@ _SCRIPT = """
   }
   document.querySelectorAll('.filters input').forEach(function (input) { input.addEventListener('input', apply); });
   document.getElementById('reset').addEventListener('click', function () {
-    document.querySelectorAll('.filters input').forEach(function (i) { if (i.type === 'checkbox') i.checked = false; else i.value = ''; });
+    document.querySelectorAll('.filters input').forEach(function (i) {
+      if (i.type === 'checkbox') i.checked = false; else i.value = '';
+    });
     apply();
   });
   document.querySelectorAll('button.region').forEach(function (button) {
