@@ -22,6 +22,7 @@ def build_parser() -> argparse.ArgumentParser:
     subparsers = parser.add_subparsers(dest="command", required=True)
     _add_run(subparsers)
     _add_ablate(subparsers)
+    _add_config(subparsers)
     for module_name in _COMMAND_MODULES:
         try:
             module = importlib.import_module(module_name)
@@ -74,6 +75,23 @@ def _add_ablate(subparsers) -> None:
     parser.add_argument("--workers", type=int, help="simulator actors per trial")
     parser.add_argument("--address", help="join an existing Ray cluster")
     parser.set_defaults(handler=_ablate)
+
+
+def _add_config(subparsers) -> None:
+    parser = subparsers.add_parser("config", help="print the resolved run config as JSON (runs nothing)")
+    parser.add_argument("config", help="a TOML/JSON config, e.g. experiments/configs/maze_dsage.toml")
+    add_config_arguments(parser)
+    parser.set_defaults(handler=_config)
+
+
+def _config(args: argparse.Namespace) -> int:
+    import json
+
+    # Defaults, preset, variant and --set resolved exactly as `run` resolves them; nothing else is imported.
+    flat = load_run_config(args, args.config).to_flat()
+    # One key per line (lists inline): valid JSON that also greps and diffs well.
+    print("{\n" + ",\n".join(f"  {json.dumps(key)}: {json.dumps(flat[key])}" for key in sorted(flat)) + "\n}")
+    return 0
 
 
 def _run(args: argparse.Namespace) -> int:

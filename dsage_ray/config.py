@@ -78,6 +78,9 @@ class SurrogateConfig:
     train_window: int = 20_000
     predict_batch_size: int = 4096
     device: str = "auto"
+    #: Prediction arithmetic: ``fp32``, ``bf16`` (autocast) or ``auto`` (bf16 on CUDA and on CPUs with
+    #: native bf16, else fp32). Training is always fp32.
+    precision: str = "auto"
     #: Random valid levels evaluated once, outside the budget, to score the surrogate on levels it
     #: never trains on (``holdout_*`` metrics each outer iteration); 0 turns it off.
     holdout_levels: int = 0
@@ -247,6 +250,8 @@ class RunConfig:
         for key in ("epochs", "batch_size", "train_window", "predict_batch_size"):
             need(getattr(self.surrogate, key) >= 1, f"surrogate.{key}", "must be positive")
         need(self.surrogate.lr > 0, "surrogate.lr", "must be positive")
+        need(self.surrogate.precision in ("auto", "fp32", "bf16"), "surrogate.precision",
+             "must be 'auto', 'fp32' or 'bf16'")
         need(self.surrogate.holdout_levels >= 0, "surrogate.holdout_levels", "must be >= 0 (0: off)")
         need(self.qd.emitter in ("map_elites", "cma_me", "random"), "qd.emitter",
              "must be 'map_elites', 'cma_me' or 'random'")

@@ -1,0 +1,70 @@
+"""``dsage-ray config``: the resolved run config as flat JSON, without running (or importing) anything else."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from dsage_ray.cli import main
+from dsage_ray.config import RunConfig
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+MAZE_CONFIGS = sorted((REPO_ROOT / "experiments" / "configs").glob("maze_*.toml"))
+
+
+def config_output(capsys, *args: str) -> dict:
+    assert main(["config", *map(str, args)]) == 0
+    out = capsys.readouterr().out
+    keys = [line.split('"')[1] for line in out.splitlines()[1:-1]]
+    assert keys == sorted(keys), "keys are printed sorted, one per line"
+    return json.loads(out)
+
+
+def test_prints_the_resolved_flat_config(capsys):
+    path = REPO_ROOT / "experiments" / "configs" / "maze_dsage.toml"
+    printed = config_output(capsys, path, "--preset", "cpu", "--set", "surrogate.epochs=50",
+                            "--set", "selection.block=[8, 6]")
+    expected = RunConfig.from_file(path, {"preset": "cpu", "surrogate.epochs": 50, "selection.block": [8, 6]})
+    assert printed == expected.to_flat()
+    # Defaults, then the cpu preset, then the variant, then --set: each layer shows.
+    assert printed["budget"] == 2_000 and printed["qd.exploit_iterations"] == 300
+    assert printed["surrogate.kind"] == "two_stage" and printed["selection.method"] == "downsample"
+    assert printed["surrogate.epochs"] == 50 and printed["selection.block"] == [8, 6]
+    assert all("." in key or key in RunConfig.__dataclass_fields__ for key in printed)
+
+
+@pytest.mark.parametrize("path", MAZE_CONFIGS, ids=[p.stem for p in MAZE_CONFIGS])
+def test_every_maze_experiment_config_audits_the_shipped_accel_agent(capsys, path):
+    printed = config_output(capsys, path, "--preset", "cpu")
+    assert printed["maze.agent"] == "dcd:accel"
+    assert printed["variant"] == path.stem.removeprefix("maze_")
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--set", "surrogate.epoch=5"], "surrogate.epoch: unknown config key"),
+    (["--set", "surrogate.precision=fp16"], "surrogate.precision: must be 'auto', 'fp32' or 'bf16'"),
+    (["--preset", "gpu"], "preset: unknown preset 'gpu'"),
+    (["--set", "budget"], "expected key=value"),
+])
+def test_bad_input_is_one_error_line(capsys, args, message):
+    assert main(["config", str(MAZE_CONFIGS[0]), *args]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.startswith("dsage-ray: error: ") and message in captured.err
+    assert captured.err.count("\n") == 1
+
+
+def test_runs_nothing_and_imports_neither_ray_nor_torch():
+    # A fresh interpreter: other tests have imported everything in this one.
+    code = ("import sys; from dsage_ray.cli import main; rc = main(sys.argv[1:]); "
+            "heavy = [m for m in ('ray', 'torch', 'ribs') if m in sys.modules]; "
+            "print('HEAVY', heavy, file=sys.stderr); sys.exit(rc or bool(heavy))")
+    proc = subprocess.run([sys.executable, "-c", code, "config", str(MAZE_CONFIGS[0]), "--preset", "tiny"],
+                          cwd=REPO_ROOT, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "HEAVY []" in proc.stderr
+    assert json.loads(proc.stdout)["preset"] == "tiny"
