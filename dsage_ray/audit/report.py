@@ -410,13 +410,18 @@ def _card(c: dict[str, Any], lv: dict[str, Any], collection_dir: Path, numbers: 
     if reference:
         body = "".join(f"<tr><td class='l'>{_esc(name)}</td><td>{cell(key, v)}</td>"
                        f"<td>{cell(key, reference.get(key))}</td></tr>" for name, key, v in rows)
-        head = f"<tr><th class='l'></th><th>{_esc(c['agent'])}</th><th>{_esc(c['reference'])}</th></tr>"
+        # Role names keep the card narrow; the specs are in the page header and the tooltips.
+        head = (f"<tr><th class='l'></th><th title='{_esc(c['agent'])}'>agent</th>"
+                f"<th title='{_esc(c['reference'])}'>reference</th></tr>")
     else:
         body = "".join(f"<tr><td class='l'>{_esc(name)}</td><td>{cell(key, v)}</td></tr>" for name, key, v in rows)
         head = ""
-    headline = f"#{lv['id']}: {_esc(c['objective'])} {lv['objective']:.3f}"
-    if "regression" in lv:
-        headline += f", <span class='bad'>regression {lv['regression']:+.2f}</span>"
+    if reference and "regression" in lv:
+        mark = " class='bad'" if lv["regression"] > 0 else ""
+        headline = (f"#{lv['id']}: <span{mark}>regression {lv['regression']:+.2f}</span> "
+                    f"<small>(success {lv['success_rate']:.2f} vs {reference['success_rate']:.2f})</small>")
+    else:
+        headline = f"#{lv['id']}: {_esc(c['objective'])} {lv['objective']:.3f}"
     command = reproduce_command(c, lv, collection_dir=collection_dir)
     parts = [f"<div class='card'><h3>{headline}</h3><div class='pics'>{figures}</div>",
              f"<table>{head}{body}</table>", f"<div>seed {lv['seed']}, {lv['episodes']} episodes:</div>",
@@ -527,7 +532,8 @@ def write_report(collection_dir: str | Path) -> Path:
     formats = {key: _formatter([lv.get(key) for lv in levels] + [(lv.get("reference") or {}).get(key) for lv in levels])
                for key in ["success_rate", *numbers, *_reference_numbers(c)]}
     formats.update({m: _formatter([lv["measures"][m] for lv in levels]) for m in c["measures"]})
-    wide = " wide" if c.get("reference") else ""
+    # Two pictures per card (the reference's too) need wider cards.
+    wide = " wide" if any((lv.get("reference") or {}).get("image_file") for lv in shown) else ""
     parts += [f"<h2>Worst {len(shown)} levels</h2><div class='cards{wide}'>",
               *(_card(c, lv, collection_dir, numbers, formats) for lv in shown), "</div>",
               "<h2>Per-region statistics</h2>",

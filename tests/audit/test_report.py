@@ -127,10 +127,17 @@ def test_v1_collection_renders_with_rebuilt_commands(tmp_path):
 
 def test_regression_collection_shows_both_agents(tmp_path):
     folder = make_collection(tmp_path / "r", levels=9, regression=True)
+    # A reference picture, where the builder keeps one, sits beside the agent's.
+    data = json.loads((folder / "collection.json").read_text())
+    data["levels"][0]["reference"]["image_file"] = "levels/level_0005.png"
+    (folder / "collection.json").write_text(json.dumps(data))
     page = write_report(folder).read_text()
     assert f"Regression audit of {AGENT} against {REFERENCE}" in page
+    first_card = page.split("<div class='card'>")[1]
+    assert first_card.count("src='data:image/png") == 2
+    assert f"<figcaption>{AGENT}</figcaption>" in first_card and f"<figcaption>{REFERENCE}</figcaption>" in first_card
     # Each card: a column per agent, and both commands with the same seed.
-    assert page.count(f"<tr><th class='l'></th><th>{AGENT}</th><th>{REFERENCE}</th></tr>") == 9
+    assert page.count(f"<th title='{AGENT}'>agent</th><th title='{REFERENCE}'>reference</th>") == 9
     for card in page.split("<h2>Per-region")[0].split("<div class='card'>")[1:]:
         commands = [re.sub(r"</?span>", "", code) for code in re.findall(r"<code class='cmd'>(.*?)</code>", card)]
         assert len(commands) == 2
@@ -141,6 +148,23 @@ def test_regression_collection_shows_both_agents(tmp_path):
     assert "id='regressed'" in page
     summary = failure_summary(collection_module.load_collection(folder))
     assert f"<b>{summary['regressed']}</b><span>levels where the agent does worse" in page
+
+
+def test_mario_collection_renders_its_own_numbers(tmp_path):
+    folder = make_collection(tmp_path / "m", levels=5)
+    data = json.loads((folder / "collection.json").read_text())
+    data.update(domain="mario", agent="astar", objective="incompletion", measures=["sky_tiles", "mean_jumps"],
+                measure_ranges=[[0.0, 150.0], [0.0, 100.0]], archive_dims=[150, 100])
+    for i, entry in enumerate(data["levels"]):
+        for key in ("layout_file", "num_walls", "optimal_path_length", "mean_path_length"):
+            del entry[key]
+        entry.update(measures={"sky_tiles": 40.0 + i, "mean_jumps": 3.0 * i}, completion=0.2 * i, jumps=3 * i,
+                     reproduce=f"dsage-ray mario eval --level {folder}/levels/level_{i:04d}.txt --runs 4")
+    (folder / "collection.json").write_text(json.dumps(data))
+    page = write_report(folder).read_text()
+    assert "<dt>domain</dt><dd>mario</dd>" in page and ">completion</th>" in page and ">sky_tiles</th>" in page
+    assert "mean path length" not in page and "maze eval" not in page
+    assert re.sub(r"</?span>", "", page).count("dsage-ray mario eval --level") == 5 + 5  # cards + table
 
 
 def test_empty_collection_renders(tmp_path):
