@@ -97,11 +97,12 @@ def run_audit_command(args: argparse.Namespace) -> int:
     print(f"collection: {collection}")
     print(_summary_line(c))
     for lv in c["levels"][:5]:
-        versus = ""
         if "reference" in lv:
-            versus = f" (reference {lv['reference']['success_rate']:.2f}, regression {lv['regression']:+.2f})"
-        print(f"  #{lv['id']:<4} {c['objective']} {lv['objective']:.3f}  success {lv['success_rate']:.2f}{versus}  "
-              f"{collection / lv['level_file']}  seed {lv['seed']}")
+            numbers = (f"success {lv['success_rate']:.2f}  reference {lv['reference']['success_rate']:.2f}  "
+                       f"regression {lv['regression']:+.2f}")
+        else:
+            numbers = f"{c['objective']} {lv['objective']:.3f}  success {lv['success_rate']:.2f}"
+        print(f"  #{lv['id']:<4} {numbers}  {collection / lv['level_file']}  seed {lv['seed']}")
     if c["levels"]:
         print(f"reproduce #0: {c['levels'][0]['reproduce']}")
     if not args.local and c.get("search_dir"):

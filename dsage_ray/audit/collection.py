@@ -230,7 +230,9 @@ def build_collection(
         if reference is not None:
             record["reference"] = {**{key: float(value) for key, value in reference.items()}, "seed": int(seed)}
             record["regression"] = float(reference["success_rate"]) - success
-            title += f" (reference {reference['success_rate']:.2f})"
+            # The regression itself, not its [0, 1] score, which would read like a second, different number.
+            title = (f"#{rank}: success {success:.2f}, reference {reference['success_rate']:.2f} "
+                     f"(regression {record['regression']:+.2f})")
         record.update(domain.entry_fields(solution, result, level_file=level_file))
         (staging / image_file).write_bytes(domain.render_evaluation(solution, result, title=title,
                                                                     occupancy_max=occupancy_max))
