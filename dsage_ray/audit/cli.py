@@ -105,7 +105,7 @@ def run_audit_command(args: argparse.Namespace) -> int:
         print(f"  #{lv['id']:<4} {numbers}  {collection / lv['level_file']}  seed {lv['seed']}")
     if c["levels"]:
         print(f"reproduce #0: {c['levels'][0]['reproduce']}")
-    if not args.local and c.get("search_dir"):
+    if c.get("search_dir"):  # local searches write their event files too
         from dsage_ray.core.tensorboard_log import tensorboard_hint
 
         print(f"search in TensorBoard: {tensorboard_hint(c['search_dir'])}")
