@@ -129,11 +129,6 @@ class RayConfig:
     cpus_per_worker: float = 0.5
     #: Logical CPUs the trial itself reserves (surrogate training and the inner loop).
     trial_cpus: float = 1.0
-    #: Torch threads of the trial; 0 (default) is one per reserved trial CPU. The trial's phases
-    #: (surrogate training, inner loop) never overlap its simulators' evaluations, so a lone trial
-    #: may use every CPU of its placement group (the Mario ``cpu`` preset does: its 64×64 surrogate
-    #: dominates the run).
-    trial_threads: int = 0
     #: Solutions per pool task; 0 (default) picks ~8 chunks per actor per batch, 1 spreads
     #: uneven episodes best, larger amortises Ray's per-task round trip.
     chunk_size: int = 0
@@ -159,6 +154,12 @@ class RunConfig:
     image_every: int = 5
     #: Elite levels (spread along the first measure) rendered to TensorBoard with each heatmap.
     image_levels: int = 4
+    #: Torch threads of the process running the outer loop (surrogate training and predictions),
+    #: pinned during every outer iteration in every mode (``--local``, a Tune trial, a resumed run).
+    #: A float sum split over more threads rounds differently, so the count is part of the run's
+    #: config, never taken from the machine. A lone Tune trial may use every CPU of its placement
+    #: group: its surrogate phases never overlap its simulators' evaluations.
+    torch_threads: int = 1
     maze: MazeConfig = dataclasses.field(default_factory=MazeConfig)
     mario: MarioConfig = dataclasses.field(default_factory=MarioConfig)
     surrogate: SurrogateConfig = dataclasses.field(default_factory=SurrogateConfig)
@@ -245,6 +246,7 @@ class RunConfig:
         need(self.checkpoint_every >= 1, "checkpoint_every", "must be positive")
         need(self.image_every >= 1, "image_every", "must be positive")
         need(self.image_levels >= 0, "image_levels", "must be >= 0")
+        need(self.torch_threads >= 1, "torch_threads", "must be positive")
         need(self.surrogate.kind in ("two_stage", "one_stage", "none"), "surrogate.kind",
              "must be 'two_stage', 'one_stage' or 'none'")
         for key in ("epochs", "batch_size", "train_window", "predict_batch_size"):
@@ -266,7 +268,6 @@ class RunConfig:
         need(self.ray.num_workers >= 0, "ray.num_workers", "must be >= 0")
         need(self.ray.cpus_per_worker > 0, "ray.cpus_per_worker", "must be positive")
         need(self.ray.trial_cpus > 0, "ray.trial_cpus", "must be positive")
-        need(self.ray.trial_threads >= 0, "ray.trial_threads", "must be >= 0 (0: one per trial CPU)")
         need(self.ray.chunk_size >= 0, "ray.chunk_size", "must be >= 0 (0: automatic)")
         need(self.ray.placement_timeout_s > 0, "ray.placement_timeout_s", "must be positive")
         dom = self.domain_config
@@ -362,7 +363,7 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
         },
         # The Mario surrogate sees 64×64 inputs: one training step is ~16× a Maze step, so the
         # CPU preset trains fewer epochs on a shorter window and uses both cores for it
-        # (ray.trial_threads; its phases never overlap the simulators'). Runs cost nothing extra:
+        # (torch_threads; its phases never overlap the simulators'). Runs cost nothing extra:
         # the iteration-count A* timer makes all 5 runs one episode. Random latents at σ = 1, the
         # shipped generator's training prior: at the paper's 0.2 it draws near-empty skies (30 levels
         # reach 5 archive cells vs 26 at σ = 1; benchmarks/bench_latent_sigma.py).
@@ -378,7 +379,7 @@ PRESETS: dict[str, dict[str, dict[str, Any]]] = {
             "qd.exploit_iterations": 100,
             "selection.block": (5, 5),
             "selection.count": 100,
-            "ray.trial_threads": 2,
+            "torch_threads": 2,
         },
         "tiny": {
             "budget": 12,

@@ -29,9 +29,10 @@ Nothing here imports Ray: the domain and the evaluator are injected.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import time
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import numpy as np
 from scipy import stats
@@ -145,9 +146,17 @@ class DSAGE:
         return self.history
 
     def step(self) -> dict[str, float]:
-        """Runs one outer iteration and returns its metrics."""
+        """Runs one outer iteration and returns its metrics.
+
+        Torch runs on ``config.torch_threads`` threads during the step, whoever calls it (the
+        caller's setting is restored afterwards): the surrogate's numbers depend on the count.
+        """
         if self.done:
             raise RuntimeError(f"the evaluation budget ({self.config.budget}) is spent")
+        with torch_threads(self.config.torch_threads):
+            return self._step()
+
+    def _step(self) -> dict[str, float]:
         times: dict[str, float] = {}
         metrics: dict[str, float] = {}
         started = time.perf_counter()
@@ -413,3 +422,20 @@ class DSAGE:
         self.holdout = state.get("holdout")
         self.holdout_evals = state.get("holdout_evals", 0)
         self._holdout_encoded = None
+
+
+@contextlib.contextmanager
+def torch_threads(count: int) -> Iterator[None]:
+    """Runs the block with ``count`` torch intra-op threads, then restores the caller's count.
+
+    The count a run trains and predicts with is part of its config, so ``--local``, a Tune trial
+    and a resumed run compute the same floats whatever their process was set to.
+    """
+    import torch
+
+    previous = torch.get_num_threads()
+    torch.set_num_threads(count)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)

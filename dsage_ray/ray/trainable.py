@@ -6,7 +6,8 @@ captured by that group, so several trials share a machine or a cluster without d
 
 Checkpoints hold the runner's full :meth:`~dsage_ray.core.runner.DSAGE.state_dict` (archives,
 dataset, model, optimizer, emitters, RNGs), so a trial restored after a crash continues exactly
-as an uninterrupted one would.
+as an uninterrupted one would. Torch threads are the runner's business (``torch_threads``, pinned
+during each step as in ``--local``), so a trial computes what an in-process run computes.
 """
 
 from __future__ import annotations
@@ -55,11 +56,6 @@ class DSAGETrainable(tune.Trainable):
         # Tune logs every checkpoint at INFO from this process ("Checkpoint successfully created at");
         # one per outer iteration buries the driver's progress lines. Warnings still show.
         logging.getLogger("ray.train._internal.storage").setLevel(logging.WARNING)
-        # One torch thread per reserved CPU unless told otherwise: several trials and simulators
-        # share the cores, and oversubscribed intra-op threads slow surrogate training down
-        # several times over.
-        ray_config = self.run_config.ray
-        torch.set_num_threads(ray_config.trial_threads or max(1, int(ray_config.trial_cpus)))
         domain = domain_factory(self.run_config)
         # num_workers = 0 keeps evaluation in the trial process (useful on a 1-CPU machine).
         self.pool = (SimulatorPool(config=self.run_config, domain_factory=domain_factory)

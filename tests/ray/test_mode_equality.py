@@ -1,0 +1,81 @@
+"""The same config gives the same run in every execution mode.
+
+In-process (``dsage-ray run --local``), one Tune trial with 1 simulator actor and one with 2 actors
+(results arriving out of order, one solution per task) must write byte-identical ``archive.csv``
+files and the same metrics, for DSAGE, a one-stage variant and MAP-Elites. The in-process run is
+started with a torch thread count other than the config's, as a user's shell would have it.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+import torch
+
+from dsage_ray.cli import run_locally
+from dsage_ray.config import RunConfig
+from dsage_ray.ray.experiment import grid_param_space, run_experiment
+from tests.fakes import SMALL_RUN
+
+pytestmark = pytest.mark.usefixtures("ray_session")
+
+#: The shared small run on the real Maze with the fast deterministic agent; 1.5 CPUs for the
+#: 2-actor trial, so two 1-actor trials share the 2-CPU test cluster.
+CONFIG = {
+    **SMALL_RUN,
+    "preset": "tiny",
+    "maze.agent": "builtin:wall_follower",
+    "maze.episodes": 2,
+    "ray.trial_cpus": 0.5,
+    "ray.cpus_per_worker": 0.5,
+    "ray.chunk_size": 1,
+}
+VARIANTS = ("dsage", "dsage_basic", "map_elites")
+WORKERS = (1, 2)
+
+
+@pytest.fixture(scope="module")
+def tune_trials(tmp_path_factory) -> dict[tuple[str, int], dict]:
+    """``(variant, ray.num_workers)`` → the trial's resolved config, archive.csv and metrics."""
+    base = RunConfig.build({**CONFIG, "variant": "dsage"})
+    space = grid_param_space(base, {"variant": list(VARIANTS), "ray.num_workers": list(WORKERS)})
+    path = run_experiment(space, name="modes", storage_path=tmp_path_factory.mktemp("tune"), max_failures=0)
+    trials = {}
+    for params in path.glob("*/params.json"):
+        config = RunConfig.build(json.loads(params.read_text()))
+        trials[config.variant, config.ray.num_workers] = outputs(params.parent, config)
+    assert sorted(trials) == sorted((v, w) for v in VARIANTS for w in WORKERS)
+    return trials
+
+
+def outputs(run_dir, config: RunConfig) -> dict:
+    """What must match across modes: the config (Ray keys aside), the archive and the metrics (timings aside)."""
+    history = json.loads((run_dir / "metrics.json").read_text())
+    return {
+        "config": {k: v for k, v in config.to_flat().items() if not k.startswith("ray.")},
+        "archive.csv": (run_dir / "archive.csv").read_bytes(),
+        "metrics": [{k: v for k, v in m.items() if not k.startswith("time_")} for m in history],
+    }
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_in_process_and_tune_with_one_or_two_actors_write_the_same_archive(variant, tune_trials, tmp_path):
+    config = RunConfig.build({**CONFIG, "variant": variant})
+    assert config.torch_threads == 1
+    caller_threads = torch.get_num_threads()
+    torch.set_num_threads(2)  # not the config's count: the runner pins it during each step
+    try:
+        run_locally(config, out_dir=tmp_path)
+        assert torch.get_num_threads() == 2  # and gives the caller's back
+    finally:
+        torch.set_num_threads(caller_threads)
+    local = outputs(tmp_path, config)
+    assert len(local["metrics"]) >= 3  # a surrogate variant trains at least twice
+    if config.uses_surrogate:
+        assert "surrogate_loss" in local["metrics"][-1]
+    for workers in WORKERS:
+        trial = tune_trials[variant, workers]
+        assert trial["config"] == local["config"], workers
+        assert trial["metrics"] == local["metrics"], workers
+        assert trial["archive.csv"] == local["archive.csv"], workers
