@@ -64,11 +64,17 @@ def _add_run(subparsers) -> None:
 
 
 def _add_ablate(subparsers) -> None:
-    parser = subparsers.add_parser("ablate", help="run the paper's variant x seed grid as one Tune experiment")
+    parser = subparsers.add_parser("ablate", help="run a grid (the paper's variant x seed, or any config keys) "
+                                                  "as one Tune experiment")
     parser.add_argument("config", help="a TOML/JSON config giving the domain and base settings")
     add_config_arguments(parser)
-    parser.add_argument("--seeds", type=int, default=5, help="seeds 0..K-1 per variant (default 5)")
-    parser.add_argument("--variants", help="comma-separated variants (default: the paper's comparison)")
+    parser.add_argument("--grid", action="append", default=[], metavar="KEY=V1,V2",
+                        help="a grid axis over any config key, values read like --set values, e.g. "
+                             "--grid surrogate.epochs=50,200 --grid selection.block=[4,3],[8,6]; "
+                             "--grid seed=0,1,2 and --grid variant=dsage,map_elites work too")
+    parser.add_argument("--seeds", type=int, help="seeds 0..K-1 per grid point (default 5)")
+    parser.add_argument("--variants", help="comma-separated variants (default: the paper's comparison, or the "
+                                           "config's variant when --grid names other keys)")
     parser.add_argument("--api", choices=["tuner", "run"], default="tuner", help="tune.Tuner or tune.run")
     parser.add_argument("--out", default="tb_logs", help="storage folder (default tb_logs)")
     parser.add_argument("--resume", action="store_true", help="continue an interrupted experiment")
@@ -116,8 +122,8 @@ def _ablate(args: argparse.Namespace) -> int:
 
     config = load_run_config(args, args.config)
     variants = args.variants.split(",") if args.variants else None
-    folder = ablate(config, seeds=args.seeds, variants=variants, workers=args.workers, address=args.address,
-                    resume=args.resume, out_dir=Path(args.out).resolve(), api=args.api)
+    folder = ablate(config, grid=args.grid, seeds=args.seeds, variants=variants, workers=args.workers,
+                    address=args.address, resume=args.resume, out_dir=Path(args.out).resolve(), api=args.api)
     from dsage_ray.core.tensorboard_log import tensorboard_hint
 
     print(f"experiment folder: {folder}\nsummarise it with: python experiments/summarize.py {folder}\n"

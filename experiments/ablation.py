@@ -1,7 +1,9 @@
-"""The paper's ablation grid (variant × seed) as one Ray Tune experiment.
+"""The paper's ablation grid (variant × seed), or a grid over any config keys, as one Ray Tune experiment.
 
     python experiments/ablation.py --preset tiny                  # 3 variants × 2 seeds, a few minutes on 2 cores
     python experiments/ablation.py --preset cpu --seeds 5          # the paper's Maze comparison, scaled for CPUs
+    python experiments/ablation.py --preset cpu --grid surrogate.epochs=10,50 --grid seed=0,1,2   # DSAGE only
+    python experiments/ablation.py --preset cpu --grid variant=dsage,dsage_basic --grid qd.exploit_iterations=100,300
     python experiments/ablation.py --preset tiny --api run         # same grid through tune.run
     python experiments/ablation.py --preset tiny --resume          # continue an interrupted experiment (Tuner.restore)
     python experiments/summarize.py tb_logs/ablation_maze_tiny     # the table and the comparison plot
@@ -9,7 +11,8 @@
 
 Each trial is one DSAGE run (a ``DSAGETrainable``) with its own simulator actors; one Tune
 iteration is one outer iteration. Trials crash-restore from their last checkpoint
-(``--max-failures``).
+(``--max-failures``). Every grid point's config is checked before Ray starts. ``summarize.py``
+groups the trials by every key that varies.
 """
 
 from __future__ import annotations
@@ -32,7 +35,11 @@ def parse_args() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--domain", default="maze", choices=["maze", "mario"])
     parser.add_argument("--preset", default="tiny", choices=["tiny", "demo", "cpu", "paper"])
-    parser.add_argument("--variants", help="comma-separated (default: the paper's; 3 for --preset tiny)")
+    parser.add_argument("--grid", action="append", default=[], metavar="KEY=V1,V2",
+                        help="a grid axis over any config key, values read like --set values "
+                             "(e.g. --grid surrogate.epochs=10,50 or --grid seed=0,1,2)")
+    parser.add_argument("--variants", help="comma-separated (default: the paper's, 3 for --preset tiny; "
+                                           "the --domain's dsage when --grid names other keys)")
     parser.add_argument("--seeds", type=int, default=None, help="seeds 0..K-1 (default: 2 for tiny, 5 otherwise)")
     parser.add_argument("--api", default="tuner", choices=["tuner", "run"], help="tune.Tuner or tune.run")
     parser.add_argument("--storage", default="tb_logs", help="storage folder (made absolute)")
@@ -51,8 +58,9 @@ def main() -> int:
     args = parse_args()
     os.environ.setdefault("RAY_AUTH_MODE", "disabled")
     from dsage_ray.config import PAPER_COMPARISON, RunConfig, parse_override
-    from dsage_ray.ray.experiment import (ExperimentInterrupted, check_resources, connect, grid_param_space,
-                                          run_experiment)
+    from dsage_ray.config import ConfigError
+    from dsage_ray.ray.experiment import (ExperimentInterrupted, ablation_axes, check_resources, connect,
+                                          grid_configs, grid_param_space, run_experiment)
 
     # 1. The base config: domain + preset, the tiny preset's Ray sizing, then explicit overrides.
     values = {"domain": args.domain, "preset": args.preset}
@@ -60,22 +68,27 @@ def main() -> int:
         values.update(TINY_RAY)
     if args.workers is not None:
         values["ray.num_workers"] = args.workers
-    values.update(dict(parse_override(item) for item in args.overrides))
-    base = RunConfig.build(values)
-
-    # 2. The grid: every variant × every seed, each a full DSAGE run.
-    variants = (args.variants.split(",") if args.variants
-                else (TINY_VARIANTS if args.preset == "tiny" else PAPER_COMPARISON)[args.domain])
-    seeds = list(range(args.seeds if args.seeds is not None else (2 if args.preset == "tiny" else 5)))
-    param_space = grid_param_space(base, variants=variants, seeds=seeds)
+    # 2. The grid: --grid axes, variants and seeds; every grid point is a full DSAGE run, checked now.
+    try:
+        values.update(dict(parse_override(item) for item in args.overrides))
+        base = RunConfig.build(values)
+        axes = ablation_axes(
+            base, args.grid, variants=args.variants.split(",") if args.variants else None, seeds=args.seeds,
+            default_variants=(TINY_VARIANTS if args.preset == "tiny" else PAPER_COMPARISON)[args.domain],
+            default_seeds=2 if args.preset == "tiny" else 5)
+        param_space = grid_param_space(base, axes)
+    except ConfigError as exc:
+        print(f"ablation: error: {exc}", file=sys.stderr)
+        return 2
     name = args.name or f"ablation_{args.domain}_{args.preset}"
 
-    # 3. Ray: join or start a cluster, and fail now (not hang) if one trial can never be placed.
+    # 3. Ray: join or start a cluster, and fail now (not hang) if a trial can never be placed.
     connect(args.address, num_cpus=args.num_cpus)
-    check_resources(base)
+    check_resources(*grid_configs(base, axes)[1])
 
     # 4. Run every trial to its evaluation budget (Tune stops a trial when it reports done=True).
-    print(f"{name}: {len(variants)} variants × {len(seeds)} seeds via {args.api}, storage {args.storage}")
+    shape = " × ".join(f"{key} ({len(values)})" for key, values in axes.items())
+    print(f"{name}: {shape} via {args.api}, storage {args.storage}")
     started = time.perf_counter()
     try:
         path = run_experiment(param_space, name=name, storage_path=args.storage, api=args.api,

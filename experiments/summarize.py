@@ -2,8 +2,11 @@
 
     python experiments/summarize.py tb_logs/ablation_maze_cpu [--target 1107] [--out DIR]
 
-Reads every trial folder Tune wrote (``params.json`` for the run's config, ``result.json`` with one
-record per outer iteration). Per variant, as mean ± standard error over seeds:
+Reads the experiment through Tune's results API (:class:`ray.tune.ExperimentAnalysis`, offline: no
+cluster needed): each trial's config, its grid values and its results, one per outer iteration.
+Trials are grouped by variant and by every other grid key (``--grid surrogate.epochs=10,50`` gives
+a row per variant and epoch count); seeds are what a group averages over. Per group, as mean ±
+standard error over seeds:
 
 - final QD-score and coverage (the paper's Table 1);
 - evaluations needed to reach a fixed QD-score (its Table 2). The target is ``--target``, by
@@ -12,7 +15,7 @@ record per outer iteration). Per variant, as mean ± standard error over seeds:
   "≥ …": the true figure is at least that.
 
 Writes ``summary.md`` and ``comparison.png`` (QD-score and coverage against evaluations, a mean
-line and a ± s.e. band per variant) into the experiment folder (or ``--out``).
+line and a ± s.e. band per group) into the experiment folder (or ``--out``).
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+from ray import tune
 
 from dsage_ray.config import ConfigError, RunConfig
 from dsage_ray.core.metrics import evals_to_reach
@@ -33,39 +37,79 @@ from dsage_ray.core.metrics import evals_to_reach
 TARGET_VARIANT = {"maze": "map_elites", "mario": "dsage_basic"}
 
 
+#: Grid keys a group averages over rather than shows.
+AVERAGED_KEYS = ("seed",)
+
+
 def load_trials(experiment: Path) -> list[dict]:
-    """One record per trial: domain, variant, seed, budget and the per-iteration ``evals``/``qd_score``/``coverage``."""
+    """One record per trial with results: domain, variant, seed, its other grid values, budget, whether
+    it spent its budget, and the per-iteration ``evals``/``qd_score``/``coverage``.
+
+    Raises:
+        FileNotFoundError: ``experiment`` holds no Tune experiment.
+    """
+    try:
+        analysis = tune.ExperimentAnalysis(str(experiment))
+    except ValueError:  # Tune's message spans lines and names its internal file pattern
+        raise FileNotFoundError(f"no Tune experiment under {experiment}") from None
     trials = []
-    for params_file in sorted(experiment.glob("*/params.json")):
-        params = json.loads(params_file.read_text())
-        results_file = params_file.with_name("result.json")
-        rows = [json.loads(line) for line in results_file.read_text().splitlines() if line.strip()] \
-            if results_file.exists() else []
-        # A trial restored after a crash repeats the iterations since its checkpoint: keep the last.
-        by_iteration = {row["training_iteration"]: row for row in rows if "qd_score" in row}
-        rows = [by_iteration[i] for i in sorted(by_iteration)]
-        if not rows:
+    for trial in sorted(analysis.trials, key=lambda t: t.trial_id):
+        rows = analysis.trial_dataframes.get(trial.trial_id)
+        if rows is None or "qd_score" not in rows:
             continue
+        # A trial restored after a crash reports again the iterations since its checkpoint: keep the last.
+        rows = rows.dropna(subset=["qd_score"]).drop_duplicates("training_iteration", keep="last")
+        rows = rows.sort_values("training_iteration")
+        if rows.empty:
+            continue
+        config = trial.config
+        evals = rows["evals"].to_numpy(dtype=float)
+        budget = _budget(config, evals)
         trials.append({
-            "domain": params.get("domain", "maze"),
-            "variant": params.get("variant", "?"),
-            "seed": params.get("seed", 0),
-            "budget": _budget(params, rows),
-            "done": bool(rows[-1].get("done")),
-            "evals": np.array([r["evals"] for r in rows], dtype=float),
-            "qd_score": np.array([r["qd_score"] for r in rows], dtype=float),
-            "coverage": np.array([r["coverage"] for r in rows], dtype=float),
+            "domain": config.get("domain", "maze"),
+            "variant": config.get("variant", "?"),
+            "seed": config.get("seed", 0),
+            "grid": {key: value for key, value in (trial.evaluated_params or {}).items()
+                     if key != "variant" and key not in AVERAGED_KEYS},
+            "budget": budget,
+            "done": bool(evals[-1] >= budget),
+            "evals": evals,
+            "qd_score": rows["qd_score"].to_numpy(dtype=float),
+            "coverage": rows["coverage"].to_numpy(dtype=float),
         })
     return trials
 
 
-def _budget(params: dict, rows: list[dict]) -> int:
+def _budget(config: dict, evals: np.ndarray) -> int:
     """The trial's evaluation budget from its config (Tune keeps only keys that differ from the defaults)."""
     try:
-        return RunConfig.build(params).budget
+        return RunConfig.build(config).budget
     except ConfigError:
         # A config this version no longer reads: a finished run spent exactly its budget.
-        return int(params.get("budget", rows[-1]["evals"]))
+        return int(config.get("budget", evals[-1]))
+
+
+def grid_keys(trials: list[dict]) -> list[str]:
+    """The grid keys besides variant and seed, in the order the grid gave them."""
+    return list(dict.fromkeys(key for trial in trials for key in trial["grid"]))
+
+
+def group_label(trial: dict, keys: list[str]) -> tuple[str, ...]:
+    """The variant, then the trial's value of each grid key (``-`` where it has none)."""
+    return (trial["variant"], *(_show(trial["grid"][key]) if key in trial["grid"] else "-" for key in keys))
+
+
+def _show(value) -> str:
+    return value if isinstance(value, str) else json.dumps(value)
+
+
+def by_group(trials: list[dict]) -> dict[tuple[str, ...], list[dict]]:
+    """Trials grouped by variant and every other grid key."""
+    keys = grid_keys(trials)
+    groups: dict[tuple[str, ...], list[dict]] = defaultdict(list)
+    for trial in trials:
+        groups[group_label(trial, keys)].append(trial)
+    return dict(groups)
 
 
 def by_variant(trials: list[dict]) -> dict[str, list[dict]]:
@@ -120,19 +164,20 @@ def to_target_cell(runs: list[dict], target: float) -> str:
 
 
 def table(trials: list[dict], target: float) -> str:
+    keys = grid_keys(trials)
     lines = [
-        f"| Variant | Runs | QD-score | Coverage (%) | Evaluations to QD-score {target:,.1f} |",
-        "|---|---|---|---|---|",
+        "| " + " | ".join(["Variant", *keys]) + f" | Runs | QD-score | Coverage (%) | Evaluations to QD-score {target:,.1f} |",
+        "|" + "---|" * (len(keys) + 5),
     ]
-    groups = by_variant(trials)
-    order = sorted(groups, key=lambda v: -mean_se([t["qd_score"][-1] for t in groups[v]])[0])
-    for variant in order:
-        runs = groups[variant]
+    groups = by_group(trials)
+    order = sorted(groups, key=lambda label: -mean_se([t["qd_score"][-1] for t in groups[label]])[0])
+    for label in order:
+        runs = groups[label]
         qd = mean_se([t["qd_score"][-1] for t in runs])
         cov = mean_se([100 * t["coverage"][-1] for t in runs])
         unfinished = sum(not t["done"] for t in runs)
-        label = f"{len(runs)}" + (f" ({unfinished} unfinished)" if unfinished else "")
-        lines.append(f"| {variant} | {label} | {fmt(*qd, ',.1f')} | {fmt(*cov, '.2f')} | "
+        count = f"{len(runs)}" + (f" ({unfinished} unfinished)" if unfinished else "")
+        lines.append(f"| {' | '.join(label)} | {count} | {fmt(*qd, ',.1f')} | {fmt(*cov, '.2f')} | "
                      f"{to_target_cell(runs, target)} |")
     return "\n".join(lines)
 
@@ -161,11 +206,13 @@ def plot(trials: list[dict], path: Path, *, target: float | None = None) -> None
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4), dpi=100)
-    for variant, runs in sorted(by_variant(trials).items()):
+    keys = grid_keys(trials)
+    for label, runs in sorted(by_group(trials).items()):
+        name = " ".join([label[0], *(f"{key}={value}" for key, value in zip(keys, label[1:]))])
         grid = np.linspace(0, max(t["evals"][-1] for t in runs), 200)
         for ax, key, scale in ((axes[0], "qd_score", 1.0), (axes[1], "coverage", 100.0)):
             mean, se = mean_curve(runs, key, grid)
-            (line,) = ax.plot(grid, scale * mean, label=f"{variant} ({len(runs)})")
+            (line,) = ax.plot(grid, scale * mean, label=f"{name} ({len(runs)})")
             ax.fill_between(grid, scale * (mean - se), scale * (mean + se), color=line.get_color(), alpha=0.2)
     if target is not None:
         axes[0].axhline(target, color="grey", linestyle="--", linewidth=1, label=f"target {target:,.1f}")
@@ -188,7 +235,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, help="where summary.md and comparison.png go (default: experiment)")
     args = parser.parse_args(argv)
 
-    trials = load_trials(args.experiment)
+    try:
+        trials = load_trials(args.experiment)
+    except FileNotFoundError as exc:
+        print(f"summarize: {exc}", file=sys.stderr)
+        return 1
     if not trials:
         print(f"summarize: no Tune trials with results under {args.experiment}", file=sys.stderr)
         return 1

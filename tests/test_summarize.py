@@ -1,12 +1,19 @@
-"""``experiments/summarize.py`` on synthetic Tune experiment folders (params.json + result.json per trial)."""
+"""``experiments/summarize.py`` on real Tune experiments whose trials report a scripted history.
+
+A scripted trial stands in for a DSAGE run (seconds instead of minutes) but goes through Tune as
+one does: its config and grid values, ``result.json``, and a crash restored from a checkpoint that
+makes Tune re-report iterations.
+"""
 
 import importlib.util
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
 import pytest
+from ray import tune
 
 SCRIPT = Path(__file__).resolve().parents[1] / "experiments" / "summarize.py"
 
@@ -19,36 +26,87 @@ def summarize():
     return module
 
 
-def write_trial(experiment: Path, *, variant: str, seed: int, qd_scores, evals, domain="maze", budget=None,
-                done=True, repeat_from=None):
-    """One trial folder as Tune writes it; ``repeat_from`` re-reports iterations as a crash restore does."""
-    folder = experiment / f"DSAGETrainable_{variant}_{seed}"
-    folder.mkdir(parents=True)
-    params = {"domain": domain, "preset": "tiny", "variant": variant, "seed": seed}
-    if budget is not None:
-        params["budget"] = budget
-    (folder / "params.json").write_text(json.dumps(params))
-    rows = [{"training_iteration": i + 1, "evals": e, "qd_score": q, "coverage": q / 1000,
-             "done": done and i == len(evals) - 1} for i, (e, q) in enumerate(zip(evals, qd_scores))]
-    if repeat_from is not None:  # the stale first report of the repeated iterations comes first
-        stale = [dict(r, qd_score=-1.0) for r in rows[repeat_from:]]
-        rows = rows[:repeat_from] + stale + rows[repeat_from:]
-    (folder / "result.json").write_text("\n".join(json.dumps(r) for r in rows) + "\n")
+@pytest.fixture(scope="module")
+def ray_cluster():
+    """The Ray tests' cluster when it is up, else a small one for this module."""
+    os.environ.setdefault("RAY_AUTH_MODE", "disabled")
+    import ray
+
+    started = not ray.is_initialized()
+    if started:
+        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    yield
+    if started:
+        ray.shutdown()
+
+
+def script_key(config: dict) -> str:
+    return json.dumps([config.get("variant"), config.get("seed"), config.get("selection.block")])
+
+
+def trial(*, qd_scores, evals, repeat_from=None, **grid_point):
+    """``(script_key, script)``: one trial's history; ``repeat_from`` re-reports iterations as a crash restore does."""
+    rows = [{"evals": e, "qd_score": q, "coverage": q / 1000} for e, q in zip(evals, qd_scores)]
+    return script_key(grid_point), {"rows": rows, "repeat_from": repeat_from}
+
+
+def run_experiment(root: Path, name: str, param_space: dict, scripts: dict) -> Path:
+    """Runs a Tune experiment of :class:`ScriptedTrial` s; returns its folder."""
+    trainable = tune.with_parameters(ScriptedTrial, scripts=scripts, marker_dir=str(root / f"{name}_markers"))
+    (root / f"{name}_markers").mkdir(parents=True)
+    results = tune.Tuner(trainable, param_space=param_space, run_config=tune.RunConfig(
+        name=name, storage_path=str(root), verbose=0, failure_config=tune.FailureConfig(max_failures=1),
+    )).fit()
+    assert not results.errors
+    return Path(results.experiment_path)
+
+
+class ScriptedTrial(tune.Trainable):
+    """Reports its script's rows, one per step. With ``repeat_from``, the first attempt reports
+    the rows from there on with a stale QD-score of -1, checkpointed only at ``repeat_from``, then
+    crashes; Tune restores it from that checkpoint and it reports the true rows."""
+
+    def setup(self, config, scripts, marker_dir):
+        script = scripts[script_key(config)]
+        self.rows, self.repeat_from = script["rows"], script["repeat_from"]
+        self.marker = Path(marker_dir) / "".join(c if c.isalnum() else "_" for c in script_key(config))
+        self.row = 0
+
+    def step(self):
+        stale = self.repeat_from is not None and not self.marker.exists()
+        if stale and self.row == len(self.rows):
+            self.marker.touch()
+            raise RuntimeError("scripted crash")
+        result = dict(self.rows[self.row])
+        if stale and self.row >= self.repeat_from:
+            result["qd_score"] = -1.0
+        self.row += 1
+        result["done"] = self.row == len(self.rows) and not stale
+        result["should_checkpoint"] = self.row == self.repeat_from
+        return result
+
+    def save_checkpoint(self, checkpoint_dir):
+        Path(checkpoint_dir, "row").write_text(str(self.row))
+
+    def load_checkpoint(self, checkpoint):
+        self.row = int(Path(checkpoint, "row").read_text())
 
 
 def maze_experiment(root: Path) -> Path:
-    experiment = root / "ablation_maze_tiny"
-    budget = 300  # each trial's budget (the tiny preset's is 150)
     evals = [100, 200, 300]
-    write_trial(experiment, variant="map_elites", seed=0, qd_scores=[50, 80, 100], evals=evals, budget=budget)
-    write_trial(experiment, variant="map_elites", seed=1, qd_scores=[60, 90, 120], evals=evals, budget=budget)
-    # target = 110: dsage seed 0 reaches it at 200, seed 1 at 300; dr never (counts 300).
-    write_trial(experiment, variant="dsage", seed=0, qd_scores=[50, 115, 150], evals=evals, budget=budget)
-    write_trial(experiment, variant="dsage", seed=1, qd_scores=[50, 100, 130], evals=evals, budget=budget,
-                repeat_from=1)
-    write_trial(experiment, variant="dr", seed=0, qd_scores=[40, 60, 70], evals=evals, budget=budget)
-    write_trial(experiment, variant="dr", seed=1, qd_scores=[45, 65, 75], evals=evals, budget=budget)
-    return experiment
+    scripts = dict([
+        trial(variant="map_elites", seed=0, qd_scores=[50, 80, 100], evals=evals),
+        trial(variant="map_elites", seed=1, qd_scores=[60, 90, 120], evals=evals),
+        # target = 110: dsage seed 0 reaches it at 200, seed 1 at 300; dr never (counts 300).
+        trial(variant="dsage", seed=0, qd_scores=[50, 115, 150], evals=evals),
+        trial(variant="dsage", seed=1, qd_scores=[50, 100, 130], evals=evals, repeat_from=1),
+        trial(variant="dr", seed=0, qd_scores=[40, 60, 70], evals=evals),
+        trial(variant="dr", seed=1, qd_scores=[45, 65, 75], evals=evals),
+    ])
+    # Each trial's budget is 300 (the tiny preset's is 150).
+    space = {"domain": "maze", "preset": "tiny", "budget": 300,
+             "variant": tune.grid_search(["map_elites", "dsage", "dr"]), "seed": tune.grid_search([0, 1])}
+    return run_experiment(root, "ablation_maze_tiny", space, scripts)
 
 
 def rows(markdown: str) -> dict[str, list[str]]:
@@ -56,8 +114,12 @@ def rows(markdown: str) -> dict[str, list[str]]:
     return {cells[0]: cells[1:] for cells in ([c.strip() for c in line.strip("|").split("|")] for line in lines[1:])}
 
 
-def test_maze_table_uses_the_papers_target_and_counts_never_as_the_budget(summarize, tmp_path, capsys):
+def test_maze_table_uses_the_papers_target_and_counts_never_as_the_budget(summarize, ray_cluster, tmp_path, capsys):
     experiment = maze_experiment(tmp_path)
+    stale = [json.loads(line)["qd_score"] for result in experiment.glob("*seed=1*variant=dsage*/result.json")
+             for line in result.read_text().splitlines()]
+    assert -1.0 in stale, "no iteration was re-reported: the restore case is not exercised"
+    capsys.readouterr()
     assert summarize.main([str(experiment)]) == 0
     printed = capsys.readouterr().out
     header = printed.splitlines()[0]
@@ -74,35 +136,65 @@ def test_maze_table_uses_the_papers_target_and_counts_never_as_the_budget(summar
     assert (experiment / "comparison.png").read_bytes()[:4] == b"\x89PNG"
 
 
-def test_explicit_target_budget_from_the_config_and_unfinished_runs(summarize, tmp_path, capsys):
-    experiment = tmp_path / "exp"
-    # No budget key: the tiny preset's (150) comes from the config.
-    write_trial(experiment, variant="dsage", seed=0, qd_scores=[5, 9], evals=[50, 100], done=False)
-    write_trial(experiment, variant="dsage", seed=1, qd_scores=[5, 12], evals=[50, 100])
+def test_explicit_target_budget_from_the_config_and_unfinished_runs(summarize, ray_cluster, tmp_path, capsys):
+    # No budget key: the tiny preset's (150) comes from the config; seed 0 stops short of it.
+    scripts = dict([trial(variant="dsage", seed=0, qd_scores=[5, 9], evals=[50, 100]),
+                    trial(variant="dsage", seed=1, qd_scores=[12, 13], evals=[50, 150])])
+    space = {"domain": "maze", "preset": "tiny", "variant": "dsage", "seed": tune.grid_search([0, 1])}
+    experiment = run_experiment(tmp_path, "exp", space, scripts)
     out = tmp_path / "out"
+    capsys.readouterr()
     assert summarize.main([str(experiment), "--target", "10", "--out", str(out)]) == 0
     table = rows(capsys.readouterr().out)
     assert table["dsage"][0] == "2 (1 unfinished)"
-    assert table["dsage"][3] == "≥ 125 ± 25 (1/2 reached)"  # (150 + 100) / 2
+    assert table["dsage"][3] == "≥ 100 ± 50 (1/2 reached)"  # (150 + 50) / 2
     assert (out / "summary.md").exists() and (out / "comparison.png").exists()
 
 
-def test_mario_target_is_dsage_basic_and_a_missing_reference_is_one_error(summarize, tmp_path, capsys):
-    mario = tmp_path / "mario"
-    write_trial(mario, variant="dsage_basic", seed=0, qd_scores=[10, 20], evals=[100, 200], domain="mario", budget=200)
-    write_trial(mario, variant="cma_me", seed=0, qd_scores=[30, 40], evals=[100, 200], domain="mario", budget=200)
+def test_a_row_per_value_of_every_grid_key(summarize, ray_cluster, tmp_path, capsys):
+    blocks = [[4, 3], [8, 6]]
+    scripts = dict(trial(variant=variant, seed=seed, **{"selection.block": block}, evals=[100, 200],
+                         qd_scores=[10, 10 * (i + 1) + seed + (5 if variant == "dsage" else 0)])
+                   for variant in ("dsage", "map_elites") for i, block in enumerate(blocks) for seed in (0, 1))
+    space = {"domain": "maze", "preset": "tiny", "budget": 200, "variant": tune.grid_search(["dsage", "map_elites"]),
+             "selection.block": tune.grid_search(blocks), "seed": tune.grid_search([0, 1])}
+    experiment = run_experiment(tmp_path, "grid", space, scripts)
+    capsys.readouterr()
+    assert summarize.main([str(experiment)]) == 0
+    printed = capsys.readouterr().out
+    lines = [line for line in printed.splitlines() if line.startswith("| ")]
+    assert lines[0].startswith("| Variant | selection.block | Runs | QD-score |")
+    cells = [[c.strip() for c in line.strip("|").split("|")] for line in lines[1:]]
+    # Sorted by final QD-score; seeds 0 and 1 averaged in each of the 4 groups.
+    assert [row[:4] for row in cells] == [
+        ["dsage", "[8, 6]", "2", "25.5 ± 0.5"], ["map_elites", "[8, 6]", "2", "20.5 ± 0.5"],
+        ["dsage", "[4, 3]", "2", "15.5 ± 0.5"], ["map_elites", "[4, 3]", "2", "10.5 ± 0.5"]]
+    # The target pools every map_elites run: (10.5 + 20.5) / 2.
+    assert "Evaluations to QD-score 15.5 |" in lines[0]
+
+
+def test_mario_target_is_dsage_basic_and_a_missing_reference_is_one_error(summarize, ray_cluster, tmp_path, capsys):
+    scripts = dict([trial(variant="dsage_basic", seed=0, qd_scores=[10, 20], evals=[100, 200]),
+                    trial(variant="cma_me", seed=0, qd_scores=[30, 40], evals=[100, 200])])
+    space = {"domain": "mario", "preset": "tiny", "budget": 200, "seed": 0,
+             "variant": tune.grid_search(["dsage_basic", "cma_me"])}
+    mario = run_experiment(tmp_path, "mario", space, scripts)
+    capsys.readouterr()
     assert summarize.main([str(mario)]) == 0
     printed = capsys.readouterr().out
     assert "Evaluations to QD-score 20.0 |" in printed and "dsage_basic" in printed
     assert rows(printed)["cma_me"][3] == "100"  # one run: no standard error
 
-    no_reference = tmp_path / "maze"
-    write_trial(no_reference, variant="dsage", seed=0, qd_scores=[1, 2], evals=[100, 150])
+    scripts = dict([trial(variant="dsage", seed=0, qd_scores=[1, 2], evals=[100, 150])])
+    no_reference = run_experiment(tmp_path, "maze", {"domain": "maze", "preset": "tiny", "variant": "dsage",
+                                                     "seed": 0}, scripts)
+    capsys.readouterr()
     assert summarize.main([str(no_reference)]) == 2
     assert capsys.readouterr().err.strip() == (
         "summarize: no map_elites runs to set the default target (the paper's, for maze): pass --target")
     assert not (no_reference / "summary.md").exists()
     assert summarize.main([str(tmp_path / "empty")]) == 1
+    assert capsys.readouterr().err.strip() == f"summarize: no Tune experiment under {tmp_path / 'empty'}"
 
 
 def test_mean_curve_is_a_step_function_of_evaluations_with_a_standard_error_band(summarize):

@@ -8,8 +8,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
-from dsage_ray.config import PAPER_COMPARISON, RunConfig
-from dsage_ray.ray.experiment import TuneApi, check_resources, connect, grid_param_space, run_experiment
+from dsage_ray.config import RunConfig
+from dsage_ray.ray.experiment import (TuneApi, ablation_axes, check_resources, connect, grid_configs,
+                                      grid_param_space, run_experiment)
 
 
 def run_with_tune(
@@ -49,7 +50,8 @@ def run_with_tune(
 def ablate(
     config: RunConfig,
     *,
-    seeds: int | Sequence[int] = 5,
+    grid: Sequence[str] = (),
+    seeds: int | Sequence[int] | None = None,
     variants: Sequence[str] | None = None,
     workers: int | None = None,
     address: str | None = None,
@@ -58,23 +60,25 @@ def ablate(
     api: TuneApi = "tuner",
     max_failures: int = 2,
 ) -> Path:
-    """Runs the variant × seed grid of the paper as one Tune experiment; returns its folder.
+    """Runs a grid of DSAGE runs as one Tune experiment; returns its folder.
+
+    Every grid point is validated before Ray starts, so a bad key or value (an unknown variant
+    included) costs no cluster start.
 
     Args:
-        config: The base config (domain, preset, explicit overrides); ``variant`` and ``seed``
-            become grid axes.
-        seeds: How many seeds (``0..K-1``) or the seeds themselves.
-        variants: Variants to compare; defaults to the domain's paper comparison.
+        config: The base config (domain, preset, explicit overrides).
+        grid: ``KEY=V1,V2`` axes over any config key (see :func:`~dsage_ray.ray.experiment.ablation_axes`).
+        seeds: How many seeds (``0..K-1``) or the seeds themselves (default 5; or ``--grid seed=...``).
+        variants: Variants to compare (or ``--grid variant=...``); defaults to the domain's paper
+            comparison when nothing else is gridded, else the config's variant.
         workers, address, resume, out_dir, max_failures: As in :func:`run_with_tune`.
         api: ``"tuner"`` or ``"run"`` (``tune.run``).
     """
     if workers is not None:
         config = config.replace(ray__num_workers=workers)
-    seed_list = list(range(seeds)) if isinstance(seeds, int) else list(seeds)
-    if variants is None:
-        variants = PAPER_COMPARISON[config.domain]
+    axes = ablation_axes(config, grid, variants=variants, seeds=seeds)
+    param_space = grid_param_space(config, axes)
     connect(address)
-    check_resources(config)
-    param_space = grid_param_space(config, variants=variants, seeds=seed_list)
+    check_resources(*grid_configs(config, axes)[1])
     return run_experiment(param_space, name=config.name, storage_path=out_dir, api=api, resume=resume,
                           max_failures=max_failures, checkpoint_every=config.checkpoint_every)

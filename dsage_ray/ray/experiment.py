@@ -6,19 +6,24 @@ Both of Tune's entry points are supported and share everything but the call itse
 * ``tune.Tuner(...).fit()`` — the current API, resumable with ``Tuner.restore``.
 
 Every trial is a :class:`~dsage_ray.ray.trainable.DSAGETrainable` whose Tune config is a flat
-:meth:`RunConfig.to_flat` dict; grid axes are plain dotted keys (``variant``, ``seed``).
+:meth:`RunConfig.to_flat` dict, so any config key can be a grid axis (``variant``, ``seed``,
+``surrogate.epochs``, ...): :func:`ablation_axes` reads ``--grid KEY=V1,V2`` and
+:func:`grid_param_space` validates every grid point before Ray starts.
 """
 
 from __future__ import annotations
 
+import difflib
+import itertools
+import json
 import os
 from pathlib import Path
-from typing import Any, Literal, Sequence
+from typing import Any, Literal, Mapping, Sequence
 
 import ray
 from ray import tune
 
-from dsage_ray.config import RunConfig
+from dsage_ray.config import PAPER_COMPARISON, ConfigError, RunConfig, parse_override
 from dsage_ray.domains import build_domain
 from dsage_ray.ray.pool import DomainFactory, check_cluster_fits
 from dsage_ray.ray.progress import ProgressLines, quiet_tune_output
@@ -48,35 +53,163 @@ def connect(address: str | None = None, *, num_cpus: int | None = None) -> None:
         ray.init(num_cpus=num_cpus, include_dashboard=False)
 
 
-def grid_param_space(base: RunConfig, *, variants: Sequence[str], seeds: Sequence[int]) -> dict[str, Any]:
-    """The flat base config with ``variant`` and ``seed`` turned into grid axes.
+#: A key that cannot be a grid axis, and why.
+_NOT_AXES = {"domain": "one experiment searches one domain (the grid's explicit keys are relative to its defaults)"}
 
-    Each grid point is re-validated by :meth:`RunConfig.build` inside its trial, where the variant
-    layer (e.g. ``surrogate.kind``) is applied; so the explicit keys of the base must not pin what
-    a variant sets. Only the keys that differ from the defaults of ``(domain, preset, variant)``
-    are kept for that reason.
+
+def parse_grid(text: str) -> tuple[str, list[Any]]:
+    """``KEY=V1,V2,...`` (one ``--grid``) → ``(KEY, [V1, V2, ...])``.
+
+    Each value is read as a ``--set`` value is (TOML, else a plain string), and a comma inside
+    brackets or quotes belongs to its value: ``selection.block=[4,3],[8,6]`` has two values.
+
+    Raises:
+        ConfigError: No ``=``, no value, or a value given twice.
     """
-    for variant in variants:  # fail before any trial starts, naming the bad variant
-        RunConfig.build({"domain": base.domain, "preset": base.preset, "variant": variant})
+    if "=" not in text:
+        raise ConfigError(f"--grid {text!r}: expected KEY=V1,V2,...")
+    key, raw = (part.strip() for part in text.split("=", 1))
+    items = _split_top_level(raw)
+    if not key or not all(items):
+        raise ConfigError(f"--grid {text!r}: expected KEY=V1,V2,... with no empty value")
+    values = [parse_override(f"{key}={item}")[1] for item in items]
+    for i, value in enumerate(values):
+        if value in values[:i]:
+            raise ConfigError(f"--grid {key}: value {value!r} given twice")
+    return key, values
+
+
+def _split_top_level(raw: str) -> list[str]:
+    """Splits at the commas that are outside brackets, braces and quotes."""
+    items, depth, quote, start = [], 0, "", 0
+    for i, char in enumerate(raw):
+        if quote:
+            quote = "" if char == quote else quote
+        elif char in "\"'":
+            quote = char
+        elif char in "[{":
+            depth += 1
+        elif char in "]}":
+            depth -= 1
+        elif char == "," and depth == 0:
+            items.append(raw[start:i].strip())
+            start = i + 1
+    items.append(raw[start:].strip())
+    return items
+
+
+def ablation_axes(
+    base: RunConfig,
+    grid: Sequence[str] = (),
+    *,
+    variants: Sequence[str] | None = None,
+    seeds: int | Sequence[int] | None = None,
+    default_variants: Sequence[str] | None = None,
+    default_seeds: int = 5,
+) -> dict[str, list[Any]]:
+    """The axes of an ablation: every ``--grid KEY=V1,V2``, plus ``variant`` and ``seed``.
+
+    ``variant`` comes from ``--grid variant=...`` or ``variants``; without either it is
+    ``default_variants`` (the domain's paper comparison unless given) when no other key is
+    gridded, and the base config's own variant when one is (so ``--grid surrogate.epochs=50,200``
+    does not also run the baselines that have no surrogate). ``seed`` comes from
+    ``--grid seed=...`` or ``seeds`` (a count ``K`` means ``0..K-1``), else ``0..default_seeds-1``.
+
+    Raises:
+        ConfigError: A malformed ``--grid``, a key given twice, or ``variant``/``seed`` set both ways.
+    """
+    axes: dict[str, list[Any]] = {}
+    for text in grid:
+        key, values = parse_grid(text)
+        if key in axes:
+            raise ConfigError(f"--grid {key}: given twice; put all its values in one --grid {key}=V1,V2")
+        axes[key] = values
+    for key, flag, given in (("variant", "--variants", variants), ("seed", "--seeds", seeds)):
+        if given is not None and key in axes:
+            raise ConfigError(f"{flag} and --grid {key}=... both set the {key}s: pass one of them")
+    if "variant" not in axes:
+        if variants is not None:
+            axes["variant"] = list(variants)
+        elif set(axes) - {"seed"}:
+            axes["variant"] = [base.variant]
+        else:
+            axes["variant"] = list(default_variants if default_variants is not None else PAPER_COMPARISON[base.domain])
+    if "seed" not in axes:
+        seeds = default_seeds if seeds is None else seeds
+        axes["seed"] = list(range(seeds)) if isinstance(seeds, int) else list(seeds)
+    return axes
+
+
+def grid_configs(base: RunConfig, axes: Mapping[str, Sequence[Any]]) -> tuple[dict[str, Any], list[RunConfig]]:
+    """The base's explicit keys, and the validated config of every grid point.
+
+    Explicit keys are those of the base that differ from the defaults of its ``(domain, preset,
+    variant)``: each trial rebuilds its config with :meth:`RunConfig.build`, which applies the
+    preset and variant layers of *its* grid point first, so a key the base merely inherits from
+    its own variant must not pin the others. Grid keys are explicit in every point.
+
+    Raises:
+        ConfigError: An axis names an unknown key (with the closest keys) or a key that cannot be
+            an axis, or a grid point's config is invalid (naming the point and the key).
+    """
+    known = RunConfig().to_flat()
+    for key, values in axes.items():
+        if key in _NOT_AXES:
+            raise ConfigError(f"--grid {key}: cannot be a grid axis: {_NOT_AXES[key]}")
+        if key not in known:
+            raise ConfigError(f"--grid {key}: unknown config key ({_suggest_keys(key, known)})")
+        if not values:
+            raise ConfigError(f"--grid {key}: no values")
     defaults = RunConfig.build({"domain": base.domain, "preset": base.preset, "variant": base.variant}).to_flat()
     explicit = {key: value for key, value in base.to_flat().items() if defaults.get(key) != value}
-    explicit.update({
-        "domain": base.domain,
-        "preset": base.preset,
-        "variant": tune.grid_search(list(variants)),
-        "seed": tune.grid_search(list(seeds)),
-    })
-    return explicit
+    explicit.update(domain=base.domain, preset=base.preset)
+    configs = []
+    for point in itertools.product(*axes.values()):
+        values = dict(zip(axes, point))
+        try:
+            configs.append(RunConfig.build({**explicit, **values}))
+        except ConfigError as exc:
+            where = ", ".join(f"{key}={value!r}" for key, value in values.items() if len(axes[key]) > 1)
+            raise ConfigError(f"grid point {where}: {exc}" if where else str(exc)) from None
+    return explicit, configs
 
 
-def check_resources(config: RunConfig) -> None:
-    """Fails fast, naming the keys, when one trial's placement group can never be placed."""
-    bundles = resource_request(config).bundles
-    check_cluster_fits(
-        bundles=bundles,
-        what=(f"one trial (ray.trial_cpus={config.ray.trial_cpus:g} + ray.num_workers={config.ray.num_workers} × "
-              f"ray.cpus_per_worker={config.ray.cpus_per_worker:g})"),
-    )
+def _suggest_keys(key: str, known: Mapping[str, Any]) -> str:
+    close = difflib.get_close_matches(key, list(known), n=3, cutoff=0.6)
+    if close:
+        return "did you mean " + " or ".join(close) + "?"
+    section = key.rsplit(".", 1)[0] + "." if "." in key else ""
+    same_section = [k for k in known if section and k.startswith(section)]
+    if same_section:
+        return "keys of that section: " + ", ".join(same_section)
+    return "sections and keys: " + ", ".join(sorted({k.split(".", 1)[0] for k in known}))
+
+
+def grid_param_space(base: RunConfig, axes: Mapping[str, Sequence[Any]]) -> dict[str, Any]:
+    """Tune's ``param_space`` for the grid: flat explicit keys, one ``tune.grid_search`` per axis.
+
+    Every grid point is validated here, before Ray starts (see :func:`grid_configs`). An axis with
+    a single value is a plain key, so trial names and progress lines show only what varies.
+    """
+    explicit, _ = grid_configs(base, axes)
+    space = dict(explicit)
+    for key, values in axes.items():
+        space[key] = tune.grid_search(list(values)) if len(values) > 1 else values[0]
+    return space
+
+
+def check_resources(*configs: RunConfig) -> None:
+    """Fails fast, naming the keys, when a trial's placement group can never be placed.
+
+    Each distinct request is checked once (a grid over ``ray.num_workers`` asks for several).
+    """
+    requests = {json.dumps(resource_request(config).bundles): config for config in configs}
+    for config in requests.values():
+        check_cluster_fits(
+            bundles=resource_request(config).bundles,
+            what=(f"one trial (ray.trial_cpus={config.ray.trial_cpus:g} + ray.num_workers={config.ray.num_workers} × "
+                  f"ray.cpus_per_worker={config.ray.cpus_per_worker:g})"),
+        )
 
 
 def run_experiment(
