@@ -1,4 +1,4 @@
-"""``experiments/ablation.py --preset tiny`` end to end, then ``experiments/summarize.py``.
+"""``experiments/ablation.py --preset tiny --grid ...`` end to end, then ``experiments/summarize.py``.
 
 Subprocesses, as a researcher runs them; the ablation starts its own 2-CPU Ray cluster.
 """
@@ -21,14 +21,15 @@ def run(*args: str, timeout: int) -> subprocess.CompletedProcess:
                           timeout=timeout)
 
 
-def test_tiny_ablation_writes_tensorboard_and_summarize_prints_the_table(tmp_path):
-
+def test_tiny_grid_ablation_writes_tensorboard_and_summarize_prints_a_row_per_grid_point(tmp_path):
     proc = run("experiments/ablation.py", "--preset", "tiny", "--storage", str(tmp_path), "--num-cpus", "2",
-               "--name", "tiny", timeout=900)
+               "--name", "tiny", "--set", "budget=70", "--grid", "variant=dsage,map_elites",
+               "--grid", "qd.batch_size=10,20", "--seeds", "1", timeout=900)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "tiny: variant (2) × qd.batch_size (2) × seed (1) via tuner" in proc.stdout
     experiment = tmp_path / "tiny"
     trial_dirs = sorted(p.parent for p in experiment.glob("*/params.json"))
-    assert len(trial_dirs) == 6  # 3 variants × 2 seeds
+    assert len(trial_dirs) == 4  # 2 variants × 2 batch sizes
     for trial_dir in trial_dirs:
         scalars, images = tensorboard_tags(trial_dir)
         assert "ray/tune/qd_score" in scalars, trial_dir.name
@@ -37,7 +38,8 @@ def test_tiny_ablation_writes_tensorboard_and_summarize_prints_the_table(tmp_pat
     proc = run("experiments/summarize.py", str(experiment), timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
     lines = [line for line in proc.stdout.splitlines() if line.startswith("| ")]
-    assert lines[0].startswith("| Variant | Runs | QD-score | Coverage (%) | Evaluations to QD-score")
-    assert sorted(line.split("|")[1].strip() for line in lines[1:]) == ["dr", "dsage", "map_elites"]
-    assert all(line.split("|")[2].strip() == "2" for line in lines[1:])  # both seeds finished
+    assert lines[0].startswith("| Variant | qd.batch_size | Runs | QD-score | Coverage (%) | Evaluations to QD-score")
+    cells = sorted([c.strip() for c in line.strip("|").split("|")][:3] for line in lines[1:])
+    # Each grid point is one finished run.
+    assert cells == [["dsage", "10", "1"], ["dsage", "20", "1"], ["map_elites", "10", "1"], ["map_elites", "20", "1"]]
     assert (experiment / "summary.md").exists() and (experiment / "comparison.png").stat().st_size > 0
