@@ -97,7 +97,7 @@ def test_an_unknown_variant_in_variants_is_reported_before_ray_starts(monkeypatc
 def test_ablate_hands_tune_the_grid_and_checks_every_distinct_placement(monkeypatch, tmp_path):
     calls = {}
     monkeypatch.setattr(ray_cli, "connect", lambda address: calls.setdefault("connect", address))
-    monkeypatch.setattr(ray_cli, "check_resources", lambda *configs: calls.setdefault("checked", configs))
+    monkeypatch.setattr(ray_cli, "check_resources", lambda *configs, **_: calls.setdefault("checked", configs))
     monkeypatch.setattr(ray_cli, "run_experiment",
                         lambda space, **kwargs: calls.setdefault("run", (space, kwargs)) and tmp_path)
     assert main(["ablate", CONFIG, "--preset", "tiny", "--grid", "ray.num_workers=1,2", "--grid", "seed=0,1",
