@@ -8,6 +8,8 @@ import sys
 import time
 from pathlib import Path
 
+from dsage_ray.errors import DsageError, describe
+
 #: Modules that register sub-commands; each exposes ``add_subparser(subparsers)``.
 _COMMAND_MODULES = (
     "dsage_ray.domains.maze.cli",
@@ -175,15 +177,25 @@ def run_locally(config, *, out_dir: Path, resume: bool = False) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from dsage_ray.config import ConfigError
+    """Runs one command; every error it reports ends it with one line and the exit code of its kind.
 
+    The line is ``dsage-ray <command>: error: <message>`` on stderr; the codes are those of
+    :mod:`dsage_ray.errors` (2 bad input, 3 resources, 4 a failed trial, 5 unfinished trials,
+    1 another reported failure, 130 Ctrl+C). Any other exception is a bug and keeps its traceback.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return int(args.handler(args) or 0)
-    except (ConfigError, FileNotFoundError, ValueError) as exc:
-        print(f"dsage-ray: error: {exc}", file=sys.stderr)
-        return 2
+    except (DsageError, ValueError, OSError, RuntimeError, KeyboardInterrupt) as exc:
+        code, message = describe(exc)
+        print(f"{command_name(args)}: error: {message}", file=sys.stderr)
+        return code
+
+
+def command_name(args: argparse.Namespace) -> str:
+    """``dsage-ray run``, ``dsage-ray maze eval``, ...: the command as the user typed it."""
+    return " ".join(["dsage-ray", args.command, getattr(args, f"{args.command}_command", None) or ""]).strip()
 
 
 if __name__ == "__main__":

@@ -20,8 +20,10 @@ from typing import Any, Literal, Mapping
 
 import numpy as np
 
+from dsage_ray.errors import InputError
 
-class ConfigError(ValueError):
+
+class ConfigError(InputError):
     """An invalid config; the message names the offending key."""
 
 

@@ -54,7 +54,7 @@ def test_bad_input_is_one_error_line(capsys, args, message):
     assert main(["config", str(MAZE_CONFIGS[0]), *args]) == 2
     captured = capsys.readouterr()
     assert captured.out == ""
-    assert captured.err.startswith("dsage-ray: error: ") and message in captured.err
+    assert captured.err.startswith("dsage-ray config: error: ") and message in captured.err
     assert captured.err.count("\n") == 1
 
 

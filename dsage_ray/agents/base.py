@@ -12,13 +12,15 @@ from typing import Any
 
 import numpy as np
 
+from dsage_ray.errors import InputError
+
 #: Batched MiniGrid observations: ``image`` ``(n, 5, 5, 3)`` uint8 and ``direction`` ``(n,)`` int64.
 Observation = dict[str, np.ndarray]
 #: Whatever an agent carries between steps (LSTM ``(h, c)``, nothing, ...); opaque to callers.
 AgentState = Any
 
 
-class AgentError(ValueError):
+class AgentError(InputError):
     """An agent spec or checkpoint that cannot be loaded; the message says why."""
 
 

@@ -6,6 +6,8 @@ import argparse
 import time
 from pathlib import Path
 
+from dsage_ray.errors import InputError
+
 
 def add_subparser(subparsers) -> None:
     """Registers ``audit`` and ``compare`` on the top-level CLI's sub-parsers."""
@@ -60,39 +62,35 @@ def add_subparser(subparsers) -> None:
     compare.set_defaults(handler=run_compare_command)
 
 
-def _fail(command: str, message: object) -> SystemExit:
-    return SystemExit(f"dsage-ray {command}: error: {' '.join(str(message).split())}")
-
-
 def run_audit_command(args: argparse.Namespace) -> int:
-    """Handler of ``dsage-ray audit``: every check that needs no Ray runs before the search starts."""
+    """Handler of ``dsage-ray audit``: every check that needs no Ray runs before the search starts.
+
+    Errors end the command through :func:`dsage_ray.cli.main` (one line, the exit code of their kind).
+    """
     from dsage_ray.audit.collection import agent_slug, audit_config, load_collection
     from dsage_ray.audit.run import run_audit
     from dsage_ray.config import parse_override
     from dsage_ray.domains import DOMAINS, domain_class
 
     if args.domain not in DOMAINS:
-        raise _fail("audit", f"unknown --domain {args.domain!r} (known: {', '.join(DOMAINS)})")
+        raise InputError(f"unknown --domain {args.domain!r} (known: {', '.join(DOMAINS)})")
     if args.collect_only and not args.out:
-        raise _fail("audit", "--collect-only needs the --out of the search to collect from")
+        raise InputError("--collect-only needs the --out of the search to collect from")
     for flag, value in (("--episodes", args.episodes), ("--max-levels", args.max_levels), ("--budget", args.budget)):
         if value is not None and value < 1:
-            raise _fail("audit", f"{flag} must be positive, got {value}")
+            raise InputError(f"{flag} must be positive, got {value}")
     if args.workers is not None and args.workers < 0:
-        raise _fail("audit", f"--workers must be >= 0 (0: simulate in the trial process), got {args.workers}")
+        raise InputError(f"--workers must be >= 0 (0: simulate in the trial process), got {args.workers}")
     measures = tuple(m.strip() for m in args.measures.split(",") if m.strip()) if args.measures else None
-    try:
-        config = audit_config(domain=args.domain, agent=args.agent, reference=args.reference, preset=args.preset,
-                              objective=args.objective, measures=measures, budget=args.budget, seed=args.seed,
-                              overrides=dict(parse_override(item) for item in args.overrides))
-        agent = args.agent or domain_class(args.domain).DEFAULT_AUDIT_AGENT
-        out = (Path(args.out) if args.out
-               else Path("tb_logs") / f"audit-{agent_slug(agent)}-{time.strftime('%Y%m%d-%H%M%S')}")
-        collection = run_audit(config, out_dir=out, local=args.local, workers=args.workers, address=args.address,
-                               resume=args.resume, episodes=args.episodes, max_levels=args.max_levels,
-                               collect_only=args.collect_only)
-    except (ValueError, RuntimeError) as exc:  # ConfigError and AgentError are ValueErrors
-        raise _fail("audit", exc) from None
+    config = audit_config(domain=args.domain, agent=args.agent, reference=args.reference, preset=args.preset,
+                          objective=args.objective, measures=measures, budget=args.budget, seed=args.seed,
+                          overrides=dict(parse_override(item) for item in args.overrides))
+    agent = args.agent or domain_class(args.domain).DEFAULT_AUDIT_AGENT
+    out = (Path(args.out) if args.out
+           else Path("tb_logs") / f"audit-{agent_slug(agent)}-{time.strftime('%Y%m%d-%H%M%S')}")
+    collection = run_audit(config, out_dir=out, local=args.local, workers=args.workers, address=args.address,
+                           resume=args.resume, episodes=args.episodes, max_levels=args.max_levels,
+                           collect_only=args.collect_only)
     c = load_collection(collection)
     print(f"collection: {collection}")
     print(_summary_line(c))
@@ -126,18 +124,15 @@ def run_compare_command(args: argparse.Namespace) -> int:
     from dsage_ray.audit.compare import compare_agents, format_comparison
 
     if len(args.agent) != 2:
-        raise _fail("compare", f"give exactly two agents (--agent A --agent B), got {len(args.agent)}")
+        raise InputError(f"give exactly two agents (--agent A --agent B), got {len(args.agent)}")
     for flag, value in (("--workers", args.workers), ("--episodes", args.episodes)):
         if value is not None and value < 1:
-            raise _fail("compare", f"{flag} must be positive, got {value}")
+            raise InputError(f"{flag} must be positive, got {value}")
     a, b = args.agent
     html_path = (Path(args.html) if args.html
                  else Path(args.collection) / f"compare-{agent_slug(a)}-vs-{agent_slug(b)}.html")
-    try:
-        comparison = compare_agents(a, b, collection_dir=args.collection, threshold=args.threshold,
-                                    episodes=args.episodes, html_path=html_path, workers=args.workers)
-    except (ValueError, RuntimeError, OSError) as exc:
-        raise _fail("compare", exc) from None
+    comparison = compare_agents(a, b, collection_dir=args.collection, threshold=args.threshold,
+                                episodes=args.episodes, html_path=html_path, workers=args.workers)
     print(format_comparison(comparison))
     print(f"\nHTML: {html_path}")
     return 0

@@ -6,13 +6,14 @@ import pickle
 from pathlib import Path
 from typing import Any
 
+from dsage_ray.errors import InputError
 from dsage_ray.io import atomic_write_bytes
 
 CHECKPOINT_NAME = "checkpoint.pkl"
 _FORMAT = "dsage_ray.checkpoint.v1"
 
 
-class CheckpointError(ValueError):
+class CheckpointError(InputError):
     """A file that is not a dsage_ray checkpoint, or a damaged one."""
 
 

@@ -39,6 +39,7 @@ def run_with_tune(
     """
     if workers is not None:
         config = config.replace(ray__num_workers=workers)
+    check_resources(config, address=address)  # before a local cluster starts
     connect(address)
     check_resources(config)
     experiment = run_experiment(config.to_flat(), name=config.name, storage_path=out_dir, api="tuner",
@@ -78,7 +79,9 @@ def ablate(
         config = config.replace(ray__num_workers=workers)
     axes = ablation_axes(config, grid, variants=variants, seeds=seeds)
     param_space = grid_param_space(config, axes)
+    configs = grid_configs(config, axes)[1]
+    check_resources(*configs, address=address)  # before a local cluster starts
     connect(address)
-    check_resources(*grid_configs(config, axes)[1])
+    check_resources(*configs)
     return run_experiment(param_space, name=config.name, storage_path=out_dir, api=api, resume=resume,
                           max_failures=max_failures, checkpoint_every=config.checkpoint_every)

@@ -13,18 +13,22 @@ Every trial is a :class:`~dsage_ray.ray.trainable.DSAGETrainable` whose Tune con
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 import itertools
 import json
 import os
+import re
 from pathlib import Path
-from typing import Any, Literal, Mapping, Sequence
+from typing import Any, Iterator, Literal, Mapping, Sequence
 
 import ray
 from ray import tune
+from ray.air.constants import EXPR_ERROR_FILE
 
 from dsage_ray.config import PAPER_COMPARISON, ConfigError, RunConfig, parse_override
 from dsage_ray.domains import build_domain
+from dsage_ray.errors import Interrupted, TrialFailed
 from dsage_ray.ray.pool import DomainFactory, check_cluster_fits
 from dsage_ray.ray.progress import ProgressLines, quiet_tune_output
 from dsage_ray.ray.trainable import DSAGETrainable, resource_request
@@ -33,7 +37,7 @@ from dsage_ray.ray.trainable import DSAGETrainable, resource_request
 TuneApi = Literal["tuner", "run"]
 
 
-class ExperimentInterrupted(RuntimeError):
+class ExperimentInterrupted(Interrupted):
     """Tune returned before every trial spent its budget (Ctrl+C, a stopped driver)."""
 
 
@@ -198,15 +202,28 @@ def grid_param_space(base: RunConfig, axes: Mapping[str, Sequence[Any]]) -> dict
     return space
 
 
-def check_resources(*configs: RunConfig) -> None:
+def check_resources(*configs: RunConfig, address: str | None = None) -> None:
     """Fails fast, naming the keys, when a trial's placement group can never be placed.
 
-    Each distinct request is checked once (a grid over ``ray.num_workers`` asks for several).
+    Before Ray starts a local cluster (no ``address``, no ``RAY_ADDRESS``), the CPUs are checked
+    against this machine's, so ``--workers 64`` on two cores costs no cluster start; once
+    connected, everything is checked against the cluster's nodes. Each distinct request is
+    checked once (a grid over ``ray.num_workers`` asks for several).
+
+    Raises:
+        PoolResourceError: A trial asks for more than the cluster (or this machine) has.
     """
+    before_start = not ray.is_initialized() and not (address or os.environ.get("RAY_ADDRESS"))
+    # What a local ray.init() will detect (cgroup limits included); other resources only once connected.
+    nodes = [{"CPU": float(ray._private.utils.get_num_cpus())}] if before_start else None
     requests = {json.dumps(resource_request(config).bundles): config for config in configs}
     for config in requests.values():
+        bundles = resource_request(config).bundles
+        if before_start:
+            bundles = [{"CPU": bundle.get("CPU", 0.0)} for bundle in bundles]
         check_cluster_fits(
-            bundles=resource_request(config).bundles,
+            bundles=bundles,
+            nodes=nodes,
             what=(f"one trial (ray.trial_cpus={config.ray.trial_cpus:g} + ray.num_workers={config.ray.num_workers} × "
                   f"ray.cpus_per_worker={config.ray.cpus_per_worker:g})"),
         )
@@ -240,7 +257,8 @@ def run_experiment(
             trial result is printed at every verbosity (:class:`~dsage_ray.ray.progress.ProgressLines`).
 
     Raises:
-        ray.tune.TuneError: A trial failed more than ``max_failures`` times.
+        TrialFailed: A trial failed more than ``max_failures`` times (its error and ``error.txt``).
+        ExperimentInterrupted: Tune returned before every trial finished.
     """
     storage_path = str(Path(storage_path).expanduser().resolve())
     experiment_path = Path(storage_path) / name
@@ -250,7 +268,7 @@ def run_experiment(
                                               num_to_keep=2)
 
     if api == "run":
-        with quiet_tune_output():
+        with quiet_tune_output(), _trial_failures():
             analysis = tune.run(
                 trainable,
                 name=name,
@@ -282,9 +300,9 @@ def run_experiment(
         )
     with quiet_tune_output():
         results = tuner.fit()
-    errors = [result.error for result in results if result.error is not None]
-    if errors:
-        raise tune.TuneError(f"{len(errors)} trial(s) failed; first error: {errors[0]}")
+    failed = [result for result in results if result.error is not None]
+    if failed:
+        raise trial_failed(len(failed), len(results), failed[0].error, Path(failed[0].path) / EXPR_ERROR_FILE)
     _check_finished(name, [result.metrics for result in results])
     return Path(results.experiment_path)
 
@@ -294,3 +312,40 @@ def _check_finished(name: str, last_results: list[dict[str, Any] | None]) -> Non
     if unfinished:
         raise ExperimentInterrupted(
             f"{unfinished} of {len(last_results)} trials of {name!r} did not finish; continue them with --resume")
+
+
+#: The start of a traceback's last line: ``ValueError: ...``, ``ray.exceptions.RayTaskError: ...``.
+_NAMED_EXCEPTION = re.compile(r"^[\w.]*(Error|Exception|Exit|Interrupt|Failed)\w*: ")
+
+
+def trial_failed(failed: int, total: int, error: BaseException | str | None, error_file: Path | None) -> TrialFailed:
+    """The one-line :class:`TrialFailed` for ``failed`` of ``total`` trials, naming the first's error and log.
+
+    Tune wraps the trial's exception in a ``RayTaskError`` (or an ``ActorDiedError`` when it was
+    raised in ``setup``) whose text is the whole remote traceback; its last line, ``Type: message``
+    of the exception the trial raised, is what the line shows.
+    """
+    cause = getattr(error, "cause", None) or error
+    message = (str(cause or "").strip().splitlines() or [type(cause).__name__])[-1].strip()
+    # A remote traceback ends in "ValueError: ..." already; a bare exception's text does not.
+    if isinstance(cause, BaseException) and not _NAMED_EXCEPTION.match(message):
+        message = f"{type(cause).__name__}: {message}"
+    which = "the trial" if total == 1 else f"{failed} of {total} trials; the first"
+    return TrialFailed(f"{which} failed: {message}",
+                       error_file=error_file if error_file is not None and error_file.exists() else None)
+
+
+@contextlib.contextmanager
+def _trial_failures() -> Iterator[None]:
+    """Turns ``tune.run``'s ``TuneError("Trials did not complete", trials)`` into :class:`TrialFailed`."""
+    try:
+        yield
+    except tune.TuneError as exc:
+        trials = [trial for trial in (exc.args[1] if len(exc.args) > 1 else []) if trial.status == "ERROR"]
+        if not trials:
+            raise TrialFailed(" ".join(str(exc).split())) from exc
+        first = trials[0]
+        # The copy in the experiment folder (next to the results), not the one in Ray's session folder.
+        error_file = Path(first.path) / EXPR_ERROR_FILE
+        raise trial_failed(len(trials), len(exc.args[1]), first.get_pickled_error() or first.get_error(),
+                           error_file) from exc

@@ -34,6 +34,7 @@ from ray.exceptions import RayActorError
 
 from dsage_ray.config import RunConfig
 from dsage_ray.domains import build_domain
+from dsage_ray.errors import ResourceError
 from dsage_ray.types import Domain, EvaluationResult, Solutions
 
 logger = logging.getLogger(__name__)
@@ -45,7 +46,7 @@ DomainFactory = Callable[[RunConfig], Domain]
 _THREAD_ENV_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
 
-class PoolResourceError(RuntimeError):
+class PoolResourceError(ResourceError):
     """The cluster cannot hold the requested simulators (raised instead of waiting forever)."""
 
 
@@ -301,7 +302,8 @@ class SimulatorPool:
         self.close()
 
 
-def check_cluster_fits(*, bundles: list[dict[str, float]], what: str) -> None:
+def check_cluster_fits(*, bundles: list[dict[str, float]], what: str,
+                       nodes: list[dict[str, float]] | None = None) -> None:
     """Raises :class:`PoolResourceError` when ``bundles`` can never be placed on this cluster.
 
     Checks the total and that each bundle fits on at least one node, so a misconfigured request
@@ -310,9 +312,12 @@ def check_cluster_fits(*, bundles: list[dict[str, float]], what: str) -> None:
     Args:
         bundles: Resource bundles, e.g. ``[{"CPU": 1.0}, {"CPU": 0.5}, ...]``.
         what: Names the request in the error message.
+        nodes: The resources of each node; default: the alive nodes of the connected cluster
+            (given, the check runs before Ray starts).
     """
-    total = ray.cluster_resources()
-    nodes = [node["Resources"] for node in ray.nodes() if node.get("Alive")]
+    if nodes is None:
+        nodes = [node["Resources"] for node in ray.nodes() if node.get("Alive")]
+    total = {key: sum(node.get(key, 0.0) for node in nodes) for key in {k for node in nodes for k in node}}
     for key in sorted({k for bundle in bundles for k in bundle}):
         need = sum(bundle.get(key, 0.0) for bundle in bundles)
         have = total.get(key, 0.0)

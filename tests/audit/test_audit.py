@@ -116,8 +116,8 @@ def test_compare_cli(collection, tmp_path, capsys):
                  "--html", str(html)]) == 0
     out = capsys.readouterr().out
     assert "A = builtin:wall_follower" in out and "B = builtin:random" in out and html.is_file()
-    with pytest.raises(SystemExit, match="exactly two agents"):
-        main(["compare", "--agent", AUDITED, "--collection", str(collection)])
+    assert main(["compare", "--agent", AUDITED, "--collection", str(collection)]) == 2
+    assert "dsage-ray compare: error: give exactly two agents" in capsys.readouterr().err
 
 
 def test_audit_config_rejects_non_failure_objectives():

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
+
 import pytest
 
 from dsage_ray.audit.collection import audit_config
@@ -9,11 +12,13 @@ from dsage_ray.cli import main
 
 
 def audit_error(argv: list[str]) -> str:
-    with pytest.raises(SystemExit) as error:
-        main(["audit", *argv])
-    message = str(error.value)
-    assert message.startswith("dsage-ray audit: error: ") and "\n" not in message, message
-    return message
+    """Runs ``dsage-ray audit ARGV``: exit code 2 and one error line on stderr, which it returns."""
+    stderr = io.StringIO()
+    with contextlib.redirect_stderr(stderr):
+        assert main(["audit", *argv]) == 2
+    message = stderr.getvalue()
+    assert message.startswith("dsage-ray audit: error: ") and message.count("\n") == 1, message
+    return message.rstrip("\n")
 
 
 def test_unknown_domain(tmp_path):

@@ -85,7 +85,7 @@ def test_a_bad_key_or_value_is_one_line_naming_it_before_ray_starts(grid, messag
     monkeypatch.setattr(ray_cli, "connect", _no_ray)
     assert main(["ablate", CONFIG, "--preset", "tiny", *(f"--grid={g}" for g in grid)]) == 2
     err = capsys.readouterr().err
-    assert err.startswith(f"dsage-ray: error: {message}") and err.count("\n") == 1, err
+    assert err.startswith(f"dsage-ray ablate: error: {message}") and err.count("\n") == 1, err
 
 
 def test_an_unknown_variant_in_variants_is_reported_before_ray_starts(monkeypatch, capsys):

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from dsage_ray.errors import InputError
+
 
 def add_subparser(subparsers) -> None:
     """Registers ``mario`` (with ``eval`` and ``sample``) on the top-level CLI's sub-parsers."""
@@ -31,32 +33,22 @@ def add_subparser(subparsers) -> None:
     sa.set_defaults(handler=run_sample)
 
 
-def _die(command: str, message: object) -> SystemExit:
-    return SystemExit(f"dsage-ray mario {command}: error: {' '.join(str(message).split())}")
-
-
 def run_eval(args: argparse.Namespace) -> int:
-    """Handler of ``mario eval``; bad input exits non-zero with a one-line message."""
+    """Handler of ``mario eval``; bad input ends it through :func:`dsage_ray.cli.main` in one line."""
     from dsage_ray.domains.mario.evaluate import evaluate_level
-    from dsage_ray.domains.mario.simulator import MarioSimulator, SimulatorError
-    from dsage_ray.domains.mario.tiles import LevelError, load_level
+    from dsage_ray.domains.mario.simulator import MarioSimulator
+    from dsage_ray.domains.mario.tiles import load_level
 
     if args.runs < 1:
-        raise _die("eval", f"--runs must be positive, got {args.runs}")
-    try:
-        level = load_level(args.level)
-        simulator = MarioSimulator(timer=args.timer, astar_iterations=args.astar_iterations,
-                                   mario_state=1 if args.large else 0, episode_timeout_s=args.timeout)
-        result = evaluate_level(level, simulator=simulator, runs=args.runs)
-    except (LevelError, SimulatorError, ValueError) as exc:
-        raise _die("eval", exc) from None
+        raise InputError(f"--runs must be positive, got {args.runs}")
+    level = load_level(args.level)
+    simulator = MarioSimulator(timer=args.timer, astar_iterations=args.astar_iterations,
+                               mario_state=1 if args.large else 0, episode_timeout_s=args.timeout)
+    result = evaluate_level(level, simulator=simulator, runs=args.runs)
     if args.render:
         from dsage_ray.domains.mario.render import save_level_png
 
-        try:
-            save_level_png(level, args.render, path=result.episodes[0].path)
-        except OSError as exc:
-            raise _die("eval", f"cannot write {args.render}: {exc.strerror or exc}") from None
+        save_level_png(level, args.render, path=result.episodes[0].path)
     if args.json:
         print(result.to_json())
     else:
@@ -79,25 +71,20 @@ def run_sample(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from dsage_ray.domains.mario.generator import GeneratorError, latents_to_levels, load_generator
+    from dsage_ray.domains.mario.generator import latents_to_levels, load_generator
     from dsage_ray.domains.mario.render import save_level_png
     from dsage_ray.domains.mario.tiles import indices_to_string
 
     if args.n < 1:
-        raise _die("sample", f"--n must be positive, got {args.n}")
+        raise InputError(f"--n must be positive, got {args.n}")
     out = Path(args.out)
-    try:
-        generator = load_generator(args.generator)
-        latents = np.random.default_rng(args.seed).standard_normal((args.n, generator.latent_dim)).astype(np.float32)
-        levels = latents_to_levels(generator, latents)
-        out.mkdir(parents=True, exist_ok=True)
-        np.save(out / "latents.npy", latents)
-        for i, level in enumerate(levels):
-            (out / f"level_{i:03d}.txt").write_text(indices_to_string(level) + "\n")
-            save_level_png(level, out / f"level_{i:03d}.png")
-    except GeneratorError as exc:
-        raise _die("sample", exc) from None
-    except OSError as exc:
-        raise _die("sample", f"cannot write to {out}: {exc.strerror or exc}") from None
+    generator = load_generator(args.generator)
+    latents = np.random.default_rng(args.seed).standard_normal((args.n, generator.latent_dim)).astype(np.float32)
+    levels = latents_to_levels(generator, latents)
+    out.mkdir(parents=True, exist_ok=True)
+    np.save(out / "latents.npy", latents)
+    for i, level in enumerate(levels):
+        (out / f"level_{i:03d}.txt").write_text(indices_to_string(level) + "\n")
+        save_level_png(level, out / f"level_{i:03d}.png")
     print(f"wrote {args.n} levels to {out}")
     return 0

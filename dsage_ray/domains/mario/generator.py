@@ -16,11 +16,12 @@ import torch
 from torch import nn
 
 from dsage_ray.domains.mario.tiles import LEVEL_HEIGHT, LEVEL_WIDTH, NUM_TILES
+from dsage_ray.errors import InputError
 
 BUILTIN_WEIGHTS = Path(__file__).parent / "assets" / "generator.pt"
 
 
-class GeneratorError(RuntimeError):
+class GeneratorError(InputError, RuntimeError):
     """A generator weights file is missing, unreadable, or does not fit the architecture."""
 
 

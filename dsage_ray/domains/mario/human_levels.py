@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from dsage_ray.domains.mario.tiles import CHAR_TO_INDEX, LEVEL_HEIGHT, LEVEL_WIDTH
+from dsage_ray.errors import ResourceError
 
 #: VGLC character → our tile character (SPEC §3). ``x`` is a path overlay, not a tile.
 VGLC_TO_TILE: dict[str, str] = {
@@ -27,7 +28,7 @@ VGLC_TO_TILE: dict[str, str] = {
 EXTRA_SKY_ROWS = LEVEL_HEIGHT - 14
 
 
-class MarioDataError(RuntimeError):
+class MarioDataError(ResourceError):
     """The ``mario-gpt`` package (jar or level data) is missing or not what we expect."""
 
 

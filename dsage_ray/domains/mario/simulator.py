@@ -38,6 +38,7 @@ import numpy as np
 
 from dsage_ray.domains.mario.human_levels import MarioDataError, mario_gpt_file
 from dsage_ray.domains.mario.tiles import to_string
+from dsage_ray.errors import ResourceError
 
 logger = logging.getLogger(__name__)
 
@@ -57,7 +58,7 @@ WALL_CLOCK_TIMEOUT = "WALL_CLOCK_TIMEOUT"
 JAVA_ERROR = "ERROR"
 
 
-class SimulatorError(RuntimeError):
+class SimulatorError(ResourceError):
     """Java, the jar, or the JVM is unusable (not an individual episode's failure)."""
 
 

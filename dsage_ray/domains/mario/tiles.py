@@ -14,6 +14,8 @@ from typing import Sequence
 
 import numpy as np
 
+from dsage_ray.errors import InputError
+
 #: Tile index → framework character (SPEC §3 order; the GAN's channel order).
 TILES: tuple[str, ...] = (
     "-",  # 0 empty
@@ -47,7 +49,7 @@ SKY_ROWS = 9
 _LOOKUP = np.array(TILES)
 
 
-class LevelError(ValueError):
+class LevelError(InputError):
     """A level the simulator must not see; the message says what is wrong and where."""
 
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from dsage_ray.errors import InputError
+
 
 def add_subparser(subparsers) -> None:
     """Registers ``maze`` (with its ``eval`` sub-command) on the top-level CLI's sub-parsers."""
@@ -25,34 +27,20 @@ def add_subparser(subparsers) -> None:
 
 
 def run_eval(args: argparse.Namespace) -> int:
-    """Handler of ``maze eval``; bad input raises ``SystemExit`` with a one-line message."""
-    from dsage_ray.agents.base import AgentError
+    """Handler of ``maze eval``; bad input ends it through :func:`dsage_ray.cli.main` in one line."""
+    from dsage_ray import agents
     from dsage_ray.domains.maze.evaluate import evaluate
-    from dsage_ray.domains.maze.layout import LayoutError, load_layout
-
-    def die(message: str) -> SystemExit:
-        return SystemExit(f"dsage-ray maze eval: error: {' '.join(str(message).split())}")
+    from dsage_ray.domains.maze.layout import load_layout
 
     if args.episodes < 1:
-        raise die(f"--episodes must be positive, got {args.episodes}")
-    try:
-        level = load_layout(args.layout)
-    except LayoutError as exc:
-        raise die(exc) from None
-    try:
-        from dsage_ray import agents
-
-        agent = agents.load_agent(args.agent)
-    except (AgentError, ValueError, OSError) as exc:
-        raise die(exc) from None
+        raise InputError(f"--episodes must be positive, got {args.episodes}")
+    level = load_layout(args.layout)
+    agent = agents.load_agent(args.agent)
     result = evaluate(level, agent, episodes=args.episodes, seed=args.seed, see_through_walls=args.see_through_walls)
     if args.render:
         from dsage_ray.domains.maze.render import render_level
 
-        try:
-            render_level(level, result.occupancy, args.render, title=f"{args.agent} on {args.layout}")
-        except OSError as exc:
-            raise die(f"cannot write {args.render}: {exc.strerror or exc}") from None
+        render_level(level, result.occupancy, args.render, title=f"{args.agent} on {args.layout}")
     if args.json:
         print(result.to_json())
     else:

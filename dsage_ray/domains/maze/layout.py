@@ -16,11 +16,12 @@ from pathlib import Path
 import numpy as np
 
 from dsage_ray.domains.maze.level import MazeLevel
+from dsage_ray.errors import InputError
 
 _WALL, _EMPTY, _START, _GOAL = "#", ".", "S", "G"
 
 
-class LayoutError(ValueError):
+class LayoutError(InputError):
     """A malformed layout; the message names the source, the line and the problem."""
 
 
