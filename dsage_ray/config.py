@@ -11,6 +11,7 @@ Resolution order when building a config: dataclass defaults → the domain's *pr
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import json
 import tomllib
 import types
@@ -27,6 +28,24 @@ class ConfigError(InputError):
     """An invalid config; the message names the offending key."""
 
 
+# The closed sets of names a config value picks from. Each is the key set of the table that
+# implements the names (checked equal in tests/test_config.py); the tables live with their code,
+# which imports pyribs or the simulators, so config validation can stay import-free.
+
+#: Keys of :data:`dsage_ray.qd.optimizer.EMITTERS`.
+EmitterName = Literal["map_elites", "cma_me", "random"]
+#: Keys of :data:`dsage_ray.qd.selection.SELECTION_METHODS`.
+SelectionMethod = Literal["downsample", "random", "full"]
+#: Keys of :data:`dsage_ray.domains.maze.measures.OBJECTIVES`.
+MazeObjective = Literal["validity", "failure_rate", "regret", "regression"]
+#: Mario's objectives: the A* agent's completion, or ``1 - completion`` (audits).
+MarioObjective = Literal["completion", "incompletion"]
+#: Surrogate kinds: ancillary occupancy (``two_stage``), without it (``one_stage``), none (plain QD).
+SurrogateKind = Literal["two_stage", "one_stage", "none"]
+#: Surrogate prediction arithmetic.
+Precision = Literal["auto", "fp32", "bf16"]
+
+
 @dataclasses.dataclass
 class MazeConfig:
     """The Maze domain (SPEC §2)."""
@@ -37,7 +56,7 @@ class MazeConfig:
     width: int = 16
     see_through_walls: bool = True
     #: ``validity`` (paper), ``failure_rate``, ``regret`` or ``regression`` (audits).
-    objective: str = "validity"
+    objective: MazeObjective = "validity"
     #: Reference agent spec of the ``regression`` objective (empty: none), run on the same seeds.
     reference: str = ""
     measures: tuple[str, ...] = ("num_walls", "mean_path_length")
@@ -60,7 +79,7 @@ class MarioConfig:
     #: authors drew them from N(0, 0.2²).
     latent_sigma: float = 0.2
     #: ``completion`` (paper) or ``incompletion`` (1 − completion, audits).
-    objective: str = "completion"
+    objective: MarioObjective = "completion"
     measures: tuple[str, ...] = ("sky_tiles", "mean_jumps")
     archive_dims: tuple[int, ...] = (150, 100)
     measure_ranges: tuple[tuple[float, float], ...] = ((0.0, 150.0), (0.0, 100.0))
@@ -71,7 +90,7 @@ class SurrogateConfig:
     """The deep surrogate model (SPEC §4)."""
 
     #: ``two_stage`` (ancillary occupancy), ``one_stage`` (no ancillary data) or ``none`` (plain QD).
-    kind: str = "two_stage"
+    kind: SurrogateKind = "two_stage"
     epochs: int = 200
     batch_size: int = 64
     lr: float = 1e-3
@@ -80,9 +99,10 @@ class SurrogateConfig:
     train_window: int = 20_000
     predict_batch_size: int = 4096
     device: str = "auto"
-    #: Prediction arithmetic: ``fp32``, ``bf16`` (autocast) or ``auto`` (bf16 on CUDA and on CPUs with
-    #: native bf16, else fp32). Training is always fp32.
-    precision: str = "auto"
+    #: Prediction arithmetic: ``fp32``, ``bf16`` (the two-stage model's residual blocks, most of its work,
+    #: under bf16 autocast) or ``auto`` (bf16 on CUDA and on CPUs with native bf16, else fp32). Training is
+    #: always fp32. ``auto`` resolves per machine, as ``device`` does.
+    precision: Precision = "auto"
     #: Random valid levels evaluated once, outside the budget, to score the surrogate on levels it
     #: never trains on (``holdout_*`` metrics each outer iteration); 0 turns it off.
     holdout_levels: int = 0
@@ -93,7 +113,7 @@ class QDConfig:
     """The QD optimizer used on the surrogate (inner loop) or directly (baselines)."""
 
     #: ``map_elites`` (discrete bitmaps), ``cma_me`` (continuous latents) or ``random`` (DR).
-    emitter: str = "map_elites"
+    emitter: EmitterName = "map_elites"
     num_emitters: int = 5
     batch_size: int = 30
     #: MAP-Elites: cells mutated per offspring; batches of uniform random solutions before mutating.
@@ -111,7 +131,7 @@ class SelectionConfig:
     """Which surrogate elites get a real evaluation."""
 
     #: ``downsample``, ``random`` or ``full``.
-    method: str = "downsample"
+    method: SelectionMethod = "downsample"
     #: Downsampling block in archive cells per measure.
     block: tuple[int, ...] = (8, 6)
     #: ``random``: how many elites to pick.
@@ -182,12 +202,12 @@ class RunConfig:
         preset_table = PRESETS.get(base.domain, {})
         if base.preset not in preset_table:
             raise ConfigError(f"preset: unknown preset {base.preset!r} for domain {base.domain!r} "
-                              f"(known: {sorted(preset_table)})")
+                              f"(known: {sorted(preset_table)}){did_you_mean(base.preset, preset_table)}")
         layered.update(preset_table[base.preset])
         variant_table = VARIANTS.get(base.domain, {})
         if base.variant not in variant_table:
             raise ConfigError(f"variant: unknown variant {base.variant!r} for domain {base.domain!r} "
-                              f"(known: {sorted(variant_table)})")
+                              f"(known: {sorted(variant_table)}){did_you_mean(base.variant, variant_table)}")
         layered.update(variant_table[base.variant])
         layered.update(explicit)
         config = cls()
@@ -240,6 +260,7 @@ class RunConfig:
             if not cond:
                 raise ConfigError(f"{key}: {why} (got {_get(self, key)!r})")
 
+        _check_choices(self)
         need(self.domain in ("maze", "mario"), "domain", "must be 'maze' or 'mario'")
         need(self.budget >= 1, "budget", "must be positive")
         need(self.n_rand >= 1, "n_rand", "must be positive")
@@ -249,21 +270,13 @@ class RunConfig:
         need(self.image_every >= 1, "image_every", "must be positive")
         need(self.image_levels >= 0, "image_levels", "must be >= 0")
         need(self.torch_threads >= 1, "torch_threads", "must be positive")
-        need(self.surrogate.kind in ("two_stage", "one_stage", "none"), "surrogate.kind",
-             "must be 'two_stage', 'one_stage' or 'none'")
         for key in ("epochs", "batch_size", "train_window", "predict_batch_size"):
             need(getattr(self.surrogate, key) >= 1, f"surrogate.{key}", "must be positive")
         need(self.surrogate.lr > 0, "surrogate.lr", "must be positive")
-        need(self.surrogate.precision in ("auto", "fp32", "bf16"), "surrogate.precision",
-             "must be 'auto', 'fp32' or 'bf16'")
         need(self.surrogate.holdout_levels >= 0, "surrogate.holdout_levels", "must be >= 0 (0: off)")
-        need(self.qd.emitter in ("map_elites", "cma_me", "random"), "qd.emitter",
-             "must be 'map_elites', 'cma_me' or 'random'")
         for key in ("num_emitters", "batch_size", "exploit_iterations", "mutation_cells"):
             need(getattr(self.qd, key) >= 1, f"qd.{key}", "must be positive")
         need(self.qd.sigma0 > 0, "qd.sigma0", "must be positive")
-        need(self.selection.method in ("downsample", "random", "full"), "selection.method",
-             "must be 'downsample', 'random' or 'full'")
         need(self.selection.count >= 1, "selection.count", "must be positive")
         need(self.uses_surrogate or not self.selection.skip_filled, "selection.skip_filled",
              "needs a surrogate (surrogate.kind = 'none' selects nothing)")
@@ -289,13 +302,9 @@ class RunConfig:
         if isinstance(dom, MazeConfig):
             need(dom.episodes >= 1, "maze.episodes", "must be positive")
             need(dom.height >= 2 and dom.width >= 2, "maze.height", "maze must be at least 2x2")
-            need(dom.objective in ("validity", "failure_rate", "regret", "regression"), "maze.objective",
-                 "must be 'validity', 'failure_rate', 'regret' or 'regression'")
             need(bool(dom.reference) == (dom.objective == "regression"), "maze.reference",
                  "the 'regression' objective needs a reference agent spec, and only it uses one")
         else:
-            need(dom.objective in ("completion", "incompletion"), "mario.objective",
-                 "must be 'completion' or 'incompletion'")
             need(dom.runs >= 1, "mario.runs", "must be positive")
             need(dom.timer >= 1, "mario.timer", "must be positive")
             need(dom.astar_iterations >= 0, "mario.astar_iterations", "must be >= 0 (0: stock wall-clock timer)")
@@ -459,12 +468,48 @@ def _assign(config: Any, flat: Mapping[str, Any]) -> None:
         target = config
         for i, part in enumerate(parents):
             if not dataclasses.is_dataclass(target) or part not in _field_types(type(target)):
-                raise ConfigError(f"{'.'.join(parents[:i + 1])}: unknown config section")
+                sections = [name for name, kind in _field_types(type(target)).items()
+                            if dataclasses.is_dataclass(kind)] if dataclasses.is_dataclass(target) else []
+                raise ConfigError(f"{'.'.join(parents[:i + 1])}: unknown config section "
+                                  f"(known: {', '.join(sections) or 'none'}){did_you_mean(part, sections)}")
             target = getattr(target, part)
         hints = _field_types(type(target)) if dataclasses.is_dataclass(target) else {}
         if leaf not in hints or dataclasses.is_dataclass(hints[leaf]):
-            raise ConfigError(f"{dotted}: unknown config key")
+            raise ConfigError(f"{dotted}: unknown config key ({key_hint(dotted, RunConfig().to_flat())})")
         setattr(target, leaf, _coerce(dotted, value, hints[leaf]))
+
+
+def did_you_mean(name: Any, known: Any) -> str:
+    """``"; did you mean 'X'?"`` for the closest of ``known`` to ``name``, or ``""``."""
+    close = difflib.get_close_matches(str(name), [str(k) for k in known], n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
+def key_hint(key: str, known: Mapping[str, Any]) -> str:
+    """What to say about an unknown dotted ``key``: the closest known keys, else what there is."""
+    close = difflib.get_close_matches(key, list(known), n=3, cutoff=0.6)
+    if close:
+        return "did you mean " + " or ".join(close) + "?"
+    section = key.rsplit(".", 1)[0] + "." if "." in key else ""
+    same_section = [k for k in known if section and k.startswith(section)]
+    if same_section:
+        return "keys of that section: " + ", ".join(same_section)
+    return "sections and keys: " + ", ".join(sorted({k.split(".", 1)[0] for k in known}))
+
+
+def _not_a_choice(key: str, value: Any, choices: tuple[Any, ...]) -> str:
+    listed = ", ".join(map(repr, choices[:-1])) + f" or {choices[-1]!r}" if len(choices) > 1 else repr(choices[0])
+    return f"{key}: must be {listed} (got {value!r}{did_you_mean(value, choices)})"
+
+
+def _check_choices(config: Any, prefix: str = "") -> None:
+    """Every ``Literal``-typed field holds one of its names (also when set as an attribute, not built)."""
+    for name, annotation in _field_types(type(config)).items():
+        value = getattr(config, name)
+        if dataclasses.is_dataclass(annotation):
+            _check_choices(value, f"{prefix}{name}.")
+        elif typing.get_origin(annotation) is Literal and value not in typing.get_args(annotation):
+            raise ConfigError(_not_a_choice(prefix + name, value, typing.get_args(annotation)))
 
 
 def _field_types(cls: type) -> dict[str, Any]:
@@ -499,7 +544,7 @@ def _coerce(key: str, value: Any, annotation: Any) -> Any:
     if origin is Literal:
         if value in args:
             return value
-        raise ConfigError(f"{key}: expected one of {args}, got {value!r}")
+        raise ConfigError(_not_a_choice(key, value, args))
     if annotation is bool:
         if isinstance(value, bool):
             return value

@@ -11,7 +11,7 @@ from ribs.archives import ArchiveBase
 from ribs.emitters import EmitterBase, EvolutionStrategyEmitter
 from ribs.schedulers import Scheduler
 
-from dsage_ray.config import QDConfig
+from dsage_ray.config import ConfigError, EmitterName, QDConfig, did_you_mean
 from dsage_ray.qd.emitters import MapElitesBitmapEmitter, RandomEmitter, Sampler
 
 #: ``predict(solutions) -> (objective (n,), measures (n, m), extra fields {name: (n, ...)})``.
@@ -23,6 +23,34 @@ def emitter_seeds(seed: int | None, n: int) -> list[int | None]:
     if seed is None:
         return [None] * n
     return [int(child.generate_state(1)[0]) for child in np.random.SeedSequence(seed).spawn(n)]
+
+
+def _map_elites(archive: ArchiveBase, config: QDConfig, solution_dim: int, random_solutions: Sampler,
+                seed: int | None) -> EmitterBase:
+    return MapElitesBitmapEmitter(archive, solution_dim=solution_dim, batch_size=config.batch_size,
+                                  mutation_cells=config.mutation_cells,
+                                  initial_random_batches=config.initial_random_batches, seed=seed)
+
+
+def _cma_me(archive: ArchiveBase, config: QDConfig, solution_dim: int, random_solutions: Sampler,
+            seed: int | None) -> EmitterBase:
+    # CMA-ME's improvement emitter (SPEC §5): CMA-ES from the origin, two-stage improvement ranking.
+    return EvolutionStrategyEmitter(archive, x0=np.zeros(solution_dim), sigma0=config.sigma0, ranker=config.ranker,
+                                    batch_size=config.batch_size, seed=seed)
+
+
+def _random(archive: ArchiveBase, config: QDConfig, solution_dim: int, random_solutions: Sampler,
+            seed: int | None) -> EmitterBase:
+    return RandomEmitter(archive, sampler=random_solutions, batch_size=config.batch_size, seed=seed)
+
+
+#: One emitter of each ``qd.emitter`` name: ``build(archive, config, solution_dim, random_solutions, seed)``.
+#: Its keys are the config's :data:`~dsage_ray.config.EmitterName`.
+EMITTERS: dict[EmitterName, Callable[[ArchiveBase, QDConfig, int, Sampler, int | None], EmitterBase]] = {
+    "map_elites": _map_elites,
+    "cma_me": _cma_me,
+    "random": _random,
+}
 
 
 def make_emitters(
@@ -40,35 +68,12 @@ def make_emitters(
     """
     if solution_dim != archive.solution_dim:
         raise ValueError(f"solution_dim {solution_dim} does not match archive.solution_dim {archive.solution_dim}")
-    seeds = emitter_seeds(seed, config.num_emitters)
-    if config.emitter == "map_elites":
-        return [
-            MapElitesBitmapEmitter(
-                archive,
-                solution_dim=solution_dim,
-                batch_size=config.batch_size,
-                mutation_cells=config.mutation_cells,
-                initial_random_batches=config.initial_random_batches,
-                seed=s,
-            )
-            for s in seeds
-        ]
-    if config.emitter == "cma_me":
-        # CMA-ME's improvement emitter (SPEC §5): CMA-ES from the origin, two-stage improvement ranking.
-        return [
-            EvolutionStrategyEmitter(
-                archive,
-                x0=np.zeros(solution_dim),
-                sigma0=config.sigma0,
-                ranker=config.ranker,
-                batch_size=config.batch_size,
-                seed=s,
-            )
-            for s in seeds
-        ]
-    if config.emitter == "random":
-        return [RandomEmitter(archive, sampler=random_solutions, batch_size=config.batch_size, seed=s) for s in seeds]
-    raise ValueError(f"qd.emitter: unknown emitter {config.emitter!r} (known: map_elites, cma_me, random)")
+    if config.emitter not in EMITTERS:
+        raise ConfigError(f"qd.emitter: unknown emitter {config.emitter!r} (known: {', '.join(EMITTERS)})"
+                          f"{did_you_mean(config.emitter, EMITTERS)}")
+    build = EMITTERS[config.emitter]
+    return [build(archive, config, solution_dim, random_solutions, s)
+            for s in emitter_seeds(seed, config.num_emitters)]
 
 
 def make_scheduler(

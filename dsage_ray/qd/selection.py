@@ -4,13 +4,12 @@ skipping those the ground-truth archive already beats (the ``dsage_novel`` varia
 from __future__ import annotations
 
 import dataclasses
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 from ribs.archives import GridArchive
 
-SELECTION_METHODS = ("downsample", "random", "full")
-
+from dsage_ray.config import ConfigError, SelectionMethod, did_you_mean
 
 def select_solutions(
     archive: GridArchive,
@@ -44,17 +43,37 @@ def select_solutions(
     Raises:
         ValueError: Unknown method, or ``block`` not one positive entry per measure.
     """
+    if method not in SELECTION_METHODS:
+        raise ConfigError(f"selection.method: unknown method {method!r} (known: {', '.join(SELECTION_METHODS)})"
+                          f"{did_you_mean(method, SELECTION_METHODS)}")
     indices = np.sort(np.asarray(archive.data("index"), dtype=np.int64))
-    if method == "full":
-        return indices
-    if method == "random":
-        if count < 0:
-            raise ValueError(f"count must be >= 0 (got {count})")
-        picked = rng.choice(len(indices), size=min(count, len(indices)), replace=False)
-        return np.sort(indices[picked])
-    if method == "downsample":
-        return indices[_one_per_block(archive, indices, block, rng)]
-    raise ValueError(f"selection.method: unknown method {method!r} (known: {', '.join(SELECTION_METHODS)})")
+    return np.sort(indices[SELECTION_METHODS[method](archive, indices, block, count, rng)])
+
+
+def _downsample(archive: GridArchive, indices: np.ndarray, block: Sequence[int], count: int,
+                rng: np.random.Generator) -> np.ndarray:
+    return _one_per_block(archive, indices, block, rng)
+
+
+def _full(archive: GridArchive, indices: np.ndarray, block: Sequence[int], count: int,
+          rng: np.random.Generator) -> np.ndarray:
+    return np.arange(len(indices))
+
+
+def _random(archive: GridArchive, indices: np.ndarray, block: Sequence[int], count: int,
+            rng: np.random.Generator) -> np.ndarray:
+    if count < 0:
+        raise ValueError(f"count must be >= 0 (got {count})")
+    return rng.choice(len(indices), size=min(count, len(indices)), replace=False)
+
+
+#: Each ``selection.method``: ``pick(archive, sorted indices, block, count, rng)`` → positions in the
+#: indices. Its keys are the config's :data:`~dsage_ray.config.SelectionMethod`.
+SELECTION_METHODS: dict[SelectionMethod, Callable[..., np.ndarray]] = {
+    "downsample": _downsample,
+    "random": _random,
+    "full": _full,
+}
 
 
 def block_ids(archive: GridArchive, indices: np.ndarray, block: Sequence[int]) -> np.ndarray:

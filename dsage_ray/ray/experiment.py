@@ -14,7 +14,6 @@ Every trial is a :class:`~dsage_ray.ray.trainable.DSAGETrainable` whose Tune con
 from __future__ import annotations
 
 import contextlib
-import difflib
 import itertools
 import json
 import os
@@ -26,7 +25,7 @@ import ray
 from ray import tune
 from ray.air.constants import EXPR_ERROR_FILE
 
-from dsage_ray.config import PAPER_COMPARISON, ConfigError, RunConfig, parse_override
+from dsage_ray.config import PAPER_COMPARISON, ConfigError, RunConfig, key_hint, parse_override
 from dsage_ray.domains import build_domain
 from dsage_ray.errors import Interrupted, TrialFailed
 from dsage_ray.ray.pool import DomainFactory, check_cluster_fits
@@ -161,7 +160,7 @@ def grid_configs(base: RunConfig, axes: Mapping[str, Sequence[Any]]) -> tuple[di
         if key in _NOT_AXES:
             raise ConfigError(f"--grid {key}: cannot be a grid axis: {_NOT_AXES[key]}")
         if key not in known:
-            raise ConfigError(f"--grid {key}: unknown config key ({_suggest_keys(key, known)})")
+            raise ConfigError(f"--grid {key}: unknown config key ({key_hint(key, known)})")
         if not values:
             raise ConfigError(f"--grid {key}: no values")
     defaults = RunConfig.build({"domain": base.domain, "preset": base.preset, "variant": base.variant}).to_flat()
@@ -176,17 +175,6 @@ def grid_configs(base: RunConfig, axes: Mapping[str, Sequence[Any]]) -> tuple[di
             where = ", ".join(f"{key}={value!r}" for key, value in values.items() if len(axes[key]) > 1)
             raise ConfigError(f"grid point {where}: {exc}" if where else str(exc)) from None
     return explicit, configs
-
-
-def _suggest_keys(key: str, known: Mapping[str, Any]) -> str:
-    close = difflib.get_close_matches(key, list(known), n=3, cutoff=0.6)
-    if close:
-        return "did you mean " + " or ".join(close) + "?"
-    section = key.rsplit(".", 1)[0] + "." if "." in key else ""
-    same_section = [k for k in known if section and k.startswith(section)]
-    if same_section:
-        return "keys of that section: " + ", ".join(same_section)
-    return "sections and keys: " + ", ".join(sorted({k.split(".", 1)[0] for k in known}))
 
 
 def grid_param_space(base: RunConfig, axes: Mapping[str, Sequence[Any]]) -> dict[str, Any]:
