@@ -5,12 +5,18 @@
     with the same FLOPs per sample, timed in the same run. Their ratio says how close the model runs
     to what the convolution kernels can do here: ≥ 0.8 means the arithmetic, not Python or the
     framework, is the bottleneck. A large reference convolution gives the machine's peak for context.
-(2) Wall time of one training epoch on N Maze samples at batch 64.
+(2) bf16 against fp32 prediction (``surrogate.precision``) on a surrogate trained here on real Maze
+    evaluations (random valid levels of every wall density, run by ``--agent``): the share of unseen levels
+    that both precisions put in the same cell of the Maze archive (its dims and ranges: 256×162), and the
+    throughput of the same surrogate at the same batch (the inner loop's), timed interleaved in one run,
+    on 1 thread (a Maze trial's default) and on ``--threads``.
+(3) Wall time of one training epoch on N Maze samples at batch 64.
 
 Timings take the best of several interleaved repeats, because the machine is shared and other
 processes only ever make a repeat slower.
 
 Usage: python benchmarks/bench_surrogate.py [--threads 2] [--batch 150] [--train-samples 2000]
+       [--agent builtin:wall_follower] [--episodes 1] [--fit-levels 500] [--agree-levels 1000]
 """
 
 from __future__ import annotations
@@ -24,8 +30,13 @@ import numpy as np
 import torch
 from torch import nn
 
-from dsage_ray.config import SurrogateConfig
+from dsage_ray.config import MazeConfig, QDConfig, SurrogateConfig
+from dsage_ray.domains.maze.domain import MazeDomain
+from dsage_ray.domains.maze.generator import random_valid_levels
+from dsage_ray.qd.archives import make_archive
 from dsage_ray.surrogate import Surrogate
+from dsage_ray.surrogate.surrogate import native_cpu_bf16
+from dsage_ray.surrogate.models import pad_to_power_of_two
 from dsage_ray.types import EvaluationResult
 
 CHANNELS, SIZE, NUM_MEASURES = 5, 16, 2
@@ -80,7 +91,7 @@ def conv_stack(layers: int) -> Callable[[torch.Tensor], torch.Tensor]:
 
 
 def bench_inference(*, batch: int, repeats: int, calls: int) -> None:
-    config = SurrogateConfig(device="cpu", predict_batch_size=max(batch, 1))
+    config = SurrogateConfig(device="cpu", predict_batch_size=max(batch, 1), precision="fp32")
     surrogate = Surrogate(kind="two_stage", input_channels=CHANNELS, input_shape=(SIZE, SIZE),
                           occupancy_shape=(SIZE, SIZE), num_measures=NUM_MEASURES, config=config, seed=0)
     levels = maze_levels(batch)
@@ -115,6 +126,64 @@ def bench_inference(*, batch: int, repeats: int, calls: int) -> None:
     print(f"ratio model / large reference conv: {model_gflops / big_gflops:.2f}")
 
 
+def bench_precision(*, batch: int, repeats: int, calls: int, threads: list[int], agent: str, episodes: int,
+                    fit_levels: int, heldout_levels: int, agree_levels: int, fit_epochs: int) -> None:
+    domain = MazeDomain(config=MazeConfig(agent=agent, episodes=episodes))
+    # Wall densities up to 0.9 spread the levels over the archive's whole wall axis, as the inner loop does.
+    levels = random_valid_levels(fit_levels + heldout_levels + agree_levels, seed=0, density_range=(0.0, 0.9))
+    solutions = np.stack([level.walls.reshape(-1) for level in levels]).astype(domain.solution_dtype)
+    encoded = pad_to_power_of_two(domain.encode(solutions), domain.encoding_pad_channel)
+    fit, heldout, agree = np.split(encoded, [fit_levels, fit_levels + heldout_levels])
+    start = time.perf_counter()
+    results = [domain.evaluate(solution, seed=i) for i, solution in enumerate(solutions[:fit_levels + heldout_levels])]
+    evaluate_s = time.perf_counter() - start
+    config = SurrogateConfig(device="cpu", epochs=fit_epochs, batch_size=32, predict_batch_size=max(batch, 1),
+                             precision="fp32")
+    surrogate = Surrogate(kind="two_stage", input_channels=domain.encoding_channels, input_shape=encoded.shape[2:],
+                          occupancy_shape=domain.occupancy_shape, num_measures=len(domain.measure_names),
+                          config=config, seed=0)
+    dataset = surrogate.make_dataset()
+    dataset.append(encoded=fit, results=results[:fit_levels])
+    start = time.perf_counter()
+    surrogate.train(dataset)
+    train_s = time.perf_counter() - start
+    error = surrogate.mae(heldout, results[fit_levels:])
+
+    def predict(levels: np.ndarray, precision: str):
+        surrogate.precision = precision  # the same trained weights, only the arithmetic changes
+        return surrogate.predict(levels)
+
+    # Agreement needs no real evaluation: both precisions predict the same unseen levels.
+    fp32, bf16 = predict(agree, "fp32"), predict(agree, "bf16")
+    archive = make_archive(solution_dim=domain.solution_dim, dims=domain.archive_dims, ranges=domain.measure_ranges)
+    same = (archive.int_to_grid_index(archive.index_of(fp32.measures))
+            == archive.int_to_grid_index(archive.index_of(bf16.measures)))
+
+    names = domain.measure_names
+    print(f"bf16 surrogate: trained on {fit_levels} random valid levels x {episodes} episodes of {agent} "
+          f"({evaluate_s:.0f} s), {fit_epochs} epochs ({train_s:.0f} s); MAE on {heldout_levels} held-out levels: "
+          + ", ".join(f"{name} {error[f'measure_{i}']:.1f}" for i, name in enumerate(names)))
+    print(f"bf16 / fp32 same archive cell: {same.all(axis=1).mean():.1%} of {agree_levels} unseen levels "
+          f"({'x'.join(map(str, domain.archive_dims))} archive; per measure: "
+          + ", ".join(f"{name} {share:.1%}" for name, share in zip(names, same.mean(axis=0)))
+          + "; mean |bf16 - fp32|: "
+          + ", ".join(f"{name} {d:.3f}" for name, d in zip(names, np.abs(bf16.measures - fp32.measures).mean(0)))
+          + ")")
+
+    batch_levels = agree[np.arange(batch) % len(agree)]
+    previous = torch.get_num_threads()
+    for count in threads:
+        torch.set_num_threads(count)
+        seconds: dict[str, list[float]] = {"fp32": [], "bf16": []}
+        for _ in range(repeats):  # interleaved, so that load from other processes hits both alike
+            for precision, times in seconds.items():
+                times.append(best_time(lambda: predict(batch_levels, precision), calls=calls))
+        fp32_rate, bf16_rate = (batch / min(seconds[p]) for p in ("fp32", "bf16"))
+        print(f"bf16 / fp32 prediction throughput: {bf16_rate / fp32_rate:.2f}x ({count} thread{'s' * (count > 1)}, "
+              f"batch {batch}: fp32 {fp32_rate:,.0f}/s, bf16 {bf16_rate:,.0f}/s; native CPU bf16: {native_cpu_bf16()})")
+    torch.set_num_threads(previous)
+
+
 def bench_training(*, samples: int, batch_size: int, epochs: int) -> None:
     config = SurrogateConfig(device="cpu", epochs=1, batch_size=batch_size)
     surrogate = Surrogate(kind="two_stage", input_channels=CHANNELS, input_shape=(SIZE, SIZE),
@@ -138,12 +207,23 @@ def bench_training(*, samples: int, batch_size: int, epochs: int) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument("--batch", type=int, default=150, help="inner-loop batch (5 emitters x 30)")
+    inner_loop = QDConfig()
+    parser.add_argument("--batch", type=int, default=inner_loop.batch_size * inner_loop.num_emitters,
+                        help="inner-loop batch (qd.batch_size x qd.num_emitters = 150 for the Maze)")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--calls", type=int, default=20)
     parser.add_argument("--train-samples", type=int, default=2000)
     parser.add_argument("--train-batch", type=int, default=64)
     parser.add_argument("--train-epochs", type=int, default=3)
+    # The wall follower is deterministic (one episode says all) and ~50x cheaper than ACCEL, whose 600 levels
+    # take minutes on 2 cores; its path lengths span the same 0-648 range. --agent dcd:accel --episodes 5 works.
+    parser.add_argument("--agent", default="builtin:wall_follower",
+                        help="agent whose evaluations train the bf16/fp32 surrogate")
+    parser.add_argument("--episodes", type=int, default=1, help="episodes per level for that surrogate's data")
+    parser.add_argument("--fit-levels", type=int, default=500, help="evaluated levels the surrogate trains on")
+    parser.add_argument("--heldout-levels", type=int, default=100, help="evaluated levels for its MAE")
+    parser.add_argument("--agree-levels", type=int, default=1000, help="levels both precisions predict")
+    parser.add_argument("--fit-epochs", type=int, default=20)
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     # Other processes on the cores make multi-threaded small convolutions much slower (threads wait on
@@ -151,6 +231,9 @@ def main() -> None:
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, mkldnn {torch.backends.mkldnn.is_available()}, "
           f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}")
     bench_inference(batch=args.batch, repeats=args.repeats, calls=args.calls)
+    bench_precision(batch=args.batch, repeats=args.repeats, calls=args.calls, threads=sorted({1, args.threads}),
+                    agent=args.agent, episodes=args.episodes, fit_levels=args.fit_levels,
+                    heldout_levels=args.heldout_levels, agree_levels=args.agree_levels, fit_epochs=args.fit_epochs)
     bench_training(samples=args.train_samples, batch_size=args.train_batch, epochs=args.train_epochs)
 
 

@@ -5,11 +5,19 @@ training the same model every outer iteration and never re-initialises it. All r
 (initial weights, minibatch order) comes from ``seed`` through a dedicated generator, never the
 global torch RNG, so other code cannot perturb it and a resumed run trains exactly as an
 uninterrupted one.
+
+Predictions run in ``config.precision`` (:func:`resolve_precision`). bf16 runs the two-stage model's residual
+blocks, most of its arithmetic, in bf16 where the hardware computes bf16 natively; ``benchmarks/bench_surrogate.py``
+measures it at the Maze inner-loop batch: throughput, and how many levels land in another cell of the Maze
+archive (one wall wide: a few percent move by one cell, by ~100x less than the surrogate's own error).
+Training always runs in float32.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
+from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
@@ -22,6 +30,10 @@ from dsage_ray.surrogate.models import ModelOutput, OneStageModel, TwoStageModel
 from dsage_ray.types import EncodedLevels, EvaluationResult
 
 KINDS = ("two_stage", "one_stage")
+PRECISIONS = ("auto", "fp32", "bf16")
+#: x86 CPU flags of native bf16 arithmetic. Without them bf16 is emulated and slower than float32.
+#: (ARM's bf16 extensions are left out: never measured here, so ``auto`` keeps float32 there.)
+NATIVE_BF16_FLAGS = ("avx512_bf16", "amx_bf16")
 
 
 @dataclasses.dataclass
@@ -44,6 +56,46 @@ def resolve_device(name: str) -> torch.device:
     if name == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
     return torch.device(name)
+
+
+@functools.lru_cache(maxsize=None)
+def native_cpu_bf16() -> bool:
+    """Whether this CPU has native bf16 arithmetic (:data:`NATIVE_BF16_FLAGS`).
+
+    ``torch.cpu.get_capabilities()`` (torch ≥ 2.8) reads the CPU's feature bits; older torch falls back
+    to the kernel's ``/proc/cpuinfo`` flags. Anything unreadable counts as "no": float32 is always safe.
+    """
+    get_capabilities = getattr(torch.cpu, "get_capabilities", None)
+    if get_capabilities is not None:
+        try:
+            capabilities = get_capabilities()
+            return any(bool(capabilities.get(flag, False)) for flag in NATIVE_BF16_FLAGS)
+        except Exception:  # a capability probe must never stop a run; fall through to /proc
+            pass
+    try:
+        cpuinfo = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return False
+    flags = {flag for line in cpuinfo.splitlines() if line.startswith("flags") for flag in line.partition(":")[2].split()}
+    return any(flag in flags for flag in NATIVE_BF16_FLAGS)
+
+
+def resolve_precision(name: str, device: torch.device) -> str:
+    """The prediction precision ``"fp32"`` or ``"bf16"`` that ``name`` means on ``device``.
+
+    ``"auto"`` is bf16 on a CUDA device that computes bf16 natively and on a CPU with
+    :func:`native_cpu_bf16`, else fp32. ``"fp32"`` and ``"bf16"`` are taken as given (bf16 on a CPU without
+    native support works, just slowly).
+    """
+    if name not in PRECISIONS:
+        raise ValueError(f"surrogate precision must be one of {PRECISIONS}, got {name!r}")
+    if name != "auto":
+        return name
+    if device.type == "cuda":
+        return "bf16" if torch.cuda.is_bf16_supported(including_emulation=False) else "fp32"
+    if device.type == "cpu":
+        return "bf16" if native_cpu_bf16() else "fp32"
+    return "fp32"
 
 
 class Surrogate:
@@ -74,6 +126,8 @@ class Surrogate:
         self.occupancy_shape = tuple(occupancy_shape)
         self.num_measures = num_measures
         self.device = resolve_device(config.device)
+        #: ``"fp32"`` or ``"bf16"``: what ``config.precision`` resolved to on this machine.
+        self.precision = resolve_precision(config.precision, self.device)
         # Weights are drawn on the CPU inside a forked RNG: the same seed gives the same network on
         # any device, and the global RNG stays untouched.
         with torch.random.fork_rng(devices=[]):
@@ -143,7 +197,11 @@ class Surrogate:
     # --------------------------------------------------------------------------------- prediction
 
     def predict(self, encoded: EncodedLevels) -> Prediction:
-        """Predicts for ``(n, input_channels, size, size)`` levels in chunks of ``config.predict_batch_size``."""
+        """Predicts for ``(n, input_channels, size, size)`` levels in chunks of ``config.predict_batch_size``.
+
+        With :attr:`precision` ``"bf16"`` the two-stage model's residual blocks run in bf16
+        (:meth:`~dsage_ray.surrogate.models.OccupancyPredictor.forward`); the results are float32 either way.
+        """
         encoded = np.ascontiguousarray(encoded, dtype=np.float32)
         expected = (self.input_channels, *self.input_shape)
         if encoded.ndim != 4 or encoded.shape[1:] != expected:
@@ -153,7 +211,7 @@ class Surrogate:
         with torch.inference_mode():
             for start in range(0, len(encoded), self.config.predict_batch_size):
                 levels = torch.from_numpy(encoded[start:start + self.config.predict_batch_size]).to(self.device)
-                chunks.append(self.model(levels))
+                chunks.append(self.model(levels, bf16_blocks=self.precision == "bf16"))
         if not chunks:
             height, width = self.occupancy_shape
             return Prediction(objective=np.zeros(0, np.float32), measures=np.zeros((0, self.num_measures), np.float32),

@@ -16,7 +16,8 @@ OCC = (6, 7)
 
 
 def make(kind="two_stage", seed=0, **config):
-    config = SurrogateConfig(**{"epochs": 1, "batch_size": 16, "device": "cpu", **config})
+    # fp32 unless a test asks: "auto" would make these tests depend on the CPU they run on.
+    config = SurrogateConfig(**{"epochs": 1, "batch_size": 16, "device": "cpu", "precision": "fp32", **config})
     return Surrogate(kind=kind, input_channels=5, input_shape=(8, 8), occupancy_shape=OCC, num_measures=2,
                      config=config, seed=seed)
 
@@ -52,10 +53,11 @@ def test_loss_is_mean_head_mse_plus_weighted_occupancy():
     assert losses["total"] == pytest.approx(heads + 10.0 * losses["occupancy"], rel=1e-5)
 
 
-def test_prediction_shapes_and_chunking():
+@pytest.mark.parametrize("precision", ["fp32", "bf16"])
+def test_prediction_shapes_and_chunking(precision):
     levels = random_levels(10, size=8)
-    whole = make(predict_batch_size=4096).predict(levels)
-    chunked = make(predict_batch_size=3).predict(levels)
+    whole = make(predict_batch_size=4096, precision=precision).predict(levels)
+    chunked = make(predict_batch_size=3, precision=precision).predict(levels)
     assert whole.objective.shape == (10,) and whole.measures.shape == (10, 2)
     assert whole.occupancy.shape == (10, *OCC)
     for a, b in zip((whole.objective, whole.measures, whole.occupancy),
@@ -68,9 +70,10 @@ def test_prediction_shapes_and_chunking():
         make().predict(levels[:, :4])
 
 
-def test_prediction_is_in_eval_mode():
+@pytest.mark.parametrize("precision", ["fp32", "bf16"])
+def test_prediction_is_in_eval_mode(precision):
     # In train mode BatchNorm would use batch statistics, so a level's prediction would depend on its batch.
-    surrogate = make()
+    surrogate = make(precision=precision)
     dataset, levels = toy_dataset(surrogate, n=32)
     surrogate.train(dataset)
     alone = surrogate.predict(levels[:1]).objective
@@ -114,16 +117,16 @@ def test_global_rng_is_left_alone():
     assert torch.equal(torch.rand(3), expected)
 
 
-@pytest.mark.parametrize("kind", ["two_stage", "one_stage"])
-def test_resume_trains_exactly_like_an_uninterrupted_run(kind):
-    uninterrupted = make(kind)
+@pytest.mark.parametrize("kind, precision", [("two_stage", "fp32"), ("two_stage", "bf16"), ("one_stage", "fp32")])
+def test_resume_trains_exactly_like_an_uninterrupted_run(kind, precision):
+    uninterrupted = make(kind, precision=precision)
     dataset, levels = toy_dataset(uninterrupted, n=40)
     uninterrupted.train(dataset)
     state = pickle.loads(pickle.dumps(uninterrupted.state_dict()))
     expected_losses = [uninterrupted.train(dataset) for _ in range(2)]
     expected = uninterrupted.predict(levels)
 
-    resumed = make(kind, seed=7)  # a different seed: everything must come from the checkpoint
+    resumed = make(kind, seed=7, precision=precision)  # another seed: everything must come from the checkpoint
     resumed.load_state_dict(state)
     assert [resumed.train(dataset) for _ in range(2)] == expected_losses
     got = resumed.predict(levels)
