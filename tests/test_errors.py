@@ -21,6 +21,9 @@ def dsage_ray(*argv: str, timeout: float = 120) -> subprocess.CompletedProcess:
     """``dsage-ray ARGV`` in a fresh process, as a user runs it."""
     env = {**os.environ, "RAY_AUTH_MODE": "disabled"}
     env.pop("RAY_ADDRESS", None)  # a local cluster: the case the pre-start check covers
+    # `make test` preloads the JDK's libjsig for Mario, which warns on stderr in any process that sets a
+    # signal handler; these commands never start a JVM, and the user's shell has no such preload.
+    env.pop("LD_PRELOAD", None)
     return subprocess.run([sys.executable, "-m", "dsage_ray.cli", *argv], cwd=ROOT, env=env, text=True,
                           capture_output=True, timeout=timeout)
 
