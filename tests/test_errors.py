@@ -91,21 +91,8 @@ def broken_domain(config):
     raise ValueError("the level generator is missing")
 
 
-@pytest.fixture(scope="module")
-def ray_cluster():
-    import ray
-
-    os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")
-    started = not ray.is_initialized()
-    if started:
-        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    yield
-    if started:
-        ray.shutdown()
-
-
 @pytest.mark.parametrize("api", ["tuner", "run"])
-def test_a_failed_trial_is_one_line_with_its_error_and_log(api, ray_cluster, tmp_path):
+def test_a_failed_trial_is_one_line_with_its_error_and_log(api, ray_session, tmp_path):
     """A real Tune trial that raises: both Tune APIs end in TrialFailed naming the error and error.txt."""
     from dsage_ray.ray.experiment import run_experiment
     from tests.ray.helpers import small_config

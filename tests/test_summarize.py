@@ -26,20 +26,6 @@ def summarize():
     return module
 
 
-@pytest.fixture(scope="module")
-def ray_cluster():
-    """The Ray tests' cluster when it is up, else a small one for this module."""
-    os.environ.setdefault("RAY_AUTH_MODE", "disabled")
-    import ray
-
-    started = not ray.is_initialized()
-    if started:
-        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    yield
-    if started:
-        ray.shutdown()
-
-
 def script_key(config: dict) -> str:
     return json.dumps([config.get("variant"), config.get("seed"), config.get("selection.block")])
 
@@ -114,7 +100,7 @@ def rows(markdown: str) -> dict[str, list[str]]:
     return {cells[0]: cells[1:] for cells in ([c.strip() for c in line.strip("|").split("|")] for line in lines[1:])}
 
 
-def test_maze_table_uses_the_papers_target_and_counts_never_as_the_budget(summarize, ray_cluster, tmp_path, capsys):
+def test_maze_table_uses_the_papers_target_and_counts_never_as_the_budget(summarize, ray_session, tmp_path, capsys):
     experiment = maze_experiment(tmp_path)
     stale = [json.loads(line)["qd_score"] for result in experiment.glob("*seed=1*variant=dsage*/result.json")
              for line in result.read_text().splitlines()]
@@ -136,7 +122,7 @@ def test_maze_table_uses_the_papers_target_and_counts_never_as_the_budget(summar
     assert (experiment / "comparison.png").read_bytes()[:4] == b"\x89PNG"
 
 
-def test_explicit_target_budget_from_the_config_and_unfinished_runs(summarize, ray_cluster, tmp_path, capsys):
+def test_explicit_target_budget_from_the_config_and_unfinished_runs(summarize, ray_session, tmp_path, capsys):
     # No budget key: the tiny preset's (150) comes from the config; seed 0 stops short of it.
     scripts = dict([trial(variant="dsage", seed=0, qd_scores=[5, 9], evals=[50, 100]),
                     trial(variant="dsage", seed=1, qd_scores=[12, 13], evals=[50, 150])])
@@ -151,7 +137,7 @@ def test_explicit_target_budget_from_the_config_and_unfinished_runs(summarize, r
     assert (out / "summary.md").exists() and (out / "comparison.png").exists()
 
 
-def test_a_row_per_value_of_every_grid_key(summarize, ray_cluster, tmp_path, capsys):
+def test_a_row_per_value_of_every_grid_key(summarize, ray_session, tmp_path, capsys):
     blocks = [[4, 3], [8, 6]]
     scripts = dict(trial(variant=variant, seed=seed, **{"selection.block": block}, evals=[100, 200],
                          qd_scores=[10, 10 * (i + 1) + seed + (5 if variant == "dsage" else 0)])
@@ -173,7 +159,7 @@ def test_a_row_per_value_of_every_grid_key(summarize, ray_cluster, tmp_path, cap
     assert "Evaluations to QD-score 15.5 |" in lines[0]
 
 
-def test_mario_target_is_dsage_basic_and_a_missing_reference_is_one_error(summarize, ray_cluster, tmp_path, capsys):
+def test_mario_target_is_dsage_basic_and_a_missing_reference_is_one_error(summarize, ray_session, tmp_path, capsys):
     scripts = dict([trial(variant="dsage_basic", seed=0, qd_scores=[10, 20], evals=[100, 200]),
                     trial(variant="cma_me", seed=0, qd_scores=[30, 40], evals=[100, 200])])
     space = {"domain": "mario", "preset": "tiny", "budget": 200, "seed": 0,

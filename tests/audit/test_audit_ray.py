@@ -20,18 +20,6 @@ from dsage_ray.ray.pool import SimulatorPool
 AUDITED = "builtin:random"
 
 
-@pytest.fixture(scope="module")
-def ray_cluster():
-    import ray
-
-    started = not ray.is_initialized()
-    if started:
-        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
-    yield ray
-    if started:
-        ray.shutdown()
-
-
 class DyingMazeDomain(MazeDomain):
     """Kills its own process on the first evaluation of the whole test (a marker file makes it once)."""
 
@@ -64,7 +52,7 @@ def search(tmp_path_factory):
     return config, archive, tmp_path_factory.mktemp("ray_audit")
 
 
-def test_a_dying_simulator_loses_no_level(ray_cluster, search):
+def test_a_dying_simulator_loses_no_level(ray_session, search):
     config, archive, folder = search
     in_process = build_collection(archive, config=config, out_dir=folder / "in_process")
     pool = SimulatorPool(config=config, chunk_size=1,
@@ -80,7 +68,7 @@ def test_a_dying_simulator_loses_no_level(ray_cluster, search):
     assert [{k: lv[k] for k in keys} for lv in got["levels"]] == [{k: lv[k] for k in keys} for lv in expected["levels"]]
 
 
-def test_compare_on_the_pool_equals_in_process(ray_cluster, search, capsys):
+def test_compare_on_the_pool_equals_in_process(ray_session, search, capsys):
     config, archive, folder = search
     collection = folder / "in_process"
     if not collection.exists():
