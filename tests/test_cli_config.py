@@ -68,3 +68,14 @@ def test_runs_nothing_and_imports_neither_ray_nor_torch():
     assert proc.returncode == 0, proc.stderr
     assert "HEAVY []" in proc.stderr
     assert json.loads(proc.stdout)["preset"] == "tiny"
+
+
+def test_a_reader_that_stops_early_is_not_an_error():
+    """``dsage-ray config … | head -1``: the closed pipe ends the command quietly with exit 0."""
+    path = REPO_ROOT / "experiments" / "configs" / "maze_dsage.toml"
+    proc = subprocess.Popen([sys.executable, "-m", "dsage_ray.cli", "config", str(path)], cwd=REPO_ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, bufsize=0)
+    assert proc.stdout.read(1) == b"{"
+    proc.stdout.close()
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 0 and b"error" not in stderr, stderr
