@@ -99,7 +99,9 @@ def main() -> int:
         return 130
     print(f"done in {time.perf_counter() - started:.0f}s: {path}")
     print(f"table: python {Path(__file__).with_name('summarize.py')} {path}")
-    print(f"TensorBoard: tensorboard --logdir {path}")
+    from dsage_ray.core.tensorboard_log import tensorboard_hint
+
+    print(f"open it in TensorBoard: {tensorboard_hint(path)}")
     return 0
 
 
