@@ -56,11 +56,13 @@ class ProgressLines(tune.Callback):
     def __init__(self) -> None:
         self._started = time.monotonic()
         self._rates: dict[str, EvaluationRate] = {}
+        self._finished: set[str] = set()
 
     def setup(self, **info: Any) -> None:
         # Called by every tune.run / Tuner.fit, a resumed one included.
         self._started = time.monotonic()
         self._rates = {}
+        self._finished = set()
 
     def on_trial_result(self, iteration: int, trials: list, trial, result: dict, **info: Any) -> None:
         if "outer_iteration" not in result:
@@ -70,12 +72,17 @@ class ProgressLines(tune.Callback):
             evals=evals, running_s=float(result.get("time_total_s") or 0.0))
         line = progress_line(result, budget=int(result.get("budget", evals)),
                              elapsed_s=time.monotonic() - self._started, evals_per_s=rate)
+        if result.get("done"):
+            self._finished.add(trial.trial_id)
         if len(trials) > 1:
-            # This trial is still RUNNING while Tune hands out its last result.
-            finished = sum(other.status == "TERMINATED" or (other is trial and bool(result.get("done")))
-                           for other in trials)
+            # A trial stays RUNNING while Tune hands out its last result, and may still be RUNNING
+            # when another trial's last result arrives, so the callback remembers who said done.
+            finished = len(self._finished | {other.trial_id for other in trials if other.status == "TERMINATED"})
             line = f"{_label(trial)}  {line}  trials done {finished}/{len(trials)}"
         _print(line)
+
+    def on_trial_complete(self, iteration: int, trials: list, trial, **info: Any) -> None:
+        self._finished.add(trial.trial_id)
 
     def on_trial_recover(self, iteration: int, trials: list, trial, **info: Any) -> None:
         _print(f"{_label(trial)}: failed; Tune restarts it from its last checkpoint")

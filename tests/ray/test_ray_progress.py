@@ -76,3 +76,24 @@ def test_a_local_run_writes_the_same_tensorboard_events_and_points_at_them(tmp_p
     assert "archive/heatmap" in images
     progress = [line for line in stdout.splitlines() if line.startswith("iter ")]
     assert len(progress) == len(history) and progress[-1].endswith("ETA done")
+
+
+def test_trials_done_counts_a_trial_that_said_done_while_tune_still_shows_it_running(capsys):
+    from types import SimpleNamespace
+
+    from dsage_ray.ray.progress import ProgressLines
+
+    def trial(trial_id: str, seed: int):
+        return SimpleNamespace(trial_id=trial_id, status="RUNNING", evaluated_params={"seed": seed},
+                               error_file=None)
+
+    first, second = trial("a", 0), trial("b", 1)
+    callback = ProgressLines()
+    callback.setup()
+    last = {"outer_iteration": 2, "evals": 50, "budget": 50, "time_total_s": 5.0, "qd_score": 1.0, "coverage": 0.1,
+            "done": True}
+    # Both trials' last results arrive before Tune marks either TERMINATED (seen in CI).
+    callback.on_trial_result(iteration=1, trials=[first, second], trial=first, result=last)
+    callback.on_trial_result(iteration=2, trials=[first, second], trial=second, result=last)
+    finals = [line.rsplit("trials done ", 1)[1] for line in capsys.readouterr().out.splitlines()]
+    assert finals == ["1/2", "2/2"]
