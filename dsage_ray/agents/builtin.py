@@ -16,12 +16,10 @@ from __future__ import annotations
 import numpy as np
 
 from dsage_ray.agents.base import Agent, AgentError, AgentState, Observation
+from dsage_ray.agents.constants import FORWARD, LEFT, NUM_ACTIONS, OBJECT_TO_IDX, RIGHT
 from dsage_ray.agents.loader import SpecOptions
 
-# MiniGrid actions and object indices (minigrid.core.constants / minigrid.core.actions).
-LEFT, RIGHT, FORWARD = 0, 1, 2
-NUM_ACTIONS = 7
-_EMPTY, _GOAL = 1, 8
+_EMPTY, _GOAL = OBJECT_TO_IDX["empty"], OBJECT_TO_IDX["goal"]
 # Egocentric view cells, indexed [x, y]: the agent sits at (2, 4) looking toward y = 0.
 _AHEAD, _LEFT_OF, _RIGHT_OF = (2, 3), (1, 4), (3, 4)
 

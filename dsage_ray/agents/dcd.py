@@ -44,12 +44,11 @@ import torch
 from torch import nn
 
 from dsage_ray.agents.base import Agent, AgentError, AgentState, Observation
+from dsage_ray.agents.constants import NUM_ACTIONS, NUM_HEADINGS
 from dsage_ray.agents.loader import (CHECKSUMS_FILE, SpecOptions, describe_exception, require_file, shipped_agent_dir,
                                      shipped_agent_names, verified_files)
 from dsage_ray.agents.sampling import sample_from_logits
 
-NUM_HEADINGS = 4
-NUM_ACTIONS = 7
 HIDDEN_SIZE = 256
 #: Keys under which training scripts commonly wrap a state_dict; the ACCEL checkpoint itself is bare.
 _WRAPPER_KEYS = ("model_state_dict", "state_dict", "model")

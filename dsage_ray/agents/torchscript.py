@@ -28,10 +28,10 @@ import numpy as np
 import torch
 
 from dsage_ray.agents.base import Agent, AgentError, AgentState, Observation
+from dsage_ray.agents.constants import NUM_ACTIONS
 from dsage_ray.agents.loader import SpecOptions, describe_exception, require_file
 from dsage_ray.agents.sampling import sample_from_logits
 
-_MAX_ACTIONS = 7
 
 
 class TorchScriptAgent(Agent):
@@ -101,8 +101,9 @@ def _check_convention(agent: TorchScriptAgent, path: pathlib.Path) -> None:
         raise AgentError(f"torchscript file {str(path)!r}: calling it as {kind} failed ({describe_exception(exc)})") from None
     if not isinstance(logits, torch.Tensor) or logits.dim() != 2 or logits.shape[0] != n:
         raise AgentError(f"torchscript file {str(path)!r}: {kind} must return logits of shape (n, k)")
-    if not 1 <= logits.shape[1] <= _MAX_ACTIONS:
-        raise AgentError(f"torchscript file {str(path)!r}: logits have {logits.shape[1]} actions, expected 1..7")
+    if not 1 <= logits.shape[1] <= NUM_ACTIONS:
+        raise AgentError(f"torchscript file {str(path)!r}: logits have {logits.shape[1]} actions, "
+                         f"expected 1..{NUM_ACTIONS}")
     if agent.state_size is not None and (
         not isinstance(state, torch.Tensor) or tuple(state.shape) != (n, agent.state_size)
     ):

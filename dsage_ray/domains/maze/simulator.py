@@ -11,15 +11,20 @@ from __future__ import annotations
 
 import numpy as np
 
+from dsage_ray.agents import constants as minigrid
+from dsage_ray.agents.constants import FORWARD, LEFT, NUM_ACTIONS, RIGHT
 from dsage_ray.domains.maze.level import MazeLevel
 
-# Cell kinds in the padded grid; MiniGrid's (object, colour, state) encoding of each.
+# Cell kinds in the padded grid; MiniGrid's (object, colour, state) encoding of each, as MiniGrid's
+# Grid.encode writes them for an empty cell, a Wall() and a Goal().
 EMPTY, WALL, GOAL = 0, 1, 2
-_ENCODING = np.array([[1, 0, 0], [2, 5, 0], [8, 1, 0]], dtype=np.uint8)
+_ENCODING = np.array([
+    [minigrid.OBJECT_TO_IDX["empty"], 0, 0],
+    [minigrid.OBJECT_TO_IDX["wall"], minigrid.COLOR_TO_IDX["grey"], 0],
+    [minigrid.OBJECT_TO_IDX["goal"], minigrid.COLOR_TO_IDX["green"], 0],
+], dtype=np.uint8)
 #: MiniGrid's DIR_TO_VEC as (dx, dy): right, down, left, up.
-DIR_TO_VEC = np.array([[1, 0], [0, 1], [-1, 0], [0, -1]], dtype=np.int64)
-LEFT, RIGHT, FORWARD = 0, 1, 2
-NUM_ACTIONS = 7
+DIR_TO_VEC = np.array(minigrid.DIR_TO_VEC, dtype=np.int64)
 
 
 def cell_kinds(level: MazeLevel) -> np.ndarray:

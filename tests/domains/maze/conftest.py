@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from dsage_ray.agents.base import Agent
+from dsage_ray.agents.constants import NUM_ACTIONS
 from dsage_ray.domains.maze.level import MazeLevel
 
 DATA = Path(__file__).parent / "data"
@@ -18,7 +19,7 @@ class UniformRandomAgent(Agent):
 
     spec = "test:uniform_random"
 
-    def __init__(self, num_actions: int = 7):
+    def __init__(self, num_actions: int = NUM_ACTIONS):
         self.num_actions = num_actions
         self.batch_sizes: list[int] = []
 
