@@ -1,6 +1,6 @@
 """Train a Maze agent with PPO on RLlib's new API stack (CleanRL-style: one file, one config dataclass).
 
-The environment is :class:`dsage_ray.agents.maze_training.RandomMazeEnv`: a fresh random valid 16×16 maze
+The environment is :class:`dsage_ray.domains.maze.training.RandomMazeEnv`: a fresh random valid 16×16 maze
 every episode, built on the project's MiniGrid ``MazeEnv``. A curriculum moves the goal from a few steps
 away to the furthest cell (the evaluation setting) over ``curriculum_steps`` env steps. The policy is
 :class:`dsage_ray.agents.rllib_module.MazeRLModule` (a small CNN; ``--use-lstm`` adds an LSTM).
@@ -100,7 +100,7 @@ def build_config(args: Args):
     from ray.rllib.core.rl_module.rl_module import RLModuleSpec
     from ray.tune.registry import register_env
 
-    from dsage_ray.agents.maze_training import make_random_maze_env
+    from dsage_ray.domains.maze.training import make_random_maze_env
     from dsage_ray.agents.rllib_module import MazeRLModule
 
     # Registered by name: RLlib ships the creator to every env runner through its registry.

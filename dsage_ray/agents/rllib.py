@@ -27,7 +27,6 @@ Options (``rllib:PATH?policy=default_policy&greedy=0``):
 from __future__ import annotations
 
 import io
-import logging
 import pickle
 from pathlib import Path
 from typing import Any
@@ -36,13 +35,13 @@ import numpy as np
 import torch
 
 from dsage_ray.agents.base import Agent, AgentError, AgentState, Observation
+from dsage_ray.agents.constants import NUM_ACTIONS, OBSERVATION_SPACE
 from dsage_ray.agents.loader import SpecOptions, describe_exception, shipped_agent_dir, shipped_agent_names
 from dsage_ray.agents.sampling import sample_from_logits
 
 #: Where an algorithm checkpoint keeps its modules (``<ckpt>/<this>/<module id>``).
 MODULES_SUBDIR = Path("learner_group") / "learner" / "rl_module"
 _CTOR_FILE = "class_and_ctor_args.pkl"
-_MAX_ACTIONS = 7
 
 
 class RLlibAgent(Agent):
@@ -154,10 +153,8 @@ def check_spaces(module: Any, *, source: str) -> None:
     """AgentError unless the module observes the Maze's dict observation and acts in ``Discrete(k <= 7)``."""
     import gymnasium as gym
 
-    from dsage_ray.agents.rllib_module import MAZE_OBSERVATION_SPACE
-
     space = module.observation_space
-    expected = MAZE_OBSERVATION_SPACE
+    expected = OBSERVATION_SPACE
     ok = (isinstance(space, gym.spaces.Dict) and set(space.spaces) == set(expected.spaces)
           and isinstance(space["image"], gym.spaces.Box) and space["image"].shape == expected["image"].shape
           and isinstance(space["direction"], gym.spaces.Discrete) and space["direction"].n == expected["direction"].n)
@@ -165,25 +162,21 @@ def check_spaces(module: Any, *, source: str) -> None:
         raise AgentError(f"rllib checkpoint {source!r}: observation space {space} does not match the maze observation "
                          f"{expected}")
     actions = module.action_space
-    if not (isinstance(actions, gym.spaces.Discrete) and 1 <= actions.n <= _MAX_ACTIONS):
-        raise AgentError(f"rllib checkpoint {source!r}: action space {actions} is not Discrete(k), k <= 7")
+    if not (isinstance(actions, gym.spaces.Discrete) and 1 <= actions.n <= NUM_ACTIONS):
+        raise AgentError(f"rllib checkpoint {source!r}: action space {actions} is not Discrete(k), k <= {NUM_ACTIONS}")
 
 
 def load_rllib_module(target: str, *, policy: str = "default_policy"):
     """Loads only the RLModule a checkpoint holds (no Ray cluster), with its spaces checked."""
+    from dsage_ray.agents.rllib_module import drop_rlmodule_config_warning
+
     module_dir = resolve_module_dir(target, policy=policy)
     cls = module_class(module_dir)
-    # RLlib re-creates modules it saved during training through a constructor it has itself deprecated and
-    # warns about it on every load; nothing the user can act on.
-    rlm_logger = logging.getLogger("ray._common.deprecation")
-    level = rlm_logger.level
-    rlm_logger.setLevel(logging.ERROR)
+    drop_rlmodule_config_warning()  # also when the recorded class comes from a package that does not install it
     try:
         module = cls.from_checkpoint(module_dir.resolve())  # relative paths read as URIs without a scheme
     except Exception as exc:  # noqa: BLE001 - missing/corrupt state files surface as many types
         raise AgentError(f"rllib checkpoint {str(module_dir)!r}: cannot load the module ({describe_exception(exc)})") from None
-    finally:
-        rlm_logger.setLevel(level)
     check_spaces(module, source=str(module_dir))
     return module
 

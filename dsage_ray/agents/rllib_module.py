@@ -17,13 +17,17 @@ The object one-hot matters: raw object indices (1 empty, 2 wall, 8 goal) put the
 and everything, which a conv learns slowly; a one-hot makes "goal here" one input bit.
 
 ``model_config`` keys: ``hidden`` (default 128), ``use_lstm`` (default False).
+
+The module is built through RLlib 2.60's current constructor, ``MazeRLModule(observation_space=..,
+action_space=.., inference_only=.., learner_only=.., model_config=.., catalog_class=..)``: it only
+overrides :meth:`~MazeRLModule.setup`, as RLlib asks, and its checkpoints record those keyword arguments.
 """
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 import torch
 from ray.rllib.core.columns import Columns
@@ -31,18 +35,37 @@ from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
 from ray.rllib.core.rl_module.torch import TorchRLModule
 from torch import nn
 
-#: MiniGrid's OBJECT_TO_IDX has 11 entries (unseen .. agent).
-NUM_OBJECT_KINDS = 11
-VIEW_SIZE = 5
-NUM_HEADINGS = 4
-NUM_ACTIONS = 7
+from dsage_ray.agents.constants import ACTION_SPACE, NUM_HEADINGS, NUM_OBJECT_KINDS, OBSERVATION_SPACE, VIEW_SIZE
 
 #: The observation every maze policy sees (MiniGrid's dict minus ``mission``).
-MAZE_OBSERVATION_SPACE = gym.spaces.Dict({
-    "direction": gym.spaces.Discrete(NUM_HEADINGS),
-    "image": gym.spaces.Box(0, 255, (VIEW_SIZE, VIEW_SIZE, 3), np.uint8),
-})
-MAZE_ACTION_SPACE = gym.spaces.Discrete(NUM_ACTIONS)
+MAZE_OBSERVATION_SPACE = OBSERVATION_SPACE
+MAZE_ACTION_SPACE = ACTION_SPACE
+
+#: What RLlib 2.60 logs once per process on the first RLModule it builds, whatever constructor was used.
+_RLMODULE_CONFIG_WARNING = "`RLModule(config=[RLModuleConfig object])` has been deprecated"
+
+
+class _DropRLModuleConfigWarning(logging.Filter):
+    """Drops RLlib's warning that ``RLModule(config=RLModuleConfig)`` is deprecated, and nothing else.
+
+    ``RLModule.__init__`` itself builds an ``RLModuleConfig`` for old subclasses on every construction, so the
+    warning appears even for modules built through the current keyword constructor (like every module here);
+    a real ``config=`` call is an error in this RLlib, so the warning never tells the user anything.
+    """
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return _RLMODULE_CONFIG_WARNING not in record.getMessage()
+
+
+def drop_rlmodule_config_warning() -> None:
+    """Installs :class:`_DropRLModuleConfigWarning` on RLlib's deprecation logger (idempotent)."""
+    logger = logging.getLogger("ray._common.deprecation")
+    if not any(isinstance(f, _DropRLModuleConfigWarning) for f in logger.filters):
+        logger.addFilter(_DropRLModuleConfigWarning())
+
+
+# At import: RLlib imports this module (from the class path in a checkpoint or a spec) before building one.
+drop_rlmodule_config_warning()
 
 
 class MazeRLModule(TorchRLModule, ValueFunctionAPI):

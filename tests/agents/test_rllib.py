@@ -19,7 +19,7 @@ import pytest
 import torch
 
 from dsage_ray.agents import AgentError, load_agent
-from dsage_ray.agents.maze_training import RandomMazeEnv
+from dsage_ray.domains.maze.training import RandomMazeEnv
 from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.agents.loader import ASSETS_DIR
 from dsage_ray.agents.rllib import MODULES_SUBDIR, RLlibAgent
@@ -55,7 +55,7 @@ def trained(tmp_path_factory):
     second = train(workdir, "--total-env-steps", "600", "--resume", "--export", str(workdir / "exported"))
     assert second.returncode == 0, second.stderr[-3000:]
     return {"run": workdir / "tb_logs" / "t", "checkpoint": workdir / "tb_logs" / "t" / "checkpoint",
-            "exported": workdir / "exported", "log": first.stdout + second.stdout}
+            "exported": workdir / "exported", "log": first.stdout + second.stdout, "err": first.stderr + second.stderr}
 
 
 def make_module(**model_config) -> MazeRLModule:
@@ -73,6 +73,7 @@ def test_training_script_checkpoints_resumes_and_logs(trained):
     assert "resumed at iteration 2" in trained["log"]
     assert list(trained["run"].glob("events.out.tfevents.*")), "no TensorBoard file"
     assert (trained["exported"] / "module_state.pkl").is_file()
+    assert "RLModuleConfig" not in trained["err"], "RLlib's constructor deprecation warning is back"
 
 
 @pytest.mark.parametrize("which", ["checkpoint", "module_dir", "exported"])
@@ -190,6 +191,17 @@ def test_module_class_that_cannot_be_imported(tmp_path, monkeypatch):
     shutil.rmtree(source)
     message = load_error(f"rllib:{tmp_path / 'ckpt'}")
     assert "vanishing_rlm.VanishingModule cannot be imported" in message
+
+
+def test_shipped_agent_loads_without_deprecation_warnings():
+    """``rllib:ppo_maze`` in a fresh process (RLlib warns once per process): nothing on stderr about deprecation."""
+    if not (ASSETS_DIR / "ppo_maze").is_dir():
+        pytest.skip("no shipped agent in this checkout")
+    code = "from dsage_ray.agents import load_agent; print(type(load_agent('rllib:ppo_maze').module).__name__)"
+    env = dict(os.environ, RAY_AUTH_MODE="disabled", PYTHONPATH=str(REPO_ROOT))
+    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stdout.strip() == "MazeRLModule", done.stderr[-2000:]
+    assert "DeprecationWarning" not in done.stderr, done.stderr[-2000:]
 
 
 def test_shipped_agent_loads_by_name():

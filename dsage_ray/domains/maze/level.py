@@ -39,6 +39,29 @@ def _adjacency(empty: np.ndarray) -> tuple[csr_matrix, np.ndarray]:
     return graph, flat
 
 
+def path_distances(walls: np.ndarray, cell: Cell) -> np.ndarray:
+    """Forward moves from ``cell`` to every interior cell along 4-neighbour shortest paths.
+
+    Args:
+        walls: ``(H, W)`` bool wall bitmap.
+        cell: Interior ``(row, col)`` of an empty cell.
+
+    Returns:
+        ``(H, W)`` float64: 0 at ``cell``, ``inf`` on walls and on cells not connected to it.
+
+    Raises:
+        ValueError: ``cell`` is a wall.
+    """
+    walls = np.asarray(walls, dtype=bool)
+    if walls[cell]:
+        raise ValueError(f"cell {tuple(cell)} is a wall")
+    graph, flat = _adjacency(~walls)
+    source = int(np.searchsorted(flat, cell[0] * walls.shape[1] + cell[1]))
+    distances = np.full(walls.shape, np.inf)
+    distances.flat[flat] = shortest_path(graph, directed=False, unweighted=True, indices=source)
+    return distances
+
+
 def max_steps_for(height: int, width: int) -> int:
     """Episode step limit of an ``height × width`` interior: ``2·(H+2)·(W+2)`` (648 for 16×16)."""
     return 2 * (height + 2) * (width + 2)
@@ -157,8 +180,4 @@ class MazeLevel:
         """Forward moves on the shortest 4-neighbour path from start to goal; 0 on an invalid level."""
         if not self.valid:
             return 0
-        graph, flat = _adjacency(~self.walls)
-        index = {int(f): n for n, f in enumerate(flat)}
-        start = index[self.start[0] * self.width + self.start[1]]
-        goal = index[self.goal[0] * self.width + self.goal[1]]
-        return int(shortest_path(graph, directed=False, unweighted=True, indices=start)[goal])
+        return int(path_distances(self.walls, self.start)[self.goal])

@@ -3,7 +3,7 @@ from collections import deque
 import numpy as np
 import pytest
 
-from dsage_ray.domains.maze.level import MazeLevel, furthest_pair
+from dsage_ray.domains.maze.level import MazeLevel, furthest_pair, path_distances
 
 
 def _bfs(walls: np.ndarray, source: tuple[int, int]) -> dict[tuple[int, int], int]:
@@ -96,3 +96,15 @@ def test_explicit_start_goal_checks():
         MazeLevel.from_bitmap(np.zeros((1, 5)))
     # Explicit but disconnected: a level, just not a valid one.
     assert not MazeLevel.from_bitmap(np.array([[0, 1, 0], [0, 1, 0]]), start=(0, 0), goal=(0, 2)).valid
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_path_distances_match_reference_bfs(seed):
+    walls = np.random.default_rng(seed).random((6, 9)) < 0.35
+    source = tuple(int(v) for v in np.argwhere(~walls)[0])
+    reference = _bfs(walls, source)
+    distances = path_distances(walls, source)
+    for cell in np.ndindex(walls.shape):
+        assert distances[cell] == reference.get(cell, np.inf)
+    with pytest.raises(ValueError, match="is a wall"):
+        path_distances(np.ones((2, 2), dtype=bool), (0, 0))

@@ -1,12 +1,13 @@
 """The gymnasium env RLlib trains maze agents on: a fresh random valid maze every episode.
 
 The mazes come from :func:`dsage_ray.domains.maze.generator.random_valid_level`, the same distribution
-the agent benchmark evaluates. ``RandomMazeEnv`` wraps the project's :class:`~dsage_ray.domains.maze.env.MazeEnv` (so the dynamics and
-observations are the ones the evaluator's simulator is tested against) and drops the constant mission
-string from the observation. Its curriculum knob ``difficulty`` in ``[0, 1]`` caps how far the goal is
-from the start: below 1 the goal is a random reachable cell at most ``3 + difficulty·(max_goal_distance -
-3)`` moves away; at 1 it is the furthest pair, the evaluation setting. The training script raises it as
-training proceeds (``env.set_attr("difficulty", ...)`` on the vector env).
+the agent benchmark evaluates. ``RandomMazeEnv`` wraps the project's :class:`~dsage_ray.domains.maze.env.MazeEnv`
+(so the dynamics and observations are the ones the evaluator's simulator is tested against) and drops the
+constant mission string from the observation. Its curriculum knob ``difficulty`` in ``[0, 1]`` caps how far
+the goal is from the start: below 1 the goal is a random reachable cell at most ``3 + difficulty·(max_goal_distance -
+3)`` moves away; at 1 it is the furthest pair, the evaluation setting. The training script
+(``experiments/train_maze_agent.py``) raises it as training proceeds (``env.set_attr("difficulty", ...)`` on
+the vector env).
 """
 
 from __future__ import annotations
@@ -15,19 +16,20 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from scipy.sparse.csgraph import shortest_path
 
+from dsage_ray.agents.constants import ACTION_SPACE, OBSERVATION_SPACE
 from dsage_ray.domains.maze.env import MazeEnv
 from dsage_ray.domains.maze.generator import DEFAULT_DENSITY_RANGE, random_valid_level
-from dsage_ray.domains.maze.level import MazeLevel, _adjacency
+from dsage_ray.domains.maze.level import MazeLevel, path_distances
 
 
 def with_near_goal(level: MazeLevel, max_distance: int, rng: np.random.Generator) -> MazeLevel:
-    """``level`` with its goal moved to a random reachable cell at most ``max_distance`` moves from the start."""
-    graph, flat = _adjacency(~level.walls)
-    start = int(np.searchsorted(flat, level.start[0] * level.width + level.start[1]))
-    distance = shortest_path(graph, directed=False, unweighted=True, indices=start)
-    candidates = flat[(distance > 0) & (distance <= max_distance)]
+    """``level`` with its goal moved to a random reachable cell at most ``max_distance`` moves from the start.
+
+    Returns ``level`` itself when no other cell is that close.
+    """
+    distance = path_distances(level.walls, level.start)
+    candidates = np.flatnonzero((distance > 0) & (distance <= max_distance))
     if candidates.size == 0:
         return level
     goal = divmod(int(rng.choice(candidates)), level.width)
@@ -58,14 +60,12 @@ class RandomMazeEnv(gym.Env):
         max_goal_distance: int = 60,
         see_through_walls: bool = True,
     ) -> None:
-        from dsage_ray.agents.rllib_module import MAZE_ACTION_SPACE, MAZE_OBSERVATION_SPACE
-
         self.height, self.width = height, width
         self.density_range = tuple(density_range)
         self.difficulty = float(difficulty)
         self.max_goal_distance = max_goal_distance
-        self.observation_space = MAZE_OBSERVATION_SPACE
-        self.action_space = MAZE_ACTION_SPACE
+        self.observation_space = OBSERVATION_SPACE
+        self.action_space = ACTION_SPACE
         self._maze = MazeEnv(random_valid_level(np.random.default_rng(0), height=height, width=width),
                              see_through_walls=see_through_walls)
 
