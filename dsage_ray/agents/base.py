@@ -41,11 +41,6 @@ class Agent(abc.ABC):
         All randomness must come from ``rng`` so that an evaluation is reproducible from its seed.
         """
 
-    def reset(self, state: AgentState, mask: np.ndarray) -> AgentState:
-        """Returns ``state`` with the episodes where ``mask`` is true reset to their initial state."""
-        fresh = self.initial_state(len(mask))
-        return _tree_where(mask, fresh, state)
-
     def select_state(self, state: AgentState, index: np.ndarray) -> AgentState:
         """Keeps only the episodes at ``index`` (the ones still running)."""
         return _tree_map(lambda x: x[index], state)
@@ -60,18 +55,3 @@ def _tree_map(fn, tree):
         return {k: _tree_map(fn, v) for k, v in tree.items()}
     return fn(tree)
 
-
-def _tree_where(mask: np.ndarray, fresh, old):
-    if old is None:
-        return None
-    if isinstance(old, (tuple, list)):
-        return type(old)(_tree_where(mask, f, o) for f, o in zip(fresh, old))
-    if isinstance(old, dict):
-        return {k: _tree_where(mask, fresh[k], old[k]) for k in old}
-    if isinstance(old, np.ndarray):
-        m = mask.reshape((-1,) + (1,) * (old.ndim - 1))
-        return np.where(m, fresh, old)
-    import torch  # tensors: only agents backed by torch reach here
-
-    m = torch.as_tensor(mask, device=old.device).reshape((-1,) + (1,) * (old.dim() - 1))
-    return torch.where(m, fresh.to(old.device), old)

@@ -69,5 +69,4 @@ def test_wall_follower_rules_on_hand_made_views():
     np.testing.assert_array_equal(actions, [2, 0, 1, 2, 0, 0])
     np.testing.assert_array_equal(new_state, [0, 1, 2, 1, 1, 1])
     # Episode bookkeeping on numpy state.
-    np.testing.assert_array_equal(agent.reset(new_state, np.array([1, 0, 1, 0, 0, 0], bool)), [0, 1, 0, 1, 1, 1])
     np.testing.assert_array_equal(agent.select_state(new_state, np.array([2, 5])), [2, 1])

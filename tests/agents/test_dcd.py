@@ -80,16 +80,11 @@ def test_rows_are_independent_without_the_quirk(agent):
     torch.testing.assert_close(part, full[idx])
 
 
-def test_select_state_and_reset(agent):
+def test_select_state(agent):
     n, obs_rng, rng = 6, np.random.default_rng(4), np.random.default_rng(0)
     state = agent.initial_state(n)
     for _ in range(3):
         _, state = agent.act(random_obs(obs_rng, n), state, rng)
-    mask = np.array([True, False, True, False, False, True])
-    reset = agent.reset(state, mask)
-    for part, old in zip(reset, state):
-        assert part[mask].abs().sum() == 0, "reset rows must be back at the initial state"
-        torch.testing.assert_close(part[~mask], old[~mask])
     idx = np.array([1, 3, 4])
     kept = agent.select_state(state, idx)
     for part, old in zip(kept, state):
