@@ -6,9 +6,9 @@ import argparse
 import importlib
 import os
 import sys
-import time
 from pathlib import Path
 
+from dsage_ray.cli_args import add_config_arguments, load_run_config
 from dsage_ray.errors import DsageError, describe
 
 #: Modules that register sub-commands; each exposes ``add_subparser(subparsers)``.
@@ -36,22 +36,6 @@ def build_parser() -> argparse.ArgumentParser:
             raise
         module.add_subparser(subparsers)
     return parser
-
-
-def add_config_arguments(parser: argparse.ArgumentParser) -> None:
-    """The config arguments every run-like command shares."""
-    parser.add_argument("--preset", help="preset of the domain (paper, cpu, tiny, ...)")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a config key, e.g. --set budget=2000 --set surrogate.epochs=50")
-
-
-def load_run_config(args: argparse.Namespace, path: str | None):
-    from dsage_ray.config import RunConfig, parse_override
-
-    overrides = dict(parse_override(item) for item in args.overrides)
-    if args.preset:
-        overrides["preset"] = args.preset
-    return RunConfig.from_file(path, overrides) if path else RunConfig.build(overrides)
 
 
 def _add_run(subparsers) -> None:
@@ -106,6 +90,8 @@ def _config(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace) -> int:
     config = load_run_config(args, args.config)
     if args.local:
+        from dsage_ray.core.loop import run_locally
+
         out = Path(args.out) if args.out else Path("tb_logs") / config.name
         run_dir = run_locally(config, out_dir=out, resume=args.resume)
     else:
@@ -132,49 +118,6 @@ def _ablate(args: argparse.Namespace) -> int:
     print(f"experiment folder: {folder}\nsummarise it with: python experiments/summarize.py {folder}\n"
           f"open it in TensorBoard: {tensorboard_hint(folder)}")
     return 0
-
-
-def run_locally(config, *, out_dir: Path, resume: bool = False) -> Path:
-    """Runs DSAGE in this process with progress bars, checkpoints and the run folder's outputs."""
-    from tqdm import tqdm
-
-    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
-    from dsage_ray.core.progress import EvaluationRate, progress_line
-    from dsage_ray.core.runner import DSAGE
-    from dsage_ray.core.tensorboard_log import RunTensorBoard
-
-    bars: dict[str, tqdm] = {}
-
-    def progress(phase: str, done: int, total: int) -> None:
-        bar = bars.get(phase)
-        if bar is None or bar.total != total or done < bar.n:
-            if bar is not None:
-                bar.close()
-            bar = bars[phase] = tqdm(total=total, desc=phase, leave=phase == "evaluate", dynamic_ncols=True)
-        bar.update(done - bar.n)
-
-    runner = DSAGE(config=config, progress=progress)
-    checkpoint = out_dir / CHECKPOINT_NAME
-    if checkpoint.exists() and not resume:
-        raise ValueError(f"{out_dir} already holds a run: pass --resume to continue it, or another --out")
-    if resume:
-        runner.load_state_dict(load_checkpoint(checkpoint))
-        print(f"resumed at {runner.evals} evaluations, outer iteration {runner.outer_iteration}")
-    tensorboard = RunTensorBoard(logdir=out_dir, image_every=config.image_every, image_levels=config.image_levels)
-    started, evals_at_start, rate = time.monotonic(), runner.evals, EvaluationRate()
-    while not runner.done:
-        metrics = runner.step()
-        if runner.outer_iteration % config.checkpoint_every == 0 or runner.done:
-            save_checkpoint(runner.state_dict(), checkpoint)
-        tensorboard.log(runner, metrics)  # flushed every iteration, so a crash loses nothing logged
-        elapsed = time.monotonic() - started
-        evals_per_s = rate.update(evals=runner.evals - evals_at_start, running_s=elapsed)
-        tqdm.write(progress_line(metrics, budget=config.budget, elapsed_s=elapsed, evals_per_s=evals_per_s))
-    tensorboard.close()
-    for bar in bars.values():
-        bar.close()
-    runner.write_outputs(out_dir)
-    return out_dir
 
 
 def main(argv: list[str] | None = None) -> int:

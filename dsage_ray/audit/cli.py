@@ -11,7 +11,7 @@ from dsage_ray.errors import InputError
 
 def add_subparser(subparsers) -> None:
     """Registers ``audit`` and ``compare`` on the top-level CLI's sub-parsers."""
-    from dsage_ray.cli import add_config_arguments
+    from dsage_ray.cli_args import add_config_arguments
 
     audit = subparsers.add_parser(
         "audit", help="search for levels where an agent fails (or does worse than a reference) and save them",

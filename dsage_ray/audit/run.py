@@ -72,16 +72,11 @@ def run_audit(
                          else config.replace(**{domain_class(config.domain).EPISODES_KEY: int(episodes)}))
     build_domain(config).preflight()
     if local:
-        from dsage_ray.cli import run_locally
-        from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint
+        from dsage_ray.core.loop import run_locally
 
         if not collect_only:
             run_locally(config, out_dir=search_dir, resume=resume)
-        checkpoint = search_dir / CHECKPOINT_NAME
-        if not checkpoint.is_file():
-            raise RuntimeError(f"{search_dir}: the search left no checkpoint ({CHECKPOINT_NAME}) to read the archive "
-                               f"from (was it run with --local?)")
-        archive = load_checkpoint(checkpoint)["archive"]
+        archive = final_archive(search_dir)
         return build_collection(archive, config=collection_config, out_dir=out_dir / COLLECTION_DIR,
                                 max_levels=max_levels, search_dir=search_dir)
 
@@ -92,7 +87,7 @@ def run_audit(
         experiment = search_dir / config.name
     else:
         experiment = Path(run_with_tune(config, address=address, resume=resume, out_dir=search_dir))
-    archive = _final_archive(experiment)
+    archive = final_archive(experiment)
     workers = collection_config.ray.num_workers
     pool = SimulatorPool(config=collection_config) if workers > 0 else None
     try:
@@ -104,15 +99,21 @@ def run_audit(
             pool.close()
 
 
-def _final_archive(experiment: Path):
-    """The ground-truth archive in the latest Tune checkpoint under ``experiment`` (a trial or experiment folder)."""
-    import torch
+def final_archive(search: Path):
+    """The ground-truth archive in the latest checkpoint of a search.
 
-    from dsage_ray.ray.trainable import STATE_FILE
+    Args:
+        search: A ``--local`` run folder (its checkpoint file), or a Tune trial or experiment folder
+            (the checkpoint file in its latest ``checkpoint_NNNNNN`` folder).
 
-    states = sorted([*experiment.glob(f"checkpoint_*/{STATE_FILE}"), *experiment.glob(f"*/checkpoint_*/{STATE_FILE}")],
-                    key=lambda p: int(p.parent.name.rsplit("_", 1)[-1]))
-    if not states:
-        raise RuntimeError(f"{experiment}: the search left no checkpoint ({STATE_FILE}) to read the archive from")
-    # Our own file (archives and RNG states, not only tensors), so weights_only=False is safe.
-    return torch.load(states[-1], map_location="cpu", weights_only=False)["archive"]
+    Raises:
+        CheckpointError: The search left no checkpoint, or it cannot be read.
+    """
+    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, CheckpointError, load_checkpoint
+
+    candidates = [search / CHECKPOINT_NAME] if (search / CHECKPOINT_NAME).is_file() else sorted(
+        [*search.glob(f"checkpoint_*/{CHECKPOINT_NAME}"), *search.glob(f"*/checkpoint_*/{CHECKPOINT_NAME}")],
+        key=lambda p: int(p.parent.name.rsplit("_", 1)[-1]))
+    if not candidates:
+        raise CheckpointError(f"{search}: the search left no checkpoint ({CHECKPOINT_NAME}) to read the archive from")
+    return load_checkpoint(candidates[-1])["archive"]

@@ -67,3 +67,54 @@ class EvaluationRate:
             return evals / running_s if running_s > 0 else 0.0
         first_evals, first_s = self._first
         return (evals - first_evals) / (running_s - first_s) if running_s > first_s else 0.0
+
+
+class ConsoleProgress:
+    """Progress on the terminal for a run in this process: a bar per phase and a line per outer iteration.
+
+    Pass :meth:`phase` as the runner's ``progress`` callback and the object itself as a
+    :class:`~dsage_ray.core.loop.RunLoop` callback.
+
+    Args:
+        budget: The run's evaluation budget (for the ETA).
+    """
+
+    def __init__(self, *, budget: int) -> None:
+        self.budget = budget
+        self._bars: dict = {}
+        self._started: float | None = None
+        self._evals_at_start = 0
+        self._rate = EvaluationRate()
+
+    def phase(self, phase: str, done: int, total: int) -> None:
+        """The runner's progress callback: moves the bar of ``phase`` (a new bar when a new pass starts)."""
+        from tqdm import tqdm
+
+        bar = self._bars.get(phase)
+        if bar is None or bar.total != total or done < bar.n:
+            if bar is not None:
+                bar.close()
+            bar = self._bars[phase] = tqdm(total=total, desc=phase, leave=phase == "evaluate", dynamic_ncols=True)
+        bar.update(done - bar.n)
+
+    def on_start(self, runner) -> None:
+        """Starts the clock; a resumed run's ETA counts only the evaluations made since."""
+        import time
+
+        self._started, self._evals_at_start = time.monotonic(), runner.evals
+
+    def on_step(self, runner, metrics: Mapping[str, float]) -> None:
+        import time
+
+        from tqdm import tqdm
+
+        if self._started is None:
+            self.on_start(runner)
+        elapsed = time.monotonic() - self._started
+        evals_per_s = self._rate.update(evals=runner.evals - self._evals_at_start, running_s=elapsed)
+        tqdm.write(progress_line(metrics, budget=self.budget, elapsed_s=elapsed, evals_per_s=evals_per_s))
+
+    def close(self) -> None:
+        for bar in self._bars.values():
+            bar.close()
+        self._bars.clear()

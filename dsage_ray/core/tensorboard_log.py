@@ -59,6 +59,10 @@ class RunTensorBoard:
             self._log_images(runner, iteration=iteration, step=step)
         self._writer.flush()
 
+    def on_step(self, runner: "DSAGE", metrics: Mapping[str, float]) -> None:
+        """:class:`~dsage_ray.core.loop.RunLoop` callback: :meth:`log`."""
+        self.log(runner, metrics)
+
     def close(self) -> None:
         if self._writer is not None:
             self._writer.close()

@@ -4,8 +4,6 @@ from dsage_ray.qd.archives import (
     OCCUPANCY_FIELD,
     archive_stats,
     archive_to_dataframe,
-    dump_state,
-    load_state,
     make_archive,
 )
 from dsage_ray.qd.emitters import MapElitesBitmapEmitter, RandomEmitter
@@ -29,10 +27,8 @@ __all__ = [
     "archive_stats",
     "archive_to_dataframe",
     "block_ids",
-    "dump_state",
     "emitter_seeds",
     "gather_elites",
-    "load_state",
     "make_archive",
     "make_emitters",
     "make_scheduler",

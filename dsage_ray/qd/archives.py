@@ -1,20 +1,17 @@
-"""Grid archives, their statistics, tabular export, and exact state save/restore.
+"""Grid archives, their statistics and tabular export.
 
 pyribs 0.12 objects (archives, emitters, schedulers) pickle completely, including every internal
 ``numpy.random.Generator`` (the archive's own RNG drives ``sample_elites``, which MAP-Elites parents
-and CMA-ME restarts use). :func:`dump_state` / :func:`load_state` wrap ``pickle`` with a pyribs version
-check, because pyribs' private attribute layout changes between releases and a checkpoint from another
-version would otherwise restore silently wrong.
+and CMA-ME restarts use); :mod:`dsage_ray.core.checkpoint` saves them that way, with the pyribs
+version check that keeps a checkpoint from another release from restoring silently wrong.
 """
 
 from __future__ import annotations
 
-import pickle
-from typing import Any, Collection
+from typing import Collection
 
 import numpy as np
 import pandas as pd
-import ribs
 from numpy.typing import DTypeLike
 from ribs.archives import ArchiveDataFrame, GridArchive
 
@@ -112,29 +109,3 @@ def archive_to_dataframe(archive: GridArchive, *, flatten: bool = False) -> Arch
     # Keep "index" last, as pyribs does.
     index = df.pop("index")
     return ArchiveDataFrame(pd.concat([df, pd.DataFrame(columns, index=df.index), index], axis=1))
-
-
-def dump_state(obj: Any) -> bytes:
-    """Serialises pyribs objects (archives, emitters, schedulers, or a dict of them) exactly.
-
-    Pickle everything that shares an archive in **one** call: a scheduler and its archive pickled
-    separately would restore as two different archives.
-
-    Returns:
-        Bytes for :func:`load_state`.
-    """
-    return pickle.dumps({"ribs_version": ribs.__version__, "state": obj}, protocol=pickle.HIGHEST_PROTOCOL)
-
-
-def load_state(data: bytes) -> Any:
-    """Restores what :func:`dump_state` saved; later asks are identical to the saved object's.
-
-    Raises:
-        ValueError: The state was saved with a different pyribs version.
-    """
-    payload = pickle.loads(data)
-    if payload["ribs_version"] != ribs.__version__:
-        raise ValueError(
-            f"QD state was saved with pyribs {payload['ribs_version']}, this is pyribs {ribs.__version__}"
-        )
-    return payload["state"]

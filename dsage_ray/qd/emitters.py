@@ -119,7 +119,7 @@ class RandomEmitter(EmitterBase):
     Args:
         archive: Archive the scheduler inserts into; only its solution shape and dtype are used.
         sampler: ``sampler(n, rng)`` returns ``(n, solution_dim)`` random solutions, e.g.
-            ``domain.random_solutions``. Must be picklable for :func:`~dsage_ray.qd.archives.dump_state`
+            ``domain.random_solutions``. Must be picklable for :mod:`~dsage_ray.core.checkpoint`
             (a bound method or module-level function, not a lambda).
         batch_size: Solutions per :meth:`ask`.
         seed: Seed of the generator passed to ``sampler``.

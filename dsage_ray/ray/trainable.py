@@ -4,31 +4,30 @@ The trial reserves a placement group with one bundle for itself (surrogate train
 loop) and one per simulator actor; the :class:`~dsage_ray.ray.pool.SimulatorPool` it creates is
 captured by that group, so several trials share a machine or a cluster without deadlocking.
 
-Checkpoints hold the runner's full :meth:`~dsage_ray.core.runner.DSAGE.state_dict` (archives,
-dataset, model, optimizer, emitters, RNGs), so a trial restored after a crash continues exactly
-as an uninterrupted one would. Torch threads are the runner's business (``torch_threads``, pinned
-during each step as in ``--local``), so a trial computes what an in-process run computes.
+The trial is a :class:`~dsage_ray.core.loop.RunLoop` driven by Tune: the same per-iteration work
+as ``--local``, and the same checkpoint file (:mod:`dsage_ray.core.checkpoint`) inside each of
+Tune's checkpoint folders. It holds the runner's full
+:meth:`~dsage_ray.core.runner.DSAGE.state_dict` (archives, dataset, model, optimizer, emitters,
+RNGs), so a trial restored after a crash continues exactly as an uninterrupted one would. Torch
+threads are the runner's business (``torch_threads``, pinned during each step as in ``--local``),
+so a trial computes what an in-process run computes.
 """
 
 from __future__ import annotations
 
-import io
 import logging
 from pathlib import Path
 from typing import Any
 
 import ray
-import torch
 from ray import tune
 
 from dsage_ray.config import RunConfig
+from dsage_ray.core.checkpoint import CHECKPOINT_NAME
+from dsage_ray.core.loop import RunLoop
 from dsage_ray.core.tensorboard_log import RunTensorBoard
 from dsage_ray.domains import build_domain
-from dsage_ray.io import atomic_write_bytes
 from dsage_ray.ray.pool import DomainFactory, SimulatorPool
-
-#: File inside a Tune checkpoint directory that holds the runner's state.
-STATE_FILE = "runner_state.pt"
 
 
 def resource_request(config: RunConfig) -> tune.PlacementGroupFactory:
@@ -61,8 +60,9 @@ class DSAGETrainable(tune.Trainable):
         self.pool = (SimulatorPool(config=self.run_config, domain_factory=domain_factory)
                      if self.run_config.ray.num_workers > 0 else None)
         self.runner = DSAGE(config=self.run_config, evaluator=self.pool, domain=domain)
-        self._tensorboard = RunTensorBoard(logdir=self.output_dir, image_every=self.run_config.image_every,
-                                           image_levels=self.run_config.image_levels)
+        tensorboard = RunTensorBoard(logdir=self.output_dir, image_every=self.run_config.image_every,
+                                     image_levels=self.run_config.image_levels)
+        self.loop = RunLoop(runner=self.runner, out_dir=self.output_dir, callbacks=[tensorboard])
         # Reported so that a misplaced pool (actors outside the trial's bundles) is visible.
         trial_group = ray.get_runtime_context().get_placement_group_id()
         self._pool_in_trial_group = float(self.pool is not None and trial_group is not None and all(
@@ -75,7 +75,7 @@ class DSAGETrainable(tune.Trainable):
     # ----------------------------------------------------------------------------------- steps
 
     def step(self) -> dict[str, Any]:
-        metrics = self.runner.step()
+        metrics = self.loop.step()
         result: dict[str, Any] = dict(metrics)
         result["done"] = self.runner.done
         # The driver's progress line needs it, and an ablation's flat config may leave it at its default.
@@ -84,9 +84,6 @@ class DSAGETrainable(tune.Trainable):
             result["pool_actor_deaths"] = self.pool.stats.actor_deaths
             result["pool_resubmitted_chunks"] = self.pool.stats.resubmitted_chunks
             result["pool_in_trial_placement_group"] = self._pool_in_trial_group
-        self._tensorboard.log(self.runner, metrics)
-        if self.runner.done:
-            self.runner.write_outputs(self.output_dir)
         return result
 
     @property
@@ -109,19 +106,13 @@ class DSAGETrainable(tune.Trainable):
     # ------------------------------------------------------------------------------ checkpoints
 
     def save_checkpoint(self, checkpoint_dir: str) -> None:
-        buffer = io.BytesIO()
-        torch.save(self.runner.state_dict(), buffer)
-        # Atomic: a crash mid-write never leaves a truncated state file to restore from.
-        atomic_write_bytes(Path(checkpoint_dir) / STATE_FILE, buffer.getvalue())
+        self.loop.save(Path(checkpoint_dir) / CHECKPOINT_NAME)
 
     def load_checkpoint(self, checkpoint: str | dict | None) -> None:
-        path = Path(checkpoint) / STATE_FILE
-        # Our own file: it holds archives and RNG states, not only tensors.
-        state = torch.load(path, map_location="cpu", weights_only=False)
-        self.runner.load_state_dict(state)
+        self.loop.restore(Path(checkpoint) / CHECKPOINT_NAME)
 
     def cleanup(self) -> None:
-        self._tensorboard.close()
+        self.loop.close()
         if self.pool is not None:
             self.pool.close()
 

@@ -39,3 +39,10 @@ def make_bitmap_archive(seed: int = 3, dims=(16, 8)):
 
 def make_latent_archive(seed: int = 3):
     return make_archive(solution_dim=DIM, dims=(16, 8), ranges=[(0, 16), (0, 8)], occupancy_shape=OCC, seed=seed)
+
+
+def checkpoint_round_trip(obj, folder):
+    """``obj`` written to and read back from a checkpoint file in ``folder`` (the format runs are saved in)."""
+    from dsage_ray.core.checkpoint import load_checkpoint, save_checkpoint
+
+    return load_checkpoint(save_checkpoint({"state": obj}, folder / "round_trip.dsage"))["state"]

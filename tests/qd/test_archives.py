@@ -4,8 +4,8 @@ import numpy as np
 import pandas as pd
 from ribs.archives import ArchiveDataFrame
 
-from dsage_ray.qd import archive_stats, archive_to_dataframe, dump_state, load_state, make_archive
-from tests.qd.helpers import DIM, OCC, bitmap_predict
+from dsage_ray.qd import archive_stats, archive_to_dataframe, make_archive
+from tests.qd.helpers import DIM, OCC, bitmap_predict, checkpoint_round_trip
 
 
 def _add(archive, solutions):
@@ -61,9 +61,9 @@ def test_dataframe_without_and_with_flattened_occupancy(bitmap_archive):
     np.testing.assert_array_equal(back.get_field("index"), flat.get_field("index"))
 
 
-def test_archive_pickle_round_trip_is_exact(bitmap_archive):
+def test_archive_checkpoint_round_trip_is_exact(bitmap_archive, tmp_path):
     _add(bitmap_archive, np.random.default_rng(0).integers(0, 2, size=(40, DIM)))
-    restored = load_state(dump_state(bitmap_archive))
+    restored = checkpoint_round_trip(bitmap_archive, tmp_path)
     for name in bitmap_archive.field_list:
         np.testing.assert_array_equal(restored.data(name), bitmap_archive.data(name))
     assert archive_stats(restored) == archive_stats(bitmap_archive)

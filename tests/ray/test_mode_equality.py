@@ -13,8 +13,8 @@ import json
 import pytest
 import torch
 
-from dsage_ray.cli import run_locally
 from dsage_ray.config import RunConfig
+from dsage_ray.core.loop import run_locally
 from dsage_ray.ray.experiment import grid_param_space, run_experiment
 from tests.fakes import SMALL_RUN
 

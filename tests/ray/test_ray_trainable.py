@@ -7,13 +7,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
 from ray import tune
 
+from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint
 from dsage_ray.core.runner import DSAGE
 from dsage_ray.ray.experiment import check_resources, run_experiment
 from dsage_ray.ray.pool import PoolResourceError
-from dsage_ray.ray.trainable import STATE_FILE, DSAGETrainable
+from dsage_ray.ray.trainable import DSAGETrainable
 from tests.fakes import BitmapDomain
 from tests.ray.helpers import (CrashOnceTrainable, archive_snapshot, bitmap_domain, small_config,
                                tensorboard_scalars, tensorboard_tags)
@@ -46,7 +46,7 @@ def test_step_save_restore_continues_exactly(tmp_path, uninterrupted):
         assert {"evals", "qd_score", "coverage", "done"} <= set(result)
         assert result["evals"] == config.n_rand and not result["done"]
         first.save_checkpoint(str(tmp_path))
-        assert (tmp_path / STATE_FILE).exists()
+        assert (tmp_path / CHECKPOINT_NAME).exists()
     finally:
         first.stop()
     second = make_trainable(config)
@@ -81,7 +81,7 @@ def test_a_trial_killed_mid_run_restores_and_ends_with_the_uninterrupted_archive
     # Restored, not restarted: the first step after the crash is step 3 (iteration 2 was checkpointed).
     assert result.metrics["training_iteration"] == len(uninterrupted.history)
     assert result.metrics["pool_in_trial_placement_group"] == 1.0
-    state = torch.load(Path(result.checkpoint.path) / STATE_FILE, weights_only=False)
+    state = load_checkpoint(Path(result.checkpoint.path) / CHECKPOINT_NAME)
     assert archive_snapshot(state["archive"]) == archive_snapshot(uninterrupted.ground_truth_archive)
     history = result.metrics_dataframe
     assert list(history["training_iteration"]) == sorted(set(history["training_iteration"]))

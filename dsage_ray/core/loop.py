@@ -1,0 +1,149 @@
+"""The one run loop: a runner stepped to its budget, with callbacks, checkpoints and the run folder's outputs.
+
+A ``--local`` run (:func:`run_locally`, also the audit's in-process search) drives a :class:`RunLoop`
+itself with :meth:`RunLoop.run`; a Tune trial (:class:`dsage_ray.ray.trainable.DSAGETrainable`)
+calls :meth:`RunLoop.step`, :meth:`RunLoop.save` and :meth:`RunLoop.restore` when Tune asks. Both
+therefore do the same per-iteration work in the same order and write the same checkpoint file
+(:mod:`dsage_ray.core.checkpoint`), which is what makes their archives identical.
+
+Nothing here imports Ray.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Mapping, Protocol, Sequence
+
+from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
+from dsage_ray.errors import InputError
+
+if TYPE_CHECKING:
+    from dsage_ray.config import RunConfig
+    from dsage_ray.core.runner import DSAGE
+    from dsage_ray.types import Domain, Evaluator
+
+
+class LoopCallback(Protocol):
+    """What a :class:`RunLoop` calls: after every outer iteration, and once when it closes.
+
+    A callback may also define ``on_start(runner)``, called when :meth:`RunLoop.run` starts (after a
+    resume, so it sees the restored runner).
+    """
+
+    def on_step(self, runner: "DSAGE", metrics: Mapping[str, float]) -> None:
+        """The runner just finished an outer iteration with these metrics."""
+
+    def close(self) -> None:
+        """The loop is done with the callback (flush files, close progress bars)."""
+
+
+class RunLoop:
+    """A runner, its run folder and its callbacks: one outer iteration at a time.
+
+    Args:
+        runner: The run.
+        out_dir: The run folder: ``metrics.json``, ``archive.csv``, ``heatmap.png`` and the elites are
+            written there once the budget is spent.
+        callbacks: Called after every iteration in this order (TensorBoard, progress lines, ...) and
+            closed by :meth:`close`.
+    """
+
+    def __init__(self, *, runner: "DSAGE", out_dir: str | Path, callbacks: Sequence[LoopCallback] = ()) -> None:
+        self.runner = runner
+        self.out_dir = Path(out_dir)
+        self.callbacks = list(callbacks)
+
+    @property
+    def done(self) -> bool:
+        return self.runner.done
+
+    def step(self) -> dict[str, float]:
+        """One outer iteration, then the callbacks; the run folder's outputs once the budget is spent."""
+        metrics = self.runner.step()
+        for callback in self.callbacks:
+            callback.on_step(self.runner, metrics)
+        if self.runner.done:
+            self.runner.write_outputs(self.out_dir)
+        return metrics
+
+    def save(self, path: str | Path) -> Path:
+        """Writes the runner's full state to the checkpoint file ``path``."""
+        return save_checkpoint(self.runner.state_dict(), path)
+
+    def restore(self, path: str | Path) -> None:
+        """Continues from the checkpoint file ``path`` exactly where the saved run stood."""
+        self.runner.load_state_dict(load_checkpoint(path))
+
+    def run(self, *, checkpoint: str | Path, checkpoint_every: int) -> None:
+        """Steps until the budget is spent, saving ``checkpoint`` every ``checkpoint_every`` outer iterations.
+
+        The state is also saved after the last iteration, so a finished run's checkpoint holds its
+        final archive.
+        """
+        for callback in self.callbacks:
+            on_start = getattr(callback, "on_start", None)
+            if on_start is not None:
+                on_start(self.runner)
+        while not self.runner.done:
+            self.step()
+            if self.runner.outer_iteration % checkpoint_every == 0 or self.runner.done:
+                self.save(checkpoint)
+
+    def close(self) -> None:
+        for callback in self.callbacks:
+            callback.close()
+
+
+def run_locally(
+    config: "RunConfig",
+    *,
+    out_dir: str | Path,
+    resume: bool = False,
+    domain: "Domain | None" = None,
+    evaluator: "Evaluator | None" = None,
+    console: bool = True,
+) -> Path:
+    """Runs DSAGE in this process into ``out_dir``: checkpoints, TensorBoard events, outputs, progress.
+
+    Args:
+        config: The run's config (``checkpoint_every``, ``image_every`` and ``image_levels`` apply).
+        out_dir: The run folder; its checkpoint is ``out_dir/``:data:`~dsage_ray.core.checkpoint.CHECKPOINT_NAME`.
+        resume: Continue the run in ``out_dir`` from its checkpoint.
+        domain: The domain (default: built from ``config``).
+        evaluator: Evaluates solutions for real (default: in this process).
+        console: Show progress bars and a progress line per outer iteration.
+
+    Returns:
+        ``out_dir``.
+
+    Raises:
+        InputError: ``out_dir`` already holds a run and ``resume`` is not set, or holds none and it is.
+        CheckpointError: The checkpoint to resume from is damaged, foreign, or from another pyribs.
+    """
+    from dsage_ray.core.progress import ConsoleProgress
+    from dsage_ray.core.runner import DSAGE
+    from dsage_ray.core.tensorboard_log import RunTensorBoard
+
+    out_dir = Path(out_dir)
+    checkpoint = out_dir / CHECKPOINT_NAME
+    if checkpoint.exists() and not resume:
+        raise InputError(f"{out_dir} already holds a run: pass --resume to continue it, or another --out")
+    if resume and not checkpoint.exists():
+        raise InputError(f"{out_dir} holds no run to resume ({CHECKPOINT_NAME} is missing)")
+    progress = ConsoleProgress(budget=config.budget) if console else None
+    runner = DSAGE(config=config, domain=domain, evaluator=evaluator,
+                   progress=progress.phase if progress is not None else None)
+    callbacks: list[Any] = [RunTensorBoard(logdir=out_dir, image_every=config.image_every,
+                                           image_levels=config.image_levels)]
+    if progress is not None:
+        callbacks.append(progress)
+    loop = RunLoop(runner=runner, out_dir=out_dir, callbacks=callbacks)
+    try:
+        if resume:
+            loop.restore(checkpoint)
+            if console:
+                print(f"resumed at {runner.evals} evaluations, outer iteration {runner.outer_iteration}")
+        loop.run(checkpoint=checkpoint, checkpoint_every=config.checkpoint_every)
+    finally:
+        loop.close()
+    return out_dir
