@@ -25,15 +25,17 @@ Example (the shipped weights: see the README's Mario section for the exact comma
 
 from __future__ import annotations
 
-import argparse
 import copy
+import dataclasses
 import datetime
 import json
 import time
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import torch
+import tyro
 from torch import nn
 
 from dsage_ray.domains.mario.encoding import one_hot_levels
@@ -113,33 +115,54 @@ def tile_histogram(levels: np.ndarray) -> np.ndarray:
     return np.bincount(levels.ravel(), minlength=NUM_TILES) / levels.size
 
 
-def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default="dsage_ray/domains/mario/assets/generator.pt", help="weights file to write")
-    p.add_argument("--epochs", type=int, default=5000, help="epochs (paper: 5000); --minutes usually stops first")
-    p.add_argument("--minutes", type=float, default=10.0, help="training budget in minutes of --clock")
-    p.add_argument("--clock", choices=("cpu", "wall"), default="cpu",
-                   help="what --minutes counts: this process's CPU time (default) or wall clock")
-    p.add_argument("--batch-size", type=int, default=32)
-    p.add_argument("--critic-steps", type=int, default=5)
-    p.add_argument("--loss", choices=("gp", "clip"), default="gp",
-                   help="gp: WGAN-GP with Adam (default); clip: the original weight-clipped WGAN with RMSprop")
-    p.add_argument("--lr", type=float, help="learning rate (default 1e-4 for gp, 5e-5 for clip)")
-    p.add_argument("--clip", type=float, default=0.01, help="weight clip (--loss clip)")
-    p.add_argument("--gp-weight", type=float, default=10.0, help="gradient penalty weight (--loss gp)")
-    p.add_argument("--critic-channels", type=int, default=32, help="critic width (first layer's channels)")
-    p.add_argument("--snapshot-every", type=int, default=100,
-                   help="generator steps between snapshots written to --out (0: only at the end)")
-    p.add_argument("--bn-batches", type=int, default=50, help="latent batches for the final BatchNorm statistics")
-    p.add_argument("--seed", type=int, default=0)
+@dataclasses.dataclass
+class Args:
+    """The script's flags: ``--help`` prints each with the description under it."""
+
+    out: str = "dsage_ray/domains/mario/assets/generator.pt"
+    """weights file to write"""
+    epochs: int = 5000
+    """epochs (paper: 5000); --minutes usually stops first"""
+    minutes: float = 10.0
+    """training budget in minutes of --clock"""
+    clock: Literal["cpu", "wall"] = "cpu"
+    """what --minutes counts: this process's CPU time or wall clock"""
+    batch_size: int = 32
+    """windows per critic and generator batch"""
+    critic_steps: int = 5
+    """critic steps per generator step"""
+    loss: Literal["gp", "clip"] = "gp"
+    """gp: WGAN-GP with Adam; clip: the original weight-clipped WGAN with RMSprop"""
+    lr: float | None = None
+    """learning rate (None: 1e-4 for gp, 5e-5 for clip)"""
+    clip: float = 0.01
+    """weight clip (--loss clip)"""
+    gp_weight: float = 10.0
+    """gradient penalty weight (--loss gp)"""
+    critic_channels: int = 32
+    """critic width (first layer's channels)"""
+    snapshot_every: int = 100
+    """generator steps between snapshots written to --out (0: only at the end)"""
+    bn_batches: int = 50
+    """latent batches for the final BatchNorm statistics"""
+    seed: int = 0
+    """seed of torch and of the window order"""
     # One thread by default: on a shared 2-core machine OpenMP spin-waits burn CPU time for nothing.
-    p.add_argument("--threads", type=int, default=1)
-    p.add_argument("--device", default="cpu")
-    p.add_argument("--log-dir", default="tb_logs/mario_gan", help="TensorBoard runs go in a timestamped subfolder")
-    p.add_argument("--log-every", type=int, default=10, help="generator steps between scalar logs")
-    args = p.parse_args(argv)
+    threads: int = 1
+    """torch threads"""
+    device: str = "cpu"
+    """torch device"""
+    log_dir: str = "tb_logs/mario_gan"
+    """TensorBoard runs go in a timestamped subfolder"""
+    log_every: int = 10
+    """generator steps between scalar logs"""
+
+
+def parse_args(argv: list[str] | None = None) -> Args:
+    """``Args`` from the command line, with the loss's default learning rate filled in."""
+    args = tyro.cli(Args, args=argv, description=__doc__.split("\n\n")[0])
     if args.lr is None:
-        args.lr = 1e-4 if args.loss == "gp" else 5e-5
+        args = dataclasses.replace(args, lr=1e-4 if args.loss == "gp" else 5e-5)
     return args
 
 

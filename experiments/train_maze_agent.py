@@ -9,7 +9,8 @@ Every ``eval_every`` iterations the current module is evaluated the way audits e
 simulator, ``rllib:`` loader semantics) on a fixed set of random valid mazes; that success rate, the
 curriculum position and RLlib's own metrics go to TensorBoard under ``tb_logs/<run_name>/``.
 
-Usage::
+Usage (``--help`` lists every flag of :class:`Args` with its description and default; a boolean flag ``--x``
+is switched off with ``--no-x``)::
 
     nice -n 10 python experiments/train_maze_agent.py --run-name ppo_maze --total-env-steps 400000
     nice -n 10 python experiments/train_maze_agent.py --run-name ppo_maze --resume   # continue it
@@ -22,7 +23,6 @@ loadable as ``rllib:tb_logs/<run>/checkpoint``), ``progress.json`` and TensorBoa
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import os
@@ -32,15 +32,20 @@ import tempfile
 import time
 from pathlib import Path
 
+import tyro
+
 
 ENV_NAME = "dsage_ray/RandomMaze-v0"
 
 
 @dataclasses.dataclass
 class Args:
+    """The script's flags: ``--help`` prints each with the description under it."""
+
     run_name: str = "ppo_maze"
-    """folder under tb_logs/"""
+    """folder under tb_logs/ that holds the run"""
     seed: int = 0
+    """RLlib's seed (env runners, module initialisation)"""
     total_env_steps: int = 400_000
     """stop after this many environment steps (all iterations together, across resumes)"""
     max_minutes: float = 0.0
@@ -48,50 +53,63 @@ class Args:
     resume: bool = False
     """continue tb_logs/<run_name>/checkpoint"""
     export: str = ""
-    """at the end, copy the module-only checkpoint to this folder"""
+    """at the end, copy the module-only checkpoint to this folder (empty = no export)"""
+
     # Environment and curriculum
     num_envs: int = 8
     """vectorised envs in the (single, local) env runner"""
     curriculum_steps: int = 200_000
     """env steps over which the goal moves from nearby to the furthest cell"""
+    see_through_walls: bool = True
+    """MiniGrid's observation setting, in training and in the script's evaluations (audits: the config's
+    maze.see_through_walls)"""
+
     # PPO
     lr: float = 5e-4
+    """Adam learning rate"""
     gamma: float = 0.99
+    """discount factor"""
     gae_lambda: float = 0.95
+    """GAE lambda"""
     train_batch_size: int = 4096
+    """env steps per PPO iteration (train_batch_size_per_learner)"""
     minibatch_size: int = 512
+    """SGD minibatch size"""
     num_epochs: int = 4
+    """passes over each iteration's batch"""
     entropy_coeff: float = 0.01
+    """entropy bonus coefficient"""
     vf_loss_coeff: float = 0.5
+    """value-function loss coefficient"""
     clip_param: float = 0.2
+    """PPO clip range"""
+
     # Module
     hidden: int = 128
+    """width of the MazeRLModule's MLP (and LSTM)"""
     use_lstm: bool = False
+    """add an LSTM after the MLP (a recurrent policy)"""
     max_seq_len: int = 32
-    """LSTM training sequence length (only with use_lstm)"""
+    """LSTM training sequence length (only with --use-lstm)"""
+
     # Bookkeeping
     checkpoint_every: int = 5
     """iterations between checkpoints"""
     eval_every: int = 10
     """iterations between evaluations on the fixed maze set (0 = never)"""
     eval_mazes: int = 20
+    """random valid mazes in the fixed evaluation set"""
     eval_episodes: int = 10
+    """episodes per evaluation maze"""
     num_cpus: int = 2
     """logical CPUs of the local Ray instance"""
     torch_threads: int = 1
     """torch threads for the learner (the machine is shared)"""
 
 
-def parse_args() -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    for field in dataclasses.fields(Args):
-        flag = "--" + field.name.replace("_", "-")
-        if field.type in (bool, "bool"):
-            parser.add_argument(flag, action="store_true", default=field.default)
-        else:
-            kind = {"int": int, "float": float, "str": str}.get(str(field.type), field.type)
-            parser.add_argument(flag, type=kind, default=field.default)
-    return Args(**vars(parser.parse_args()))
+def parse_args(argv: list[str] | None = None) -> Args:
+    """``Args`` from the command line (``--help`` lists every flag; a boolean ``--x`` has ``--no-x``)."""
+    return tyro.cli(Args, args=argv, description=__doc__.split("\n\n")[0])
 
 
 def build_config(args: Args):
@@ -110,7 +128,7 @@ def build_config(args: Args):
         model_config["max_seq_len"] = args.max_seq_len
     return (
         PPOConfig()
-        .environment(ENV_NAME, env_config={"difficulty": 0.0})
+        .environment(ENV_NAME, env_config={"difficulty": 0.0, "see_through_walls": args.see_through_walls})
         # Sampling in the driver process: on 2 shared cores a remote env runner only adds copies.
         .env_runners(num_env_runners=0, num_envs_per_env_runner=args.num_envs)
         .learners(num_learners=0)
@@ -149,7 +167,7 @@ def evaluate_module(module_dir: Path, args: Args) -> dict[str, float]:
     from dsage_ray.domains.maze import evaluate
 
     agent = load_agent(f"rllib:{module_dir}")
-    results = [evaluate(level, agent, episodes=args.eval_episodes, seed=i)
+    results = [evaluate(level, agent, episodes=args.eval_episodes, seed=i, see_through_walls=args.see_through_walls)
                for i, level in enumerate(random_valid_levels(args.eval_mazes, seed=12345))]
     return {"success_rate": float(np.mean([r.success_rate for r in results])),
             "mean_path_length": float(np.mean([r.mean_path_length for r in results]))}
@@ -171,8 +189,8 @@ def module_dir(checkpoint: Path) -> Path:
     return checkpoint / "learner_group" / "learner" / "rl_module" / "default_policy"
 
 
-def main() -> int:
-    args = parse_args()
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
     os.environ.setdefault("RAY_AUTH_MODE", "disabled")
     import ray
     import torch

@@ -29,7 +29,7 @@ from dsage_ray.domains.maze import evaluate
 from tests.agents.conftest import REPO_ROOT
 
 TINY_TRAINING = ["--train-batch-size", "200", "--minibatch-size", "64", "--num-epochs", "1", "--num-envs", "2",
-                 "--checkpoint-every", "1", "--eval-every", "0", "--hidden", "32"]
+                 "--checkpoint-every", "1", "--eval-every", "0", "--hidden", "32", "--no-see-through-walls"]
 
 
 def load_error(spec: str) -> str:
@@ -71,6 +71,7 @@ def test_training_script_checkpoints_resumes_and_logs(trained):
     progress = json.loads((trained["run"] / "progress.json").read_text())
     assert progress["iteration"] == 3 and progress["env_steps"] >= 600
     assert "resumed at iteration 2" in trained["log"]
+    assert json.loads((trained["run"] / "args.json").read_text())["see_through_walls"] is False  # --no-… works
     assert list(trained["run"].glob("events.out.tfevents.*")), "no TensorBoard file"
     assert (trained["exported"] / "module_state.pkl").is_file()
     assert "RLModuleConfig" not in trained["err"], "RLlib's constructor deprecation warning is back"

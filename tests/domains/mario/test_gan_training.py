@@ -21,8 +21,10 @@ SCRIPT = REPO_ROOT / "experiments" / "train_mario_gan.py"
 def gan_script():
     spec = importlib.util.spec_from_file_location("train_mario_gan", SCRIPT)
     module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclass resolves string annotations through sys.modules
     spec.loader.exec_module(module)
-    return module
+    yield module
+    del sys.modules[spec.name]
 
 
 class LinearCritic(nn.Module):
