@@ -1,5 +1,6 @@
 """Suite-wide test settings."""
 
+import importlib.util
 import os
 
 import pytest
@@ -41,3 +42,21 @@ def ray_session():
     yield ray
     ray.shutdown()
     torch.set_num_threads(threads)
+
+
+@pytest.fixture(scope="session")
+def agent_plugin(tmp_path_factory):
+    """The test agent plug-in (tests/fixtures/agent_plugin) installed as a package; yields the kind it provides.
+
+    Installed with pip into this environment for the session and uninstalled after it, so that Ray's
+    actors find it exactly as they would find a user's package (tests/plugin_package.py).
+    """
+    from tests import plugin_package
+
+    if importlib.util.find_spec("pip") is None:
+        pytest.skip("pip is not installed in this environment")
+    plugin_package.install(tmp_path_factory.mktemp("agent_plugin"))
+    try:
+        yield plugin_package.KIND
+    finally:
+        plugin_package.uninstall()

@@ -16,9 +16,18 @@ bare folder name (``dcd:accel``, ``rllib:ppo_maze``; :func:`shipped_agent_dir`).
 sha256 in ``SHA256SUMS`` (``sha256sum`` format); :func:`verified_files` checks them on every load, so a
 corrupted install fails with one clear line instead of loading wrong weights.
 
-Kinds live in a small registry that maps the prefix to a factory. The built-in kinds are registered by
-import path, so loading ``builtin:random`` never imports torch. A new kind (e.g. ``rllib:PATH``) is one
-:func:`register_agent_kind` call (or one line in :data:`_BUILTIN_KINDS`); no other loader changes.
+A kind maps the prefix to a factory ``factory(target, options) -> Agent``. Kinds come from the
+entry-point group :data:`ENTRY_POINT_GROUP` (``dsage_ray.agents``): dsage_ray declares its own there
+(``builtin``, ``dcd``, ``rllib``, ``torchscript``, in ``pyproject.toml``), and any installed package can
+add one the same way::
+
+    [project.entry-points."dsage_ray.agents"]
+    mykind = "my_package.agents:load_my_agent"
+
+Because entry points are read from the installed packages' metadata, a kind from an installed package
+is known in every process of the environment, Ray's simulator actors included. Only the kind a spec
+names is imported (listing kinds imports nothing: ``builtin:random`` never imports torch).
+:func:`register_agent_kind` adds a kind to the calling process only (tests, notebooks).
 """
 
 from __future__ import annotations
@@ -26,6 +35,7 @@ from __future__ import annotations
 import hashlib
 import importlib
 import pathlib
+from importlib import metadata
 from typing import Callable, Union
 
 from dsage_ray.agents.base import Agent, AgentError
@@ -33,14 +43,18 @@ from dsage_ray.agents.base import Agent, AgentError
 #: ``factory(target, options) -> Agent``; it reads its options through :class:`SpecOptions`.
 AgentFactory = Callable[[str, "SpecOptions"], Agent]
 
-#: Built-in kinds, as ``"module:function"`` so the module is imported only when the kind is used.
+#: Entry-point group of agent kinds: the entry point's name is the kind, its value the factory.
+ENTRY_POINT_GROUP = "dsage_ray.agents"
+#: dsage_ray's own kinds, exactly as ``pyproject.toml`` declares them; read only when the installed
+#: metadata lacks them (a source checkout on ``PYTHONPATH``, or an install older than the entry points).
 _BUILTIN_KINDS: dict[str, str] = {
     "builtin": "dsage_ray.agents.builtin:load_builtin_agent",
     "dcd": "dsage_ray.agents.dcd:load_dcd_agent",
-    "torchscript": "dsage_ray.agents.torchscript:load_torchscript_agent",
     "rllib": "dsage_ray.agents.rllib:load_rllib_agent",
+    "torchscript": "dsage_ray.agents.torchscript:load_torchscript_agent",
 }
-_REGISTRY: dict[str, Union[str, AgentFactory]] = dict(_BUILTIN_KINDS)
+#: Kinds added by :func:`register_agent_kind`, in this process only; they take precedence.
+_REGISTERED: dict[str, Union[str, AgentFactory]] = {}
 #: Agents shipped inside the package, one folder each (module docstring).
 ASSETS_DIR = pathlib.Path(__file__).resolve().parent.parent / "assets" / "agents"
 #: A shipped agent folder's checksum file, in ``sha256sum`` format (``<hex>  <file name>`` per line).
@@ -86,10 +100,64 @@ class SpecOptions:
 
 
 def register_agent_kind(prefix: str, factory: Union[str, AgentFactory]) -> None:
-    """Makes ``PREFIX:TARGET`` specs load through ``factory`` (a callable or a ``"module:function"`` path)."""
+    """Makes ``PREFIX:TARGET`` specs load through ``factory`` (a callable or a ``"module:function"`` path).
+
+    The kind exists in the calling process only: Ray's simulator actors do not see it. A kind they
+    must load is an entry point of the ``dsage_ray.agents`` group of an installed package (module
+    docstring).
+    """
     if not prefix.isidentifier():
         raise ValueError(f"agent kind prefix must be an identifier, got {prefix!r}")
-    _REGISTRY[prefix] = factory
+    _REGISTERED[prefix] = factory
+
+
+def agent_kinds() -> dict[str, str]:
+    """Every known kind and where its factory lives (``"module:function"``), importing none of them.
+
+    Kinds registered in this process with a callable show as ``"registered in this process"``.
+    """
+    kinds = dict(_BUILTIN_KINDS)
+    for entry in _entry_points():
+        kinds[entry.name] = entry.value
+    for prefix, factory in _REGISTERED.items():
+        kinds[prefix] = factory if isinstance(factory, str) else "registered in this process"
+    return dict(sorted(kinds.items()))
+
+
+def _entry_points() -> list[metadata.EntryPoint]:
+    # Read on every call (a directory scan, milliseconds): a package installed while a process runs
+    # is seen by its next load, as it is by a freshly started Ray actor.
+    return list(metadata.entry_points(group=ENTRY_POINT_GROUP))
+
+
+def _factory(kind: str, spec: str) -> AgentFactory | None:
+    """The factory of ``kind``: registered in this process, else from an entry point, else built in."""
+    if kind in _REGISTERED:
+        return _resolve(_REGISTERED[kind])
+    entries = {entry.value: entry for entry in _entry_points() if entry.name == kind}
+    if len(entries) > 1:
+        providers = ", ".join(f"{_provider(entry)} ({value})" for value, entry in sorted(entries.items()))
+        raise AgentError(f"agent spec {spec!r}: kind {kind!r} is provided by more than one installed package: "
+                         f"{providers}; uninstall all but one")
+    if entries:
+        (entry,) = entries.values()
+        try:
+            factory = entry.load()
+        except Exception as exc:  # noqa: BLE001 - a plug-in's import can fail in any way; say whose it is.
+            raise AgentError(f"agent spec {spec!r}: kind {kind!r} ({entry.value}, from {_provider(entry)}) cannot be "
+                             f"loaded: {describe_exception(exc)}") from None
+        if not callable(factory):
+            raise AgentError(f"agent spec {spec!r}: kind {kind!r} ({entry.value}, from {_provider(entry)}) is not a "
+                             f"callable factory(target, options)")
+        return factory
+    if kind in _BUILTIN_KINDS:
+        return _resolve(_BUILTIN_KINDS[kind])
+    return None
+
+
+def _provider(entry: metadata.EntryPoint) -> str:
+    dist = getattr(entry, "dist", None)
+    return f"package {dist.name}" if dist is not None else "an installed package"
 
 
 def parse_spec(spec: str) -> tuple[str, str, SpecOptions]:
@@ -115,7 +183,8 @@ def load_agent(spec: str) -> Agent:
     """Loads the agent a spec names.
 
     Args:
-        spec: ``KIND:TARGET[?options]``; kinds: ``builtin``, ``dcd``, ``torchscript`` and any registered later.
+        spec: ``KIND:TARGET[?options]``; kinds: ``builtin``, ``dcd``, ``rllib``, ``torchscript``, those of
+            installed packages (entry-point group ``dsage_ray.agents``) and any registered in this process.
 
     Returns:
         The agent, with ``agent.spec`` set to ``spec``.
@@ -125,10 +194,12 @@ def load_agent(spec: str) -> Agent:
             naming the spec or file and the problem.
     """
     kind, target, options = parse_spec(spec)
-    if kind not in _REGISTRY:
-        known = ", ".join(sorted(_REGISTRY))
-        raise AgentError(f"agent spec {spec!r}: unknown kind {kind!r} (known: {known})")
-    agent = _resolve(_REGISTRY[kind])(target, options)
+    factory = _factory(kind, spec)
+    if factory is None:
+        known = ", ".join(agent_kinds())
+        raise AgentError(f"agent spec {spec!r}: unknown kind {kind!r} (known: {known}; installed packages add kinds "
+                         f"through the {ENTRY_POINT_GROUP!r} entry-point group)")
+    agent = factory(target, options)
     options.check_all_used()
     agent.spec = spec
     return agent
