@@ -103,7 +103,7 @@ class DSAGE:
         self.dataset = None
         self.scheduler = None
         if config.uses_surrogate:
-            from dsage_ray.surrogate import Surrogate, SurrogateDataset
+            from dsage_ray.surrogate import Surrogate
 
             sample = self._encode(self.domain.random_solutions(1, np.random.default_rng(0)))
             self.surrogate = Surrogate(
@@ -115,11 +115,7 @@ class DSAGE:
                 config=config.surrogate,
                 seed=int(self._next_qd_seed()),
             )
-            self.dataset = SurrogateDataset(
-                level_shape=tuple(sample.shape[1:]),
-                num_measures=len(self.domain.measure_names),
-                occupancy_shape=self.domain.occupancy_shape,
-            )
+            self.dataset = self.surrogate.make_dataset()
         else:
             self.scheduler = make_scheduler(
                 self.archive,
