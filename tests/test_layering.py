@@ -1,0 +1,61 @@
+"""Imports point down: the pure core never reaches the Ray layer, the audit or the CLI, and nothing imports the CLI.
+
+Read from the source (every ``import``, including those inside functions), so an upward import hidden
+in a function body counts too.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "dsage_ray"
+
+#: Package areas and what they must never import (dsage_ray modules, or third-party top-level names).
+FORBIDDEN = {
+    "dsage_ray.core": ("dsage_ray.cli", "dsage_ray.audit", "dsage_ray.ray", "ray"),
+    "dsage_ray.qd": ("dsage_ray.cli", "dsage_ray.audit", "dsage_ray.ray", "dsage_ray.core", "ray"),
+    "dsage_ray.surrogate": ("dsage_ray.cli", "dsage_ray.audit", "dsage_ray.ray", "dsage_ray.core", "ray"),
+    "dsage_ray.ray": ("dsage_ray.cli", "dsage_ray.audit"),
+    "dsage_ray.audit": ("dsage_ray.cli",),
+    "dsage_ray.domains": ("dsage_ray.cli", "dsage_ray.audit", "dsage_ray.ray"),
+    "dsage_ray.agents": ("dsage_ray.cli", "dsage_ray.audit", "dsage_ray.ray", "dsage_ray.core"),
+}
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imports(path: Path) -> set[str]:
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module)
+    return names
+
+
+def within(name: str, area: str) -> bool:
+    return name == area or name.startswith(area + ".")
+
+
+@pytest.mark.parametrize("area", sorted(FORBIDDEN))
+def test_an_area_imports_nothing_above_it(area):
+    offences = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        module = module_name(path)
+        if within(module, area):
+            offences += [f"{module} imports {name}" for name in sorted(imports(path))
+                         if any(within(name, banned) for banned in FORBIDDEN[area])]
+    assert not offences
+
+
+def test_only_the_entry_point_is_the_cli():
+    importers = [module_name(path) for path in sorted(PACKAGE.rglob("*.py"))
+                 if module_name(path) != "dsage_ray.cli" and "dsage_ray.cli" in imports(path)]
+    assert not importers
