@@ -42,6 +42,9 @@ from dsage_ray.io import atomic_write_bytes
 
 #: File name of a checkpoint: in a ``--local`` run folder, and inside each Tune checkpoint folder.
 CHECKPOINT_NAME = "checkpoint.dsage"
+#: Checkpoint files of dsage_ray before this format (pickle in run folders, torch.save in Tune's); not read,
+#: only recognised, so that a run folder holding one is neither overwritten nor reported as empty.
+LEGACY_CHECKPOINT_NAMES = ("checkpoint.pkl", "runner_state.pt")
 #: Version of the file layout above; a reader refuses other versions.
 FORMAT_VERSION = 2
 _MAGIC = b"dsage_ray checkpoint\n"
@@ -170,11 +173,24 @@ def _read(path: Path, limit: int = -1) -> bytes:
         with path.open("rb") as handle:
             return handle.read(limit)
     except FileNotFoundError:
-        raise CheckpointError(f"{path}: no such checkpoint") from None
+        raise CheckpointError(f"{path}: no such checkpoint{legacy_hint(path.parent)}") from None
     except IsADirectoryError:
         raise CheckpointError(f"{path}: is a folder, not a checkpoint file") from None
     except OSError as exc:
         raise CheckpointError(f"{path}: cannot read the checkpoint ({exc.strerror or exc})") from None
+
+
+def legacy_checkpoint(folder: str | Path) -> Path | None:
+    """The checkpoint of an earlier dsage_ray format in ``folder``, if it holds one."""
+    found = [Path(folder) / name for name in LEGACY_CHECKPOINT_NAMES if (Path(folder) / name).is_file()]
+    return found[0] if found else None
+
+
+def legacy_hint(folder: str | Path) -> str:
+    """``" (it holds checkpoint.pkl, ...)"`` when ``folder`` holds an old-format checkpoint, else ``""``."""
+    legacy = legacy_checkpoint(folder)
+    return (f" (it holds {legacy.name}, a checkpoint of an earlier dsage_ray that this version does not read; "
+            f"continue that run with the version that wrote it)") if legacy else ""
 
 
 def _split(path: Path, data: bytes) -> tuple[dict[str, Any], bytes]:

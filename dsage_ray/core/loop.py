@@ -14,7 +14,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping, Protocol, Sequence
 
-from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
+from dsage_ray.core.checkpoint import (CHECKPOINT_NAME, legacy_checkpoint, legacy_hint, load_checkpoint,
+                                       save_checkpoint)
 from dsage_ray.errors import InputError
 
 if TYPE_CHECKING:
@@ -126,10 +127,10 @@ def run_locally(
 
     out_dir = Path(out_dir)
     checkpoint = out_dir / CHECKPOINT_NAME
-    if checkpoint.exists() and not resume:
+    if (checkpoint.exists() or legacy_checkpoint(out_dir)) and not resume:
         raise InputError(f"{out_dir} already holds a run: pass --resume to continue it, or another --out")
     if resume and not checkpoint.exists():
-        raise InputError(f"{out_dir} holds no run to resume ({CHECKPOINT_NAME} is missing)")
+        raise InputError(f"{out_dir} holds no run to resume ({CHECKPOINT_NAME} is missing){legacy_hint(out_dir)}")
     progress = ConsoleProgress(budget=config.budget) if console else None
     runner = DSAGE(config=config, domain=domain, evaluator=evaluator,
                    progress=progress.phase if progress is not None else None)

@@ -138,3 +138,10 @@ def test_a_state_that_does_not_unpickle_names_the_file_and_its_versions(tmp_path
     with pytest.raises(CheckpointError, match=r"does not load \(AttributeError.*written with dsage_ray") as info:
         load_checkpoint(path)
     assert str(path) in str(info.value)
+
+
+def test_a_tune_folder_of_the_old_format_says_so(tmp_path):
+    torch.save({"archive": None}, tmp_path / "runner_state.pt")
+    with pytest.raises(CheckpointError, match=r"no such checkpoint \(it holds runner_state.pt, a checkpoint of an "
+                                              r"earlier dsage_ray"):
+        load_checkpoint(tmp_path / checkpoint.CHECKPOINT_NAME)
