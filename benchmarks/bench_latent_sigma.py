@@ -28,9 +28,9 @@ def main(argv: list[str] | None = None) -> dict:
     import torch
 
     torch.set_num_threads(1)
-    from dsage_ray.config import MarioConfig
     from dsage_ray.domains.mario.domain import MarioDomain
     from dsage_ray.domains.mario.human_levels import human_windows
+    from dsage_ray.domains.mario.plugin import MarioConfig
     from dsage_ray.domains.mario.tiles import NUM_TILES
 
     def tile_histogram(levels: np.ndarray) -> np.ndarray:

@@ -30,9 +30,10 @@ import numpy as np
 import torch
 from torch import nn
 
-from dsage_ray.config import MazeConfig, QDConfig, SurrogateConfig
+from dsage_ray.config import QDConfig, SurrogateConfig
 from dsage_ray.domains.maze.domain import MazeDomain
 from dsage_ray.domains.maze.generator import random_valid_levels
+from dsage_ray.domains.maze.plugin import MazeConfig
 from dsage_ray.qd.archives import make_archive
 from dsage_ray.surrogate import Surrogate
 from dsage_ray.surrogate.surrogate import native_cpu_bf16

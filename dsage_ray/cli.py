@@ -11,12 +11,21 @@ from pathlib import Path
 from dsage_ray.cli_args import add_config_arguments, load_run_config
 from dsage_ray.errors import DsageError, describe
 
-#: Modules that register sub-commands; each exposes ``add_subparser(subparsers)``.
-_COMMAND_MODULES = (
-    "dsage_ray.domains.maze.cli",
-    "dsage_ray.domains.mario.cli",
-    "dsage_ray.audit.cli",
-)
+
+def command_modules() -> list[str]:
+    """Modules that register sub-commands (each exposes ``add_subparser(subparsers)``): every domain's
+    ``cli`` from its registration (``dsage-ray maze ...``), then the audit's."""
+    from dsage_ray.domains import domain_names, get_domain
+
+    modules = []
+    for name in domain_names():
+        try:
+            spec = get_domain(name)
+        except DsageError:
+            continue  # a plug-in that does not load has no sub-command; naming its domain says why
+        if spec.cli:
+            modules.append(spec.cli)
+    return [*modules, "dsage_ray.audit.cli"]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -26,7 +35,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_run(subparsers)
     _add_ablate(subparsers)
     _add_config(subparsers)
-    for module_name in _COMMAND_MODULES:
+    for module_name in command_modules():
         try:
             module = importlib.import_module(module_name)
         except ImportError as exc:

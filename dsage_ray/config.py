@@ -3,6 +3,10 @@
 A :class:`RunConfig` is a tree of dataclasses. Its flat form uses dotted keys
 (``"surrogate.epochs"``), which map 1:1 onto ``tune.grid_search`` axes and ``--set`` overrides.
 
+The run's domain has a section named after it (``maze.episodes``), a dataclass the domain's
+registration supplies (:mod:`dsage_ray.domains.registry`), as are the domain's presets and
+variants; this module knows no domain by name.
+
 Resolution order when building a config: dataclass defaults → the domain's *preset* → the
 *variant* → explicit keys. ``preset`` and ``variant`` are ordinary fields, so a Tune grid over
 ``variant`` is an ablation grid.
@@ -12,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 import json
 import tomllib
 import types
@@ -21,6 +26,7 @@ from typing import Any, Literal, Mapping
 
 import numpy as np
 
+from dsage_ray.domains.registry import domain_names, get_domain
 from dsage_ray.errors import InputError
 
 
@@ -36,53 +42,12 @@ class ConfigError(InputError):
 EmitterName = Literal["map_elites", "cma_me", "random"]
 #: Keys of :data:`dsage_ray.qd.selection.SELECTION_METHODS`.
 SelectionMethod = Literal["downsample", "random", "full"]
-#: Keys of :data:`dsage_ray.domains.maze.measures.OBJECTIVES`.
-MazeObjective = Literal["validity", "failure_rate", "regret", "regression"]
-#: Mario's objectives: the A* agent's completion, or ``1 - completion`` (audits).
-MarioObjective = Literal["completion", "incompletion"]
 #: Surrogate kinds: ancillary occupancy (``two_stage``), without it (``one_stage``), none (plain QD).
 SurrogateKind = Literal["two_stage", "one_stage", "none"]
 #: Surrogate prediction arithmetic.
 Precision = Literal["auto", "fp32", "bf16"]
-
-
-@dataclasses.dataclass
-class MazeConfig:
-    """The Maze domain (SPEC §2)."""
-
-    agent: str = "builtin:wall_follower"
-    episodes: int = 50
-    height: int = 16
-    width: int = 16
-    see_through_walls: bool = True
-    #: ``validity`` (paper), ``failure_rate``, ``regret`` or ``regression`` (audits).
-    objective: MazeObjective = "validity"
-    #: Reference agent spec of the ``regression`` objective (empty: none), run on the same seeds.
-    reference: str = ""
-    measures: tuple[str, ...] = ("num_walls", "mean_path_length")
-    #: Cells per measure; ``0`` means "one cell per integer value" (the paper's 256×162 uses 256 and 162).
-    archive_dims: tuple[int, ...] = (256, 162)
-    #: ``()`` means the natural range of each measure.
-    measure_ranges: tuple[tuple[float, float], ...] = ()
-
-
-@dataclasses.dataclass
-class MarioConfig:
-    """The Mario domain (SPEC §3)."""
-
-    runs: int = 5
-    timer: int = 20
-    astar_iterations: int = 1000
-    episode_timeout_s: float = 60.0
-    generator: str = "builtin"
-    #: Standard deviation of the random latents (DR's and DSAGE's ``n_rand`` initial ones); the
-    #: authors drew them from N(0, 0.2²).
-    latent_sigma: float = 0.2
-    #: ``completion`` (paper) or ``incompletion`` (1 − completion, audits).
-    objective: MarioObjective = "completion"
-    measures: tuple[str, ...] = ("sky_tiles", "mean_jumps")
-    archive_dims: tuple[int, ...] = (150, 100)
-    measure_ranges: tuple[tuple[float, float], ...] = ((0.0, 150.0), (0.0, 100.0))
+#: How the surrogate scales measure targets (:class:`SurrogateConfig`).
+TargetScaling = Literal["none", "range"]
 
 
 @dataclasses.dataclass
@@ -106,6 +71,16 @@ class SurrogateConfig:
     #: Random valid levels evaluated once, outside the budget, to score the surrogate on levels it
     #: never trains on (``holdout_*`` metrics each outer iteration); 0 turns it off.
     holdout_levels: int = 0
+    #: ``none`` (the paper: raw targets) or ``range``: each measure head learns its value mapped from the
+    #: domain's measure range onto [0, 1], so every head weighs alike in the loss (raw, a 0-648 path
+    #: length outweighs everything else by orders of magnitude). Predictions come back in raw units.
+    target_scaling: TargetScaling = "none"
+    #: Share of the training window held out each outer iteration for early stopping; 0 (the paper)
+    #: trains every ``epochs`` on the whole window.
+    validation_fraction: float = 0.0
+    #: Early stopping: stop after this many epochs without a lower validation loss and keep the
+    #: best epoch's weights (needs ``validation_fraction > 0``).
+    patience: int = 5
 
 
 @dataclasses.dataclass
@@ -182,12 +157,36 @@ class RunConfig:
     #: config, never taken from the machine. A lone Tune trial may use every CPU of its placement
     #: group: its surrogate phases never overlap its simulators' evaluations.
     torch_threads: int = 1
-    maze: MazeConfig = dataclasses.field(default_factory=MazeConfig)
-    mario: MarioConfig = dataclasses.field(default_factory=MarioConfig)
     surrogate: SurrogateConfig = dataclasses.field(default_factory=SurrogateConfig)
     qd: QDConfig = dataclasses.field(default_factory=QDConfig)
     selection: SelectionConfig = dataclasses.field(default_factory=SelectionConfig)
     ray: RayConfig = dataclasses.field(default_factory=RayConfig)
+    #: Domain sections by domain name (``config.maze`` reads ``sections["maze"]``): the run's own
+    #: domain always, any other registered domain only when a key of its section was given. Each is
+    #: the dataclass its registration names (:class:`dsage_ray.domains.registry.DomainSpec`).
+    sections: dict[str, Any] = dataclasses.field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.domain not in self.sections and self.domain in domain_names():
+            self.section(self.domain)
+
+    def __getattr__(self, name: str) -> Any:
+        # Only reached when ordinary lookup fails; ``__dict__`` directly, so unpickling (no
+        # attributes yet) does not recurse.
+        sections = self.__dict__.get("sections")
+        if sections is not None and name in sections:
+            return sections[name]
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}"
+                             + (f" (no {name!r} section in this {self.__dict__.get('domain')!r} config)"
+                                if sections is not None and name in domain_names() else ""))
+
+    def section(self, domain: str) -> Any:
+        """The config section of a registered ``domain``, added with its defaults if the config has none."""
+        if domain not in self.sections:
+            if domain in _field_types(RunConfig):
+                raise ConfigError(f"domain {domain!r}: the name of a domain cannot be a key of the run config")
+            self.sections[domain] = get_domain(domain).config()
+        return self.sections[domain]
 
     # ----------------------------------------------------------------------------------- building
 
@@ -196,21 +195,25 @@ class RunConfig:
         """Builds a validated config from flat (dotted) or nested values plus keyword overrides."""
         explicit = flatten(dict(values or {}))
         explicit.update(flatten(kwargs))
-        base = cls()
-        _assign(base, {k: explicit[k] for k in ("domain", "preset", "variant") if k in explicit})
+        # Built with its domain, so only that domain's section (and registration) is ever loaded.
+        base = cls(**{key: _coerce(key, explicit[key], _field_types(cls)[key])
+                      for key in ("domain", "preset", "variant") if key in explicit})
         layered: dict[str, Any] = {}
-        preset_table = PRESETS.get(base.domain, {})
+        try:
+            preset_table = presets(base.domain)
+        except InputError as exc:
+            raise ConfigError(f"domain: {exc}") from None
         if base.preset not in preset_table:
             raise ConfigError(f"preset: unknown preset {base.preset!r} for domain {base.domain!r} "
                               f"(known: {sorted(preset_table)}){did_you_mean(base.preset, preset_table)}")
         layered.update(preset_table[base.preset])
-        variant_table = VARIANTS.get(base.domain, {})
+        variant_table = variants(base.domain)
         if base.variant not in variant_table:
             raise ConfigError(f"variant: unknown variant {base.variant!r} for domain {base.domain!r} "
                               f"(known: {sorted(variant_table)}){did_you_mean(base.variant, variant_table)}")
         layered.update(variant_table[base.variant])
         layered.update(explicit)
-        config = cls()
+        config = cls(domain=base.domain)
         _assign(config, layered)
         config.validate()
         return config
@@ -232,8 +235,18 @@ class RunConfig:
         return cls.build(values)
 
     def to_dict(self) -> dict[str, Any]:
-        """Nested plain-Python form (lists for tuples), JSON/TOML friendly."""
-        return json.loads(json.dumps(dataclasses.asdict(self)))
+        """Nested plain-Python form (lists for tuples), JSON/TOML friendly; domain sections sit at the
+        top level beside the others (``{"maze": {...}, "surrogate": {...}}``)."""
+        data: dict[str, Any] = {}
+        for field in dataclasses.fields(self):
+            value = getattr(self, field.name)
+            if field.name == "sections":
+                continue
+            if dataclasses.is_dataclass(value) and not data.keys() & self.sections.keys():
+                # Domain sections first among the sections, as they were when Maze and Mario were fields.
+                data.update({name: dataclasses.asdict(section) for name, section in self.sections.items()})
+            data[field.name] = dataclasses.asdict(value) if dataclasses.is_dataclass(value) else value
+        return json.loads(json.dumps(data))
 
     def to_flat(self) -> dict[str, Any]:
         """Dotted-key form, e.g. for ``tune.Tuner(param_space=...)``."""
@@ -247,8 +260,9 @@ class RunConfig:
     # --------------------------------------------------------------------------------- validation
 
     @property
-    def domain_config(self) -> MazeConfig | MarioConfig:
-        return getattr(self, self.domain)
+    def domain_config(self) -> Any:
+        """The run's domain section (``config.maze`` for a Maze run)."""
+        return self.section(self.domain)
 
     @property
     def uses_surrogate(self) -> bool:
@@ -261,7 +275,12 @@ class RunConfig:
                 raise ConfigError(f"{key}: {why} (got {_get(self, key)!r})")
 
         _check_choices(self)
-        need(self.domain in ("maze", "mario"), "domain", "must be 'maze' or 'mario'")
+        try:
+            get_domain(self.domain)
+        except InputError as exc:
+            raise ConfigError(f"domain: {exc}") from None
+        for name, section in self.sections.items():
+            _check_choices(section, f"{name}.")
         need(self.budget >= 1, "budget", "must be positive")
         need(self.n_rand >= 1, "n_rand", "must be positive")
         need(self.budget >= self.n_rand or not self.uses_surrogate, "budget",
@@ -274,6 +293,9 @@ class RunConfig:
             need(getattr(self.surrogate, key) >= 1, f"surrogate.{key}", "must be positive")
         need(self.surrogate.lr > 0, "surrogate.lr", "must be positive")
         need(self.surrogate.holdout_levels >= 0, "surrogate.holdout_levels", "must be >= 0 (0: off)")
+        need(0.0 <= self.surrogate.validation_fraction < 1.0, "surrogate.validation_fraction",
+             "must be in [0, 1) (0: no early stopping)")
+        need(self.surrogate.patience >= 1, "surrogate.patience", "must be positive")
         for key in ("num_emitters", "batch_size", "exploit_iterations", "mutation_cells"):
             need(getattr(self.qd, key) >= 1, f"qd.{key}", "must be positive")
         need(self.qd.sigma0 > 0, "qd.sigma0", "must be positive")
@@ -299,117 +321,16 @@ class RunConfig:
         need(len(self.selection.block) == len(dom.measures), "selection.block",
              f"needs one block size per measure ({len(dom.measures)})")
         need(all(b >= 1 for b in self.selection.block), "selection.block", "block sizes must be positive")
-        if isinstance(dom, MazeConfig):
-            need(dom.episodes >= 1, "maze.episodes", "must be positive")
-            need(dom.height >= 2 and dom.width >= 2, "maze.height", "maze must be at least 2x2")
-            need(bool(dom.reference) == (dom.objective == "regression"), "maze.reference",
-                 "the 'regression' objective needs a reference agent spec, and only it uses one")
-        else:
-            need(dom.runs >= 1, "mario.runs", "must be positive")
-            need(dom.timer >= 1, "mario.timer", "must be positive")
-            need(dom.astar_iterations >= 0, "mario.astar_iterations", "must be >= 0 (0: stock wall-clock timer)")
-            need(dom.latent_sigma > 0, "mario.latent_sigma", "must be positive")
+        check = getattr(dom, "validate", None)
+        if check is not None:
+            check(lambda cond, key, why: need(cond, f"{prefix}.{key}", why))
 
 
-# ------------------------------------------------------------------------------- presets, variants
+# -------------------------------------------------------------------------------------- variants
 
-#: Per-domain presets: ``paper`` reproduces the paper's numbers; ``cpu`` finishes well under an hour
-#: on 2 cores; ``demo`` is the few-minute run of ``make run``; ``tiny`` is for tests and smoke runs.
-PRESETS: dict[str, dict[str, dict[str, Any]]] = {
-    "maze": {
-        # The paper held no levels out; ``--set surrogate.holdout_levels=100`` adds 0.1% to its budget.
-        "paper": {},
-        # CPU presets scale the paper's loop down (SPEC §4: one paper inner loop is ~20 minutes of
-        # surrogate predictions on 2 cores). A shorter inner loop fills a smaller surrogate archive,
-        # so blocks are smaller to keep a useful number of picks per outer iteration, and a smaller
-        # batch gives the surrogate enough Adam steps on the few samples it has early on.
-        "cpu": {
-            "budget": 2_000,
-            "n_rand": 100,
-            "maze.episodes": 50,
-            "surrogate.epochs": 10,
-            "surrogate.batch_size": 16,
-            "surrogate.train_window": 1_000,
-            "qd.exploit_iterations": 300,
-            "selection.block": (4, 3),
-            "selection.count": 100,
-            # 100 held-out evaluations outside the budget: +5% evaluations.
-            "surrogate.holdout_levels": 100,
-        },
-        "demo": {
-            "budget": 500,
-            "n_rand": 100,
-            "maze.episodes": 50,
-            "surrogate.epochs": 20,
-            "surrogate.batch_size": 16,
-            "surrogate.train_window": 1_000,
-            "qd.exploit_iterations": 100,
-            "selection.block": (4, 3),
-            "selection.count": 50,
-        },
-        "tiny": {
-            "budget": 150,
-            "n_rand": 50,
-            "maze.episodes": 5,
-            "surrogate.epochs": 5,
-            "surrogate.batch_size": 16,
-            "qd.exploit_iterations": 10,
-            "selection.block": (2, 2),
-            "selection.count": 20,
-        },
-    },
-    "mario": {
-        # The paper's Mario runs spend 10,000 evaluations (its Table 2: Basic never reaches the
-        # target within 10,000) and draw random latents from N(0, 0.2²).
-        "paper": {
-            "budget": 10_000,
-            "mario.latent_sigma": 0.2,
-            "n_rand": 100,
-            "qd.emitter": "cma_me",
-            "qd.num_emitters": 1,
-            "qd.batch_size": 30,
-            "selection.block": (5, 5),
-            "selection.count": 250,
-            "surrogate.train_window": 20_000,
-        },
-        # The Mario surrogate sees 64×64 inputs: one training step is ~16× a Maze step, so the
-        # CPU preset trains fewer epochs on a shorter window and uses both cores for it
-        # (torch_threads; its phases never overlap the simulators'). Runs cost nothing extra:
-        # the iteration-count A* timer makes all 5 runs one episode. Random latents at σ = 1, the
-        # shipped generator's training prior: at the paper's 0.2 it draws near-empty skies (30 levels
-        # reach 5 archive cells vs 26 at σ = 1; benchmarks/bench_latent_sigma.py).
-        "cpu": {
-            "budget": 500,
-            "n_rand": 100,
-            "mario.latent_sigma": 1.0,
-            "qd.emitter": "cma_me",
-            "qd.num_emitters": 1,
-            "surrogate.epochs": 10,
-            "surrogate.batch_size": 16,
-            "surrogate.train_window": 300,
-            "qd.exploit_iterations": 100,
-            "selection.block": (5, 5),
-            "selection.count": 100,
-            "torch_threads": 2,
-        },
-        "tiny": {
-            "budget": 12,
-            "n_rand": 6,
-            "qd.emitter": "cma_me",
-            "qd.num_emitters": 1,
-            "qd.batch_size": 4,
-            "mario.runs": 1,
-            "mario.timer": 5,
-            "mario.latent_sigma": 1.0,
-            "surrogate.epochs": 2,
-            "qd.exploit_iterations": 3,
-            "selection.block": (30, 20),
-            "selection.count": 6,
-        },
-    },
-}
-
-_COMMON_VARIANTS: dict[str, dict[str, Any]] = {
+#: The DSAGE variants of every domain (its registration adds its QD baselines, e.g. ``map_elites``).
+#: Paper variants as data: each is a set of keys, never a code branch.
+COMMON_VARIANTS: dict[str, dict[str, Any]] = {
     "dsage": {"surrogate.kind": "two_stage", "selection.method": "downsample"},
     "dsage_only_anc": {"surrogate.kind": "two_stage", "selection.method": "full"},
     "dsage_only_down": {"surrogate.kind": "one_stage", "selection.method": "downsample"},
@@ -420,26 +341,20 @@ _COMMON_VARIANTS: dict[str, dict[str, Any]] = {
     "dsage_novel": {"surrogate.kind": "two_stage", "selection.method": "downsample", "selection.skip_filled": True},
 }
 
-#: Paper variants as data: each is a set of keys, never a code branch.
-VARIANTS: dict[str, dict[str, dict[str, Any]]] = {
-    "maze": {
-        **_COMMON_VARIANTS,
-        "map_elites": {"surrogate.kind": "none", "qd.emitter": "map_elites", "qd.num_emitters": 5, "qd.batch_size": 30},
-        "dr": {"surrogate.kind": "none", "qd.emitter": "random", "qd.num_emitters": 5, "qd.batch_size": 30},
-    },
-    "mario": {
-        **_COMMON_VARIANTS,
-        "cma_me": {"surrogate.kind": "none", "qd.emitter": "cma_me", "qd.num_emitters": 5, "qd.batch_size": 30},
-        "dr": {"surrogate.kind": "none", "qd.emitter": "random", "qd.num_emitters": 5, "qd.batch_size": 30},
-    },
-}
+
+def presets(domain: str) -> dict[str, dict[str, Any]]:
+    """The presets of a registered domain (``paper``, ``tiny``, ...), each a dict of dotted keys."""
+    return {name: dict(keys) for name, keys in get_domain(domain).presets.items()}
 
 
-#: The paper's comparison per domain (its Table 2 rows; ``dsage_rsample`` is the appendix ablation).
-PAPER_COMPARISON: dict[str, tuple[str, ...]] = {
-    "maze": ("dsage", "dsage_only_anc", "dsage_only_down", "dsage_basic", "map_elites", "dr"),
-    "mario": ("dsage", "dsage_only_anc", "dsage_only_down", "dsage_basic", "cma_me", "dr"),
-}
+def variants(domain: str) -> dict[str, dict[str, Any]]:
+    """The variants of a registered domain: :data:`COMMON_VARIANTS` plus the domain's own."""
+    return {**COMMON_VARIANTS, **{name: dict(keys) for name, keys in get_domain(domain).variants.items()}}
+
+
+def paper_comparison(domain: str) -> tuple[str, ...]:
+    """The variants ``dsage-ray ablate`` compares by default (the paper's Table 2 rows for Maze and Mario)."""
+    return tuple(get_domain(domain).comparison)
 
 
 # ---------------------------------------------------------------------------------------- helpers
@@ -462,21 +377,37 @@ def _get(obj: Any, dotted: str) -> Any:
     return obj
 
 
-def _assign(config: Any, flat: Mapping[str, Any]) -> None:
+def _assign(config: "RunConfig", flat: Mapping[str, Any]) -> None:
     for dotted, value in flat.items():
         *parents, leaf = dotted.split(".")
-        target = config
+        target: Any = config
         for i, part in enumerate(parents):
-            if not dataclasses.is_dataclass(target) or part not in _field_types(type(target)):
-                sections = [name for name, kind in _field_types(type(target)).items()
-                            if dataclasses.is_dataclass(kind)] if dataclasses.is_dataclass(target) else []
-                raise ConfigError(f"{'.'.join(parents[:i + 1])}: unknown config section "
-                                  f"(known: {', '.join(sections) or 'none'}){did_you_mean(part, sections)}")
-            target = getattr(target, part)
-        hints = _field_types(type(target)) if dataclasses.is_dataclass(target) else {}
+            target = _subsection(target, part, where=".".join(parents[:i + 1]))
+        hints = _keys(target)
         if leaf not in hints or dataclasses.is_dataclass(hints[leaf]):
-            raise ConfigError(f"{dotted}: unknown config key ({key_hint(dotted, RunConfig().to_flat())})")
+            raise ConfigError(f"{dotted}: unknown config key ({key_hint(dotted, config.to_flat())})")
         setattr(target, leaf, _coerce(dotted, value, hints[leaf]))
+
+
+def _keys(section: Any) -> dict[str, Any]:
+    """The value keys and sub-sections of a config object (a run config's domains are sections too)."""
+    hints = dict(_field_types(type(section))) if dataclasses.is_dataclass(section) else {}
+    if isinstance(section, RunConfig):
+        del hints["sections"]
+    return hints
+
+
+def _subsection(target: Any, part: str, *, where: str) -> Any:
+    """The section ``part`` of ``target``; a registered domain's section is added to a run config on first use."""
+    hints = _keys(target)
+    if part in hints and dataclasses.is_dataclass(hints[part]):
+        return getattr(target, part)
+    domains = domain_names() if isinstance(target, RunConfig) else []
+    if part in domains:
+        return target.section(part)
+    sections = [*domains, *(name for name, kind in hints.items() if dataclasses.is_dataclass(kind))]
+    raise ConfigError(f"{where}: unknown config section "
+                      f"(known: {', '.join(sections) or 'none'}){did_you_mean(part, sections)}")
 
 
 def did_you_mean(name: Any, known: Any) -> str:
@@ -512,6 +443,7 @@ def _check_choices(config: Any, prefix: str = "") -> None:
             raise ConfigError(_not_a_choice(prefix + name, value, typing.get_args(annotation)))
 
 
+@functools.cache
 def _field_types(cls: type) -> dict[str, Any]:
     return typing.get_type_hints(cls)
 

@@ -7,6 +7,7 @@ everything a domain knows about agents and simulators stays behind those two nam
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 from typing import Any, Callable, Protocol, Sequence, runtime_checkable
 
 import numpy as np
@@ -54,9 +55,11 @@ class EvaluationResult:
 class Domain(Protocol):
     """A search space plus a way to evaluate one of its points for real.
 
-    Implementations are built from a picklable domain config (see :mod:`dsage_ray.config`) so that
-    every simulator process (a Ray actor, or the test process) can build its own copy and load
-    its agent once.
+    Implementations are built as ``Class(config=section)`` from the picklable config section their
+    registration names (:mod:`dsage_ray.domains.registry`), so that every simulator process (a Ray
+    actor, or the test process) can build its own copy and load its agent once. These are the
+    members the runner, the Ray pool and the run folder's pictures use; :class:`AuditableDomain`
+    adds what ``dsage-ray audit`` and ``dsage-ray compare`` use.
     """
 
     name: str
@@ -69,11 +72,17 @@ class Domain(Protocol):
     occupancy_shape: tuple[int, int]
     #: Channels of :meth:`encode`'s output.
     encoding_channels: int
+    #: The channel :meth:`encode` output is padded with when the surrogate pads a level to a square
+    #: power of two (a channel no real cell uses keeps padding apart from floor or wall).
+    encoding_pad_channel: int
     #: How archives store solutions (``int8`` for bitmaps keeps a 100k-elite archive small).
     solution_dtype: type
 
     def random_solutions(self, n: int, rng: np.random.Generator) -> Solutions:
         """Samples ``n`` solutions the way DR and the first outer iteration do."""
+
+    def random_valid_solutions(self, n: int, rng: np.random.Generator) -> Solutions:
+        """Samples ``n`` valid levels: the surrogate's held-out set (``surrogate.holdout_levels``)."""
 
     def encode(self, solutions: Solutions) -> EncodedLevels:
         """One-hot levels for the surrogate model."""
@@ -83,6 +92,62 @@ class Domain(Protocol):
 
     def render(self, solution: Solution, occupancy: np.ndarray | None) -> bytes:
         """A PNG of the level, with the occupancy overlaid when given."""
+
+
+@runtime_checkable
+class AuditableDomain(Domain, Protocol):
+    """A domain ``dsage-ray audit`` can search and collect levels of (its registration's ``audit`` says
+    which objectives, measures and agent by default).
+
+    Raising :class:`ValueError` (an :class:`~dsage_ray.errors.InputError`) from a hook ends the command
+    with its message in one line.
+    """
+
+    @classmethod
+    def audit_values(cls, *, agent: str, reference: str | None = None, objective: str | None = None,
+                     measures: Sequence[str] | None = None) -> dict[str, Any]:
+        """The dotted config keys of an audit of ``agent`` (against ``reference``, if the domain compares agents)."""
+
+    def preflight(self) -> None:
+        """Loads whatever a search needs (agents, simulators) now, so a bad one fails before any search."""
+
+    @property
+    def agent_spec(self) -> str:
+        """The audited agent's spec."""
+
+    @property
+    def reference_spec(self) -> str | None:
+        """The reference agent's spec of a regression audit, else None."""
+
+    @property
+    def episodes(self) -> int:
+        """Episodes (or runs) per evaluation."""
+
+    def is_valid(self, solution: Solution) -> bool:
+        """Whether a level is playable; invalid ones never reach a collection."""
+
+    def level_text(self, solution: Solution) -> str:
+        """The level file of a solution, as the domain's own ``eval`` command reads it."""
+
+    def read_level(self, path: str | Path) -> Solution:
+        """The solution a level file written by :meth:`level_text` holds (``dsage-ray compare`` re-runs them).
+
+        Raises:
+            ValueError: A file that is not such a level, or a domain whose level files cannot be read back.
+        """
+
+    def reproduce_command(self, level_file: str | Path, *, seed: int) -> str:
+        """The shell command that re-runs this evaluation of ``level_file``."""
+
+    def render_evaluation(self, solution: Solution, result: EvaluationResult, *, title: str | None = None,
+                          occupancy_max: float | None = None) -> bytes:
+        """A PNG of the level with what ``result`` recorded of the agent (occupancy, path)."""
+
+    def collection_fields(self) -> dict[str, Any]:
+        """The domain's settings at the top level of a collection."""
+
+    def entry_fields(self, solution: Solution, result: EvaluationResult, *, level_file: str) -> dict[str, Any]:
+        """The domain's own numbers of one collection entry."""
 
 
 #: Evaluates a batch of solutions, one seed each, returning results in submission order.

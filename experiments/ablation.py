@@ -23,22 +23,28 @@ import sys
 import time
 from pathlib import Path
 
-# Both grids in one place: what the paper compares on each domain, and a small grid for smoke runs.
-TINY_VARIANTS = {"maze": ["dsage", "map_elites", "dr"], "mario": ["dsage", "cma_me", "dr"]}
 
 # Ray keys for the tiny preset: 1 CPU per trial (half for the trial, half for one simulator), so
 # two trials run side by side on a 2-core machine.
 TINY_RAY = {"ray.num_workers": 1, "ray.cpus_per_worker": 0.5, "ray.trial_cpus": 0.5}
 
 
+def tiny_variants(domain: str) -> list[str]:
+    """The smoke grid: DSAGE and the domain's own baselines from the paper's comparison, no DSAGE ablations."""
+    from dsage_ray.config import COMMON_VARIANTS, paper_comparison
+
+    return [v for v in paper_comparison(domain) if v == "dsage" or v not in COMMON_VARIANTS]
+
+
 def parse_args() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--domain", default="maze", choices=["maze", "mario"])
+    parser.add_argument("--domain", default="maze", help="a registered domain (maze, mario, a plug-in's)")
     parser.add_argument("--preset", default="tiny", choices=["tiny", "demo", "cpu", "paper"])
     parser.add_argument("--grid", action="append", default=[], metavar="KEY=V1,V2",
                         help="a grid axis over any config key, values read like --set values "
                              "(e.g. --grid surrogate.epochs=10,50 or --grid seed=0,1,2)")
-    parser.add_argument("--variants", help="comma-separated (default: the paper's, 3 for --preset tiny; "
+    parser.add_argument("--variants", help="comma-separated (default: the paper's; for --preset tiny dsage and "
+                                           "the domain's baselines; "
                                            "the --domain's dsage when --grid names other keys)")
     parser.add_argument("--seeds", type=int, default=None, help="seeds 0..K-1 (default: 2 for tiny, 5 otherwise)")
     parser.add_argument("--api", default="tuner", choices=["tuner", "run"], help="tune.Tuner or tune.run")
@@ -57,7 +63,7 @@ def parse_args() -> argparse.Namespace:
 def main() -> int:
     args = parse_args()
     os.environ.setdefault("RAY_AUTH_MODE", "disabled")
-    from dsage_ray.config import PAPER_COMPARISON, RunConfig, parse_override
+    from dsage_ray.config import RunConfig, paper_comparison, parse_override
     from dsage_ray.config import ConfigError
     from dsage_ray.ray.experiment import (ExperimentInterrupted, ablation_axes, check_resources, connect,
                                           grid_configs, grid_param_space, run_experiment)
@@ -74,7 +80,7 @@ def main() -> int:
         base = RunConfig.build(values)
         axes = ablation_axes(
             base, args.grid, variants=args.variants.split(",") if args.variants else None, seeds=args.seeds,
-            default_variants=(TINY_VARIANTS if args.preset == "tiny" else PAPER_COMPARISON)[args.domain],
+            default_variants=tiny_variants(base.domain) if args.preset == "tiny" else paper_comparison(base.domain),
             default_seeds=2 if args.preset == "tiny" else 5)
         param_space = grid_param_space(base, axes)
     except ConfigError as exc:

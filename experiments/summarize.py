@@ -33,7 +33,7 @@ from ray import tune
 from dsage_ray.config import ConfigError, RunConfig
 from dsage_ray.core.metrics import evals_to_reach
 
-#: The variant whose mean final QD-score is the paper's Table 2 target, per domain.
+#: The variant whose mean final QD-score is the paper's Table 2 target, per domain (other domains: --target).
 TARGET_VARIANT = {"maze": "map_elites", "mario": "dsage_basic"}
 
 
@@ -139,7 +139,9 @@ def default_target(trials: list[dict]) -> tuple[float, str]:
     domains = sorted({t["domain"] for t in trials})
     if len(domains) != 1:
         raise ValueError(f"trials of several domains ({', '.join(domains)}): pass --target")
-    variant = TARGET_VARIANT[domains[0]]
+    variant = TARGET_VARIANT.get(domains[0])
+    if variant is None:
+        raise ValueError(f"the paper sets no target for domain {domains[0]!r}: pass --target")
     runs = by_variant(trials).get(variant)
     if not runs:
         raise ValueError(f"no {variant} runs to set the default target (the paper's, for {domains[0]}): pass --target")

@@ -6,8 +6,9 @@ import typing
 
 import pytest
 
-from dsage_ray.config import (PRESETS, VARIANTS, ConfigError, EmitterName, MazeObjective, RunConfig,
-                              SelectionMethod)
+from dsage_ray.config import ConfigError, EmitterName, RunConfig, SelectionMethod, presets, variants
+from dsage_ray.domains import domain_names
+from dsage_ray.domains.maze.plugin import MazeObjective
 
 
 @pytest.mark.parametrize("names, table", [
@@ -33,8 +34,11 @@ def test_each_config_name_set_is_its_tables_keys(names, table):
     ({"surrogate.kind": "twostage"}, "surrogate.kind: must be 'two_stage', 'one_stage' or 'none' (got 'twostage'; "
                                      "did you mean 'two_stage'?)"),
     ({"surrogate.epoch": 5}, "surrogate.epoch: unknown config key (did you mean surrogate.epochs"),
-    ({"surrogat.epochs": 5}, "surrogat: unknown config section (known: maze, mario, surrogate, qd, selection, ray); "
+    ({"surrogat.epochs": 5}, "surrogat: unknown config section (known: mario, maze, surrogate, qd, selection, ray); "
                              "did you mean 'surrogate'?"),
+    ({"marioo.runs": 1}, "marioo: unknown config section (known: mario, maze, "),
+    ({"domain": "mazes"}, "domain: unknown domain 'mazes' (known: mario, maze"),
+    ({"domain": "mazes"}, "; did you mean 'maze'?"),
     ({"variant": "dsage_basc"}, "; did you mean 'dsage_basic'?"),
     ({"preset": "tiney"}, "; did you mean 'tiny'?"),
 ])
@@ -58,9 +62,9 @@ def test_validate_checks_names_set_as_attributes():
 
 
 def test_every_preset_and_variant_is_valid():
-    for domain, presets in PRESETS.items():
-        for preset in presets:
-            for variant in VARIANTS[domain]:
+    for domain in ("maze", "mario"):
+        for preset in presets(domain):
+            for variant in variants(domain):
                 config = RunConfig.build({"domain": domain, "preset": preset, "variant": variant})
                 assert (config.domain, config.preset, config.variant) == (domain, preset, variant)
 
@@ -73,3 +77,34 @@ def test_runtime_lookups_use_the_same_tables():
 
     with pytest.raises(ConfigError, match="unknown method 'ful' .*did you mean 'full'"):
         select_solutions(None, method="ful", block=(1,), count=1, rng=np.random.default_rng(0))
+
+
+def test_a_config_holds_its_own_domain_section_and_round_trips():
+    """Only the run's domain has a section (another's appears when one of its keys is given)."""
+    mario = RunConfig.build({"domain": "mario", "preset": "tiny"})
+    assert set(mario.sections) == {"mario"} and not any(key.startswith("maze.") for key in mario.to_flat())
+    assert mario.domain_config is mario.mario and mario.mario.runs == 1
+    with pytest.raises(AttributeError, match="no 'maze' section in this 'mario' config"):
+        mario.maze
+    both = RunConfig.build({"maze.episodes": 3, "mario.runs": 2})
+    assert (both.maze.episodes, both.mario.runs, list(both.sections)) == (3, 2, ["maze", "mario"])
+    flat = both.to_flat()
+    assert flat["maze.episodes"] == 3 and RunConfig.build(flat) == both
+    # Domain sections sit where Maze and Mario did: after the scalars, before the core sections.
+    assert list(both.to_dict())[-6:] == ["maze", "mario", "surrogate", "qd", "selection", "ray"]
+
+
+def test_a_domain_section_round_trips_through_toml_and_json(tmp_path):
+    import json
+
+    config = RunConfig.build({"domain": "maze", "preset": "tiny", "maze.archive_dims": [8, 4]})
+    (tmp_path / "c.json").write_text(json.dumps(config.to_dict()))
+    toml = "\n".join(f"{key} = {json.dumps(value)}" for key, value in config.to_flat().items()
+                     if not isinstance(value, list) or all(not isinstance(v, list) for v in value))
+    (tmp_path / "c.toml").write_text(toml)
+    assert RunConfig.from_file(tmp_path / "c.json") == config
+    assert RunConfig.from_file(tmp_path / "c.toml").maze.archive_dims == (8, 4)
+
+
+def test_the_built_in_domains_are_registered_entry_points():
+    assert {"maze", "mario"} <= set(domain_names())

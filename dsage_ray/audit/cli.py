@@ -18,7 +18,7 @@ def add_subparser(subparsers) -> None:
         description="Runs DSAGE with a failure-eliciting objective on valid levels (through Ray Tune unless "
                     "--local), then re-evaluates every elite with a recorded seed and writes collection.json, "
                     "level files, PNGs, the heatmap and report.html.")
-    audit.add_argument("--domain", default="maze", help="maze (default) or mario")
+    audit.add_argument("--domain", default="maze", help="maze (default), mario, or a plug-in domain that declares audits")
     audit.add_argument("--agent", metavar="SPEC",
                        help="agent spec. maze (default rllib:ppo_maze): rllib:PATH, dcd:PATH, builtin:..., "
                             "torchscript:PATH; mario (default astar): astar or astar:ITERATIONS")
@@ -67,13 +67,11 @@ def run_audit_command(args: argparse.Namespace) -> int:
 
     Errors end the command through :func:`dsage_ray.cli.main` (one line, the exit code of their kind).
     """
-    from dsage_ray.audit.collection import agent_slug, audit_config, load_collection
+    from dsage_ray.audit.collection import agent_slug, audit_config, audit_spec, load_collection
     from dsage_ray.audit.run import run_audit
     from dsage_ray.config import parse_override
-    from dsage_ray.domains import DOMAINS, domain_class
 
-    if args.domain not in DOMAINS:
-        raise InputError(f"unknown --domain {args.domain!r} (known: {', '.join(DOMAINS)})")
+    spec = audit_spec(args.domain)
     if args.collect_only and not args.out:
         raise InputError("--collect-only needs the --out of the search to collect from")
     for flag, value in (("--episodes", args.episodes), ("--max-levels", args.max_levels), ("--budget", args.budget)):
@@ -85,7 +83,7 @@ def run_audit_command(args: argparse.Namespace) -> int:
     config = audit_config(domain=args.domain, agent=args.agent, reference=args.reference, preset=args.preset,
                           objective=args.objective, measures=measures, budget=args.budget, seed=args.seed,
                           overrides=dict(parse_override(item) for item in args.overrides))
-    agent = args.agent or domain_class(args.domain).DEFAULT_AUDIT_AGENT
+    agent = args.agent or spec.audit.default_agent
     out = (Path(args.out) if args.out
            else Path("tb_logs") / f"audit-{agent_slug(agent)}-{time.strftime('%Y%m%d-%H%M%S')}")
     collection = run_audit(config, out_dir=out, local=args.local, workers=args.workers, address=args.address,

@@ -2,10 +2,11 @@
 
 An audit is an ordinary DSAGE run (the runner, the Ray layer, the domain: nothing re-implemented) whose
 objective rewards the agent doing badly on a valid level and whose measures describe the level. The
-domain decides what "badly" means (its ``AUDIT_OBJECTIVES``: Maze ``failure_rate``, ``regret`` or
-``regression`` against a reference agent; Mario ``incompletion``) and supplies the few hooks the
-collection needs (``is_valid``, ``level_text``, ``render_evaluation``, ``reproduce_command``,
-``entry_fields``, ``collection_fields``); everything else here is domain-generic.
+domain decides what "badly" means (the ``audit`` objectives of its registration: Maze ``failure_rate``,
+``regret`` or ``regression`` against a reference agent; Mario ``incompletion``) and supplies the few hooks
+the collection needs (:class:`~dsage_ray.types.AuditableDomain`: ``is_valid``, ``level_text``,
+``render_evaluation``, ``reproduce_command``, ``entry_fields``, ``collection_fields``); everything else
+here is domain-generic.
 
 **Seeds and reproducibility.** The search archive keeps each elite's solution and the numbers of the
 evaluation that placed it, but not that evaluation's seed (the runner derives it from the run seed and the
@@ -38,7 +39,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from dsage_ray.config import RunConfig
-from dsage_ray.domains import build_domain, domain_class
+from dsage_ray.domains import build_domain, domain_names, get_domain
+from dsage_ray.errors import InputError
 from dsage_ray.io import atomic_write_json, replace_dir, staging_dir
 from dsage_ray.types import EvaluationResult, Evaluator, Solutions
 
@@ -73,14 +75,14 @@ def audit_config(
     """The run config of an audit: DSAGE on ``domain`` with one of the domain's failure-eliciting objectives.
 
     Args:
-        domain: ``maze`` or ``mario``.
-        agent: The agent spec to audit (default: the domain's ``DEFAULT_AUDIT_AGENT``).
+        domain: A registered domain with an ``audit`` declaration (``maze``, ``mario``).
+        agent: The agent spec to audit (default: the registration's ``audit.default_agent``).
         reference: Maze only: a reference agent spec; the audit then searches for levels where ``agent``
             does worse than it (objective ``regression``).
         preset: The domain's preset (``cpu``, ``tiny``, ...).
-        objective: One of the domain's ``AUDIT_OBJECTIVES`` (default: its first, or ``regression`` with a
+        objective: One of the registration's ``audit.objectives`` (default: its first, or ``regression`` with a
             reference).
-        measures: Measure names (default: the domain's ``AUDIT_MEASURES``).
+        measures: Measure names (default: the registration's ``audit.measures``).
         budget: Real evaluations (default: the preset's).
         seed: Run seed; also seeds the collection's re-evaluations.
         name: Run name, the Tune experiment folder (default ``audit_<agent>``).
@@ -89,8 +91,9 @@ def audit_config(
     Raises:
         ValueError: An unknown domain, or an agent, objective or measure the domain cannot audit with.
     """
-    cls = domain_class(domain)
-    agent = agent or cls.DEFAULT_AUDIT_AGENT
+    spec = audit_spec(domain)
+    cls = spec.domain_class()
+    agent = agent or spec.audit.default_agent
     values: dict[str, Any] = {"name": name or f"audit_{agent_slug(agent)}", "domain": domain, "variant": "dsage",
                               "preset": preset, "seed": seed}
     values.update(cls.audit_values(agent=agent, reference=reference, objective=objective, measures=measures))
@@ -102,6 +105,29 @@ def audit_config(
         values["budget"] = budget
     values.update(overrides or {})
     return RunConfig.build(values)
+
+
+def audit_spec(domain: str):
+    """The registration of ``domain``, checked to declare audits (:class:`~dsage_ray.domains.AuditSpec`).
+
+    Raises:
+        InputError: An unknown domain, or one without an ``audit`` declaration.
+    """
+    spec = get_domain(domain)
+    if spec.audit is None:
+        raise InputError(f"domain {domain!r} declares no audit (auditable: {', '.join(_auditable_names()) or 'none'})")
+    return spec
+
+
+def _auditable_names() -> list[str]:
+    names = []
+    for name in domain_names():
+        try:
+            if get_domain(name).audit is not None:
+                names.append(name)
+        except InputError:  # a plug-in that does not load is not listed
+            continue
+    return names
 
 
 def level_seed(run_seed: int, rank: int) -> int:
@@ -299,14 +325,13 @@ def load_collection(path: str | Path) -> dict[str, Any]:
 
 
 def _upgrade_v1(collection: dict[str, Any], *, folder: Path) -> None:
-    from dsage_ray.config import MazeConfig
-    from dsage_ray.domains.maze.domain import MazeDomain
-
+    # v1 predates other domains: its collections are Maze's by definition.
     collection.setdefault("domain", "maze")
     collection.setdefault("reference", None)
     # The agent's evaluation as v1 recorded it, for its reproduce commands.
-    domain = MazeDomain(config=MazeConfig(agent=collection["agent"], episodes=collection["episodes"],
-                                          see_through_walls=collection.get("see_through_walls", True)))
+    domain = build_domain(RunConfig.build({
+        "domain": "maze", "maze.agent": collection["agent"], "maze.episodes": collection["episodes"],
+        "maze.see_through_walls": collection.get("see_through_walls", True)}))
     for level in collection["levels"]:
         level.setdefault("level_file", level["layout_file"])
         level.setdefault("reproduce", domain.reproduce_command(folder / level["layout_file"], seed=level["seed"]))

@@ -1,7 +1,7 @@
 """Two agents on one saved collection, same levels, same seeds: where is B worse than A, and where better?
 
-The comparison is the Maze domain's ``regression`` evaluation with B audited and A as the reference: each
-level is re-run from its layout file with its recorded seed and episode count for both agents, so the two
+The comparison is the domain's ``regression`` audit evaluation (Maze's: a domain whose registration lists a
+``regression`` audit objective) with B audited and A as the reference: each level is re-run from its level file with its recorded seed and episode count for both agents, so the two
 evaluations share the initial headings (drawn first from the seed) and differ only in the policy. It runs
 in this process or on the Ray simulator pool (``workers``), whose replaced actors lose no level.
 """
@@ -24,16 +24,25 @@ PICTURED = 8
 
 def comparison_config(collection: dict[str, Any], agent_a: str, agent_b: str, *, episodes: int | None = None,
                       workers: int | None = None) -> RunConfig:
-    """The collection's run config turned into B's regression evaluation against A (Maze collections only)."""
-    if collection["domain"] != "maze":
-        raise ValueError(f"compare needs a maze collection (this one is {collection['domain']!r}: one agent only)")
+    """The collection's run config turned into B's regression evaluation against A (domains that compare agents).
+
+    Raises:
+        ValueError: The collection's domain has no ``regression`` audit objective, or mixed episode counts.
+    """
+    from dsage_ray.audit.collection import audit_spec
+
+    spec = audit_spec(collection["domain"])
+    if "regression" not in spec.audit.objectives:
+        raise ValueError(f"compare needs a collection of a domain that compares agents (a 'regression' audit "
+                         f"objective); this one is {collection['domain']!r}: one agent only")
     recorded = {int(level["episodes"]) for level in collection["levels"]} or {int(collection["episodes"])}
     if episodes is None and len(recorded) > 1:
         raise ValueError(f"the collection's levels were evaluated with different episode counts {sorted(recorded)}; "
                          f"pass --episodes")
     values = flatten(collection["config"])
-    values.update({"maze.agent": agent_b, "maze.reference": agent_a, "maze.objective": "regression",
-                   "maze.episodes": int(episodes or recorded.pop())})
+    values.update(spec.domain_class().audit_values(agent=agent_b, reference=agent_a, objective="regression",
+                                                   measures=collection["measures"]))
+    values[spec.audit.episodes_key] = int(episodes or recorded.pop())
     if workers is not None:
         values["ray.num_workers"] = workers
     return RunConfig.build(values)
@@ -71,7 +80,6 @@ def compare_agents(
     """
     from dsage_ray.core.evaluation import InProcessEvaluator
     from dsage_ray.domains import build_domain
-    from dsage_ray.domains.maze.layout import load_layout
 
     collection_dir = Path(collection_dir)
     collection = load_collection(collection_dir)
@@ -81,13 +89,7 @@ def compare_agents(
     entries = collection["levels"]
     solutions = np.zeros((len(entries), domain.solution_dim), dtype=domain.solution_dtype)
     for i, entry in enumerate(entries):
-        level = load_layout(collection_dir / entry["level_file"])
-        solutions[i] = level.walls.ravel()
-        # The domain places start and goal on the furthest pair; a layout that moved them would be
-        # evaluated on another level than the file shows.
-        if (domain.level(solutions[i]).start, domain.level(solutions[i]).goal) != (level.start, level.goal):
-            raise ValueError(f"{collection_dir / entry['level_file']}: start/goal are not the level's furthest pair "
-                             f"(edited by hand?); compare evaluates collection levels as the audit wrote them")
+        solutions[i] = domain.read_level(collection_dir / entry["level_file"])
     seeds = [int(entry["seed"]) for entry in entries]
 
     pool = None

@@ -5,8 +5,8 @@ filter, "never solved" and per-measure range filters), base64-embedded heatmaps 
 The full table links to the collection's own level files and pictures by relative path, which keeps the page
 small for a thousand levels and working wherever the collection folder is moved.
 
-Reads both collection formats: v1 (Maze only, no ``reference``, no per-level ``reproduce``; the Maze eval
-command is rebuilt from the agent, layout file, episodes and seed) and v2 (``COLLECTION_SCHEMA``).
+Reads both collection formats through :func:`~dsage_ray.audit.collection.load_collection`, which gives a v1
+collection (Maze only) the v2 keys (``domain``, ``reference``, each level's ``reproduce``): only v2 here.
 """
 
 from __future__ import annotations
@@ -242,17 +242,6 @@ def region_statistics(levels: Sequence[dict[str, Any]], measures: Sequence[str],
     return regions
 
 
-def reproduce_command(collection: dict[str, Any], entry: dict[str, Any], *, collection_dir: str | Path) -> str:
-    """The shell command that prints ``entry``'s numbers again: its own ``reproduce`` (v2), else the Maze eval
-    command rebuilt from the v1 collection's agent, layout file, episodes and seed."""
-    if entry.get("reproduce"):
-        return entry["reproduce"]
-    layout = Path(collection_dir) / entry.get("level_file", entry.get("layout_file", ""))
-    command = (f"dsage-ray maze eval --agent {shlex.quote(collection['agent'])} --layout {shlex.quote(str(layout))} "
-               f"--episodes {int(entry['episodes'])} --seed {int(entry['seed'])}")
-    return command if collection.get("see_through_walls", True) else command + " --no-see-through-walls"
-
-
 def _reference_command(collection: dict[str, Any], entry: dict[str, Any], command: str) -> str | None:
     """The reference agent's command for ``entry``: recorded, or the agent's with the agent spec swapped."""
     reference = entry.get("reference") or {}
@@ -349,7 +338,7 @@ def _metadata(c: dict[str, Any]) -> str:
     ranges = ", ".join(f"{m} [{lo:g}, {hi:g}] in {d} cells"
                        for m, (lo, hi), d in zip(c["measures"], c["measure_ranges"], c["archive_dims"]))
     items = [
-        ("domain", c.get("domain", "maze")),
+        ("domain", _esc(c["domain"])),
         ("agent", f"<code>{_esc(c['agent'])}</code>"),
         ("reference", f"<code>{_esc(c['reference'])}</code>" if c.get("reference") else "none"),
         ("objective", _esc(c["objective"])),
@@ -422,7 +411,7 @@ def _card(c: dict[str, Any], lv: dict[str, Any], collection_dir: Path, numbers: 
                     f"<small>(success {lv['success_rate']:.2f} vs {reference['success_rate']:.2f})</small>")
     else:
         headline = f"#{lv['id']}: {_esc(c['objective'])} {lv['objective']:.3f}"
-    command = reproduce_command(c, lv, collection_dir=collection_dir)
+    command = lv["reproduce"]
     parts = [f"<div class='card'><h3>{headline}</h3><div class='pics'>{figures}</div>",
              f"<table>{head}{body}</table>", f"<div>seed {lv['seed']}, {lv['episodes']} episodes:</div>",
              _command(command)]
@@ -454,7 +443,7 @@ def _levels_table(c: dict[str, Any], collection_dir: Path, numbers: list[str]) -
         cells = [f(get(lv)) for (_, get), f in zip(columns, formats)]
         cells.insert(1, f"<a href='{_esc(level_file)}'>level</a> <a href='{_esc(lv['image_file'])}'>picture</a> "
                         "<button class='copy' type='button' title='copy the reproduce command'>copy</button>")
-        cells.append(f"<code class='cmd'>{_esc(reproduce_command(c, lv, collection_dir=collection_dir))}</code>")
+        cells.append(f"<code class='cmd'>{_esc(lv['reproduce'])}</code>")
         rows.append(cells)
         regression = f" data-r='{lv['regression']}'" if "regression" in lv else ""
         attrs.append(f"data-s='{lv['success_rate']}' data-m='{' '.join(str(lv['measures'][m]) for m in measures)}'"

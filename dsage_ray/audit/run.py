@@ -6,7 +6,7 @@ from pathlib import Path
 
 from dsage_ray.audit.collection import build_collection
 from dsage_ray.config import RunConfig
-from dsage_ray.domains import build_domain, domain_class
+from dsage_ray.domains import build_domain, get_domain
 
 #: Sub-folders of an audit folder.
 SEARCH_DIR, COLLECTION_DIR = "search", "collection"
@@ -69,7 +69,7 @@ def run_audit(
     if workers is not None:
         config = config.replace(**{"ray.num_workers": workers})
     collection_config = (config if episodes is None
-                         else config.replace(**{domain_class(config.domain).EPISODES_KEY: int(episodes)}))
+                         else config.replace(**{get_domain(config.domain).audit.episodes_key: int(episodes)}))
     build_domain(config).preflight()
     if local:
         from dsage_ray.core.loop import run_locally

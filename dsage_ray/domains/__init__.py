@@ -1,31 +1,33 @@
-"""Domains: a search space, an agent simulator and the measures of the agent's behaviour."""
+"""Domains: a search space, an agent simulator and the measures of the agent's behaviour.
+
+Every domain, Maze and Mario included, is a plug-in found through :mod:`.registry` (the
+``dsage_ray.domains`` entry-point group); nothing here imports a domain until one is built.
+"""
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from dsage_ray.domains.registry import (ENTRY_POINT_GROUP, AuditSpec, DomainSpec, domain_names, get_domain,
+                                        register_domain, unregister_domain)
+
 if TYPE_CHECKING:
     from dsage_ray.config import RunConfig
     from dsage_ray.types import Domain
 
-
-#: The domains a config may name.
-DOMAINS = ("maze", "mario")
+__all__ = ["ENTRY_POINT_GROUP", "AuditSpec", "DomainSpec", "build_domain", "domain_class", "domain_names",
+           "get_domain", "register_domain", "unregister_domain"]
 
 
 def domain_class(name: str) -> type:
-    """The domain class called ``name``; imported lazily so Maze users never need Java."""
-    if name == "maze":
-        from dsage_ray.domains.maze.domain import MazeDomain
+    """The domain class registered as ``name`` (imported now, not before).
 
-        return MazeDomain
-    if name == "mario":
-        from dsage_ray.domains.mario.domain import MarioDomain
-
-        return MarioDomain
-    raise ValueError(f"domain: unknown domain {name!r} (known: {', '.join(DOMAINS)})")
+    Raises:
+        InputError: No such domain; the message lists the registered ones.
+    """
+    return get_domain(name).domain_class()
 
 
 def build_domain(config: "RunConfig") -> "Domain":
-    """Builds the domain a run config names."""
+    """Builds the domain a run config names from its section."""
     return domain_class(config.domain)(config=config.domain_config)

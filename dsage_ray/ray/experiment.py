@@ -25,7 +25,7 @@ import ray
 from ray import tune
 from ray.air.constants import EXPR_ERROR_FILE
 
-from dsage_ray.config import PAPER_COMPARISON, ConfigError, RunConfig, key_hint, parse_override
+from dsage_ray.config import ConfigError, RunConfig, key_hint, paper_comparison, parse_override
 from dsage_ray.domains import build_domain
 from dsage_ray.errors import Interrupted, TrialFailed
 from dsage_ray.ray.pool import DomainFactory, check_cluster_fits
@@ -136,7 +136,7 @@ def ablation_axes(
         elif set(axes) - {"seed"}:
             axes["variant"] = [base.variant]
         else:
-            axes["variant"] = list(default_variants if default_variants is not None else PAPER_COMPARISON[base.domain])
+            axes["variant"] = list(default_variants if default_variants is not None else paper_comparison(base.domain))
     if "seed" not in axes:
         seeds = default_seeds if seeds is None else seeds
         axes["seed"] = list(range(seeds)) if isinstance(seeds, int) else list(seeds)
@@ -155,7 +155,7 @@ def grid_configs(base: RunConfig, axes: Mapping[str, Sequence[Any]]) -> tuple[di
         ConfigError: An axis names an unknown key (with the closest keys) or a key that cannot be
             an axis, or a grid point's config is invalid (naming the point and the key).
     """
-    known = RunConfig().to_flat()
+    known = base.to_flat()  # its own domain's section included
     for key, values in axes.items():
         if key in _NOT_AXES:
             raise ConfigError(f"--grid {key}: cannot be a grid axis: {_NOT_AXES[key]}")

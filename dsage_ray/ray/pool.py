@@ -33,7 +33,7 @@ import ray
 from ray.exceptions import RayActorError
 
 from dsage_ray.config import RunConfig
-from dsage_ray.domains import build_domain
+from dsage_ray.domains import build_domain, get_domain
 from dsage_ray.errors import ResourceError
 from dsage_ray.types import Domain, EvaluationResult, Solutions
 
@@ -164,13 +164,9 @@ class SimulatorPool:
 
     def _new_actor(self):
         env = {name: str(self._threads) for name in _THREAD_ENV_VARS}
-        if self.config.domain == "mario":
-            from dsage_ray.domains.mario.simulator import signal_chaining_library
-
-            chaining = signal_chaining_library()
-            if chaining:
-                # Ray workers enable faulthandler; the JVM needs signal chaining next to it.
-                env["LD_PRELOAD"] = chaining
+        actor_env = get_domain(self.config.domain).actor_env
+        if actor_env is not None:
+            env.update(actor_env())  # e.g. Mario's JVM: signal chaining beside Ray's faulthandler
         return SimulatorActor.options(
             num_cpus=self.cpus_per_worker,
             runtime_env={"env_vars": env},

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 
 import pytest
@@ -23,8 +24,21 @@ def audit_error(argv: list[str]) -> str:
 
 def test_unknown_domain(tmp_path):
     message = audit_error(["--domain", "zelda", "--out", str(tmp_path / "a")])
-    assert "unknown --domain 'zelda' (known: maze, mario)" in message
+    assert "unknown domain 'zelda' (known: mario, maze" in message
+    assert audit_error(["--domain", "mazee", "--out", str(tmp_path / "a")]).endswith("; did you mean 'maze'?")
     assert not (tmp_path / "a").exists()
+
+
+def test_a_domain_without_an_audit_declaration(tmp_path):
+    from dsage_ray.domains import register_domain, unregister_domain
+    from dsage_ray.domains.maze.plugin import DOMAIN
+
+    register_domain(dataclasses.replace(DOMAIN, name="maze_no_audit", audit=None, cli=None))
+    try:
+        message = audit_error(["--domain", "maze_no_audit", "--out", str(tmp_path / "a")])
+    finally:
+        unregister_domain("maze_no_audit")
+    assert "domain 'maze_no_audit' declares no audit (auditable: mario, maze" in message
 
 
 def test_reference_that_fails_to_load(tmp_path):

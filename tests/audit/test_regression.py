@@ -10,12 +10,13 @@ import pytest
 
 from dsage_ray.audit.collection import audit_config, load_collection
 from dsage_ray.cli import main
-from dsage_ray.config import ConfigError, MazeConfig, RunConfig
+from dsage_ray.config import ConfigError, RunConfig
 from dsage_ray.domains.maze.domain import MazeDomain
 from dsage_ray.domains.maze.evaluate import evaluate
 from dsage_ray.domains.maze.layout import parse_layout
 from dsage_ray.domains.maze.level import MazeLevel
 from dsage_ray.domains.maze.measures import OBJECTIVES, regression_score
+from dsage_ray.domains.maze.plugin import MazeConfig
 
 NEW, OLD = "builtin:wall_follower", "builtin:random"
 

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from dsage_ray.config import MazeConfig, RunConfig
+from dsage_ray.config import RunConfig
 from dsage_ray.core.runner import DSAGE
+from dsage_ray.domains.maze.plugin import MazeConfig
 from tests.core.test_runner import archive_snapshot, make_runner
 from tests.fakes import SMALL_RUN, BitmapDomain
 

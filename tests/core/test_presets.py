@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from dsage_ray.config import PAPER_COMPARISON, VARIANTS, MarioConfig, RunConfig
+from dsage_ray.config import RunConfig, paper_comparison, variants
+from dsage_ray.domains.mario.plugin import MarioConfig
 
 
 def test_paper_budgets():
@@ -34,8 +35,8 @@ def test_novel_variant_exists_beside_the_paper_comparison(domain):
     config = RunConfig.build({"domain": domain, "variant": "dsage_novel"})
     assert config.selection.skip_filled and config.surrogate.kind == "two_stage"
     assert config.selection.method == "downsample"
-    assert "dsage_novel" not in PAPER_COMPARISON[domain]
-    assert not any(v.get("selection.skip_filled") for name, v in VARIANTS[domain].items() if name != "dsage_novel")
+    assert "dsage_novel" not in paper_comparison(domain)
+    assert not any(v.get("selection.skip_filled") for name, v in variants(domain).items() if name != "dsage_novel")
 
 
 def test_held_out_levels_are_on_in_the_maze_cpu_preset_only():

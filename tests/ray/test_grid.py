@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 
 from dsage_ray.cli import main
-from dsage_ray.config import PAPER_COMPARISON, ConfigError, RunConfig
+from dsage_ray.config import ConfigError, RunConfig, paper_comparison
 from dsage_ray.ray import cli as ray_cli
 from dsage_ray.ray.experiment import ablation_axes, grid_configs, grid_param_space, parse_grid
 
@@ -37,11 +37,11 @@ def test_malformed_grids_are_one_error(text, message):
 
 def test_axes_default_to_the_paper_grid_and_to_the_configs_variant_when_other_keys_vary():
     base = RunConfig.build(domain="maze", preset="tiny", variant="dsage_basic")
-    assert ablation_axes(base) == {"variant": list(PAPER_COMPARISON["maze"]), "seed": [0, 1, 2, 3, 4]}
+    assert ablation_axes(base) == {"variant": list(paper_comparison("maze")), "seed": [0, 1, 2, 3, 4]}
     assert ablation_axes(base, ["surrogate.epochs=1,2"], seeds=2) == {
         "surrogate.epochs": [1, 2], "variant": ["dsage_basic"], "seed": [0, 1]}
     # A seed axis alone keeps the paper's variants; seeds as a list or through --grid.
-    assert ablation_axes(base, ["seed=3,4"])["variant"] == list(PAPER_COMPARISON["maze"])
+    assert ablation_axes(base, ["seed=3,4"])["variant"] == list(paper_comparison("maze"))
     assert ablation_axes(base, variants=["dr"], seeds=[7]) == {"variant": ["dr"], "seed": [7]}
     assert ablation_axes(base, ["variant=dsage,dr"], default_variants=["map_elites"])["variant"] == ["dsage", "dr"]
     with pytest.raises(ConfigError, match="--seeds and --grid seed=... both set the seeds"):

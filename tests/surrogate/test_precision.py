@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 import torch
 
-from dsage_ray.config import MazeConfig, SurrogateConfig
+from dsage_ray.config import SurrogateConfig
 from dsage_ray.domains.maze.domain import MazeDomain
 from dsage_ray.domains.maze.generator import random_valid_levels
+from dsage_ray.domains.maze.plugin import MazeConfig
 from dsage_ray.qd.archives import make_archive
 from dsage_ray.surrogate import Surrogate
 from dsage_ray.surrogate import surrogate as surrogate_module

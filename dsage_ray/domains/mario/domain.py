@@ -8,9 +8,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dsage_ray.config import MarioConfig
 from dsage_ray.domains.mario.encoding import PADDED_SIZE, one_hot_levels
 from dsage_ray.domains.mario.evaluate import MEASURES, MarioEvaluation, evaluate_level
+from dsage_ray.domains.mario.plugin import DOMAIN, MarioConfig
 from dsage_ray.domains.mario.render import level_png
 from dsage_ray.domains.mario.tiles import LEVEL_HEIGHT, LEVEL_WIDTH, NUM_TILES, indices_to_string
 from dsage_ray.types import EncodedLevels, EvaluationResult, Solution, Solutions
@@ -71,6 +71,8 @@ class MarioDomain:
             for d, (low, high) in zip(config.archive_dims, self.measure_ranges))
         self.occupancy_shape = (LEVEL_HEIGHT, LEVEL_WIDTH)
         self.encoding_channels = NUM_TILES
+        # one_hot_levels pads to 64×64 itself, on channel 0; the surrogate's padding (none) matches.
+        self.encoding_pad_channel = 0
         self._generator = None
         self._simulator = None
         self.solution_dim = 32  # the generator's latent size; checked against the weights on load
@@ -123,6 +125,10 @@ class MarioDomain:
         """``n`` latents from N(0, ``config.latent_sigma``²) (the authors' 0.2, not the GAN's N(0, 1) prior)."""
         return (self.config.latent_sigma * rng.standard_normal((n, self.solution_dim))).astype(self.solution_dtype)
 
+    def random_valid_solutions(self, n: int, rng: np.random.Generator) -> Solutions:
+        """Every latent decodes to a playable level, so these are :meth:`random_solutions`."""
+        return self.random_solutions(n, rng)
+
     def encode(self, solutions: Solutions) -> EncodedLevels:
         """One-hot ``(n, 17, 64, 64)`` levels, padding on channel 0."""
         return one_hot_levels(self.levels(solutions), size=PADDED_SIZE)
@@ -172,15 +178,8 @@ class MarioDomain:
         return indices_to_string(self.level(solution)) + "\n"
 
     # ------------------------------------------------------------------------------- audits
-    # What the domain-generic audit (dsage_ray.audit) asks of a domain.
-
-    #: Objectives an audit may maximise: 1 − completion.
-    AUDIT_OBJECTIVES = ("incompletion",)
-    #: The paper's measures.
-    AUDIT_MEASURES = ("sky_tiles", "mean_jumps")
-    DEFAULT_AUDIT_AGENT = "astar"
-    #: The config key of the runs per evaluation.
-    EPISODES_KEY = "mario.runs"
+    # What the domain-generic audit (dsage_ray.audit) asks of a domain (types.AuditableDomain); the
+    # audit's defaults are in the registration (plugin.DOMAIN.audit).
 
     @classmethod
     def audit_values(cls, *, agent: str, reference: str | None = None, objective: str | None = None,
@@ -191,7 +190,7 @@ class MarioDomain:
             agent: ``astar`` or ``astar:ITERATIONS`` (:func:`parse_agent_spec`).
             reference: Must be None: regression audits compare two agents, and Mario has one.
             objective: ``incompletion`` (the default).
-            measures: Measure names (default the paper's :attr:`AUDIT_MEASURES`); one archive cell per
+            measures: Measure names (default the paper's, the registration's audit measures); one archive cell per
                 integer value of each measure's natural range.
 
         Raises:
@@ -199,12 +198,13 @@ class MarioDomain:
         """
         if reference:
             raise ValueError("regression audits (--reference) are Maze-only: the Mario domain has one agent, A*")
-        objective = objective or cls.AUDIT_OBJECTIVES[0]
-        if objective not in cls.AUDIT_OBJECTIVES:
-            raise ValueError(f"mario audit objective must be one of {', '.join(map(repr, cls.AUDIT_OBJECTIVES))}, "
+        audit = DOMAIN.audit
+        objective = objective or audit.objectives[0]
+        if objective not in audit.objectives:
+            raise ValueError(f"mario audit objective must be one of {', '.join(map(repr, audit.objectives))}, "
                              f"got {objective!r}")
         iterations = parse_agent_spec(agent)
-        measures = tuple(measures or cls.AUDIT_MEASURES)
+        measures = tuple(measures or audit.measures)
         unknown = [m for m in measures if m not in NATURAL_RANGES]
         if unknown:
             raise ValueError(f"unknown Mario measure(s) {unknown} (known: {sorted(NATURAL_RANGES)})")
@@ -255,6 +255,14 @@ class MarioDomain:
     def is_valid(self, solution: Solution) -> bool:
         """Every latent decodes to a playable 16 × 56 level."""
         return True
+
+    def read_level(self, path: str | Path) -> Solution:
+        """Not possible: a level file holds tiles, and the latent that decoded to them is not recoverable.
+
+        Raises:
+            ValueError: Always.
+        """
+        raise ValueError(f"{path}: a Mario level file cannot be turned back into the latent it came from")
 
     def reproduce_command(self, level_file: str | Path, *, seed: int) -> str:
         """The ``dsage-ray mario eval`` command that replays this domain's evaluation of ``level_file``.

@@ -8,12 +8,12 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dsage_ray.config import MazeConfig
 from dsage_ray.domains.maze.encoding import CHANNELS, SPARE, encode_levels
 from dsage_ray.domains.maze.evaluate import MazeEvaluation, evaluate
-from dsage_ray.domains.maze.layout import format_layout
+from dsage_ray.domains.maze.layout import format_layout, load_layout
 from dsage_ray.domains.maze.level import MazeLevel
 from dsage_ray.domains.maze.measures import NEEDS_REFERENCE, get_measure, get_objective
+from dsage_ray.domains.maze.plugin import DOMAIN, MazeConfig
 from dsage_ray.types import EncodedLevels, EvaluationResult, Solution, Solutions
 
 
@@ -156,16 +156,8 @@ class MazeDomain:
         return render_level(self.level(solution), occupancy, title=title, occupancy_max=occupancy_max)
 
     # ------------------------------------------------------------------------------- audits
-    # What the domain-generic audit (dsage_ray.audit) asks of a domain.
-
-    #: Objectives an audit may maximise; ``regression`` also needs a reference agent.
-    AUDIT_OBJECTIVES = ("failure_rate", "regret", "regression")
-    #: Measures of the default audit: what the level looks like, not what the agent did.
-    AUDIT_MEASURES = ("num_walls", "optimal_path_length")
-    #: The agent audited when none is named: the PPO agent shipped with the package.
-    DEFAULT_AUDIT_AGENT = "rllib:ppo_maze"
-    #: The config key of the episodes per evaluation.
-    EPISODES_KEY = "maze.episodes"
+    # What the domain-generic audit (dsage_ray.audit) asks of a domain (types.AuditableDomain); the
+    # audit's defaults are in the registration (plugin.DOMAIN.audit).
 
     @classmethod
     def audit_values(cls, *, agent: str, reference: str | None = None, objective: str | None = None,
@@ -176,21 +168,22 @@ class MazeDomain:
             agent: The audited agent's spec.
             reference: A reference agent's spec: the audit then searches for regressions of ``agent``
                 against it (objective ``regression``, the default with a reference).
-            objective: One of :attr:`AUDIT_OBJECTIVES` (default ``failure_rate``, or ``regression``).
-            measures: Measure names (default :attr:`AUDIT_MEASURES`); archive cells are one per integer
+            objective: One of the registration's audit objectives (default ``failure_rate``, or ``regression``).
+            measures: Measure names (default the registration's audit measures); archive cells are one per integer
                 value of each measure's natural range, 50 for the fractions in ``[0, 1]``.
 
         Raises:
             ValueError: An objective an audit cannot use, or a reference without ``regression`` (or the reverse).
         """
+        audit = DOMAIN.audit
         objective = objective or ("regression" if reference else "failure_rate")
-        if objective not in cls.AUDIT_OBJECTIVES:
-            raise ValueError(f"maze audit objective must be one of {', '.join(map(repr, cls.AUDIT_OBJECTIVES))}, "
+        if objective not in audit.objectives:
+            raise ValueError(f"maze audit objective must be one of {', '.join(map(repr, audit.objectives))}, "
                              f"got {objective!r}")
         if (objective == "regression") != bool(reference):
             raise ValueError("the 'regression' objective needs a reference agent (--reference), and a reference "
                              f"agent needs the 'regression' objective (got objective {objective!r})")
-        measures = tuple(measures or cls.AUDIT_MEASURES)
+        measures = tuple(measures or audit.measures)
         for name in measures:
             get_measure(name)
 
@@ -235,6 +228,24 @@ class MazeDomain:
     def level_text(self, solution: Solution) -> str:
         """The layout file of a valid level (``dsage-ray maze eval --layout`` reads it)."""
         return format_layout(self.level(solution))
+
+    def read_level(self, path: str | Path) -> Solution:
+        """The bitmap of a layout file :meth:`level_text` wrote.
+
+        Raises:
+            ValueError: Not a layout of this size, or start and goal moved off the level's furthest pair
+                (the domain places them there, so it would evaluate another level than the file shows).
+        """
+        level = load_layout(path)
+        solution = np.asarray(level.walls, dtype=self.solution_dtype).ravel()
+        if solution.size != self.solution_dim:
+            raise ValueError(f"{path}: a {level.walls.shape[0]}x{level.walls.shape[1]} layout, the domain's levels "
+                             f"are {self.height}x{self.width}")
+        placed = self.level(solution)
+        if (placed.start, placed.goal) != (level.start, level.goal):
+            raise ValueError(f"{path}: start/goal are not the level's furthest pair (edited by hand?); compare "
+                             f"evaluates collection levels as the audit wrote them")
+        return solution
 
     def reproduce_command(self, level_file: str | Path, *, seed: int) -> str:
         """The shell command that re-runs this domain's evaluation of the layout in ``level_file``."""

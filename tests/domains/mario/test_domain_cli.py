@@ -8,9 +8,10 @@ import pickle
 import numpy as np
 import pytest
 
-from dsage_ray.config import MarioConfig, RunConfig
+from dsage_ray.config import RunConfig
 from dsage_ray.domains.mario.domain import MarioDomain
-from dsage_ray.types import Domain
+from dsage_ray.domains.mario.plugin import MarioConfig
+from dsage_ray.types import AuditableDomain, Domain
 
 from .conftest import needs_java, needs_javac
 
@@ -23,7 +24,7 @@ def small_config(**overrides) -> MarioConfig:
 
 def test_domain_protocol_and_shapes(rng):
     domain = MarioDomain(config=small_config())
-    assert isinstance(domain, Domain)
+    assert isinstance(domain, Domain) and isinstance(domain, AuditableDomain)
     assert domain.solution_dim == 32 and domain.occupancy_shape == (16, 56) and domain.encoding_channels == 17
     assert domain.archive_dims == (150, 100) and domain.measure_ranges == ((0.0, 150.0), (0.0, 100.0))
     z = domain.random_solutions(5, rng)

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 import dsage_ray.agents
-from dsage_ray.config import MazeConfig
 from dsage_ray.domains.maze.domain import MazeDomain
-from dsage_ray.types import Domain
+from dsage_ray.domains.maze.plugin import MazeConfig
+from dsage_ray.types import AuditableDomain, Domain
 
 from .conftest import UniformRandomAgent
 
@@ -26,7 +26,7 @@ def loads(monkeypatch):
 
 def test_protocol_attributes():
     domain = MazeDomain(config=MazeConfig())
-    assert isinstance(domain, Domain)
+    assert isinstance(domain, Domain) and isinstance(domain, AuditableDomain)
     assert domain.solution_dim == 256 and domain.occupancy_shape == (16, 16) and domain.encoding_channels == 5
     assert domain.measure_names == ("num_walls", "mean_path_length")
     assert domain.measure_ranges == ((0.0, 256.0), (0.0, 648.0))

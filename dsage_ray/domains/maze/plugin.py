@@ -1,0 +1,114 @@
+"""The Maze domain's registration: its config section, presets, variants and audit defaults.
+
+Named by the ``maze`` entry point of the ``dsage_ray.domains`` group (pyproject.toml). Imports
+nothing heavy: the domain itself (MiniGrid, numba, the agents) loads only when a domain is built.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Callable, Literal
+
+from dsage_ray.domains.registry import AuditSpec, DomainSpec
+
+#: Keys of :data:`dsage_ray.domains.maze.measures.OBJECTIVES`.
+MazeObjective = Literal["validity", "failure_rate", "regret", "regression"]
+
+
+@dataclasses.dataclass
+class MazeConfig:
+    """The Maze domain (SPEC §2)."""
+
+    agent: str = "builtin:wall_follower"
+    episodes: int = 50
+    height: int = 16
+    width: int = 16
+    see_through_walls: bool = True
+    #: ``validity`` (paper), ``failure_rate``, ``regret`` or ``regression`` (audits).
+    objective: MazeObjective = "validity"
+    #: Reference agent spec of the ``regression`` objective (empty: none), run on the same seeds.
+    reference: str = ""
+    measures: tuple[str, ...] = ("num_walls", "mean_path_length")
+    #: Cells per measure; ``0`` means "one cell per integer value" (the paper's 256×162 uses 256 and 162).
+    archive_dims: tuple[int, ...] = (256, 162)
+    #: ``()`` means the natural range of each measure.
+    measure_ranges: tuple[tuple[float, float], ...] = ()
+
+    def validate(self, need: Callable[[bool, str, str], None]) -> None:
+        """Checks the Maze keys; ``need(condition, key, why)`` reports the first that fails."""
+        need(self.episodes >= 1, "episodes", "must be positive")
+        need(self.height >= 2 and self.width >= 2, "height", "maze must be at least 2x2")
+        need(bool(self.reference) == (self.objective == "regression"), "reference",
+             "the 'regression' objective needs a reference agent spec, and only it uses one")
+
+
+#: ``paper`` reproduces the paper's numbers; ``cpu`` finishes well under an hour on 2 cores; ``demo``
+#: is the few-minute run of ``make run``; ``tiny`` is for tests and smoke runs.
+PRESETS: dict[str, dict[str, Any]] = {
+    # The paper held no levels out; ``--set surrogate.holdout_levels=100`` adds 0.1% to its budget.
+    "paper": {},
+    # CPU presets scale the paper's loop down (SPEC §4: one paper inner loop is ~20 minutes of
+    # surrogate predictions on 2 cores). A shorter inner loop fills a smaller surrogate archive,
+    # so blocks are smaller to keep a useful number of picks per outer iteration, and a smaller
+    # batch gives the surrogate enough Adam steps on the few samples it has early on.
+    "cpu": {
+        "budget": 2_000,
+        "n_rand": 100,
+        "maze.episodes": 50,
+        "surrogate.epochs": 10,
+        "surrogate.batch_size": 16,
+        "surrogate.train_window": 1_000,
+        "qd.exploit_iterations": 300,
+        "selection.block": (4, 3),
+        "selection.count": 100,
+        # 100 held-out evaluations outside the budget: +5% evaluations.
+        "surrogate.holdout_levels": 100,
+    },
+    "demo": {
+        "budget": 500,
+        "n_rand": 100,
+        "maze.episodes": 50,
+        "surrogate.epochs": 20,
+        "surrogate.batch_size": 16,
+        "surrogate.train_window": 1_000,
+        "qd.exploit_iterations": 100,
+        "selection.block": (4, 3),
+        "selection.count": 50,
+    },
+    "tiny": {
+        "budget": 150,
+        "n_rand": 50,
+        "maze.episodes": 5,
+        "surrogate.epochs": 5,
+        "surrogate.batch_size": 16,
+        "qd.exploit_iterations": 10,
+        "selection.block": (2, 2),
+        "selection.count": 20,
+    },
+}
+
+#: The paper's Maze baselines beside the DSAGE variants.
+VARIANTS: dict[str, dict[str, Any]] = {
+    "map_elites": {"surrogate.kind": "none", "qd.emitter": "map_elites", "qd.num_emitters": 5, "qd.batch_size": 30},
+    "dr": {"surrogate.kind": "none", "qd.emitter": "random", "qd.num_emitters": 5, "qd.batch_size": 30},
+}
+
+DOMAIN = DomainSpec(
+    name="maze",
+    config=MazeConfig,
+    domain="dsage_ray.domains.maze.domain:MazeDomain",
+    presets=PRESETS,
+    variants=VARIANTS,
+    # The paper's Table 2 rows (``dsage_rsample`` is the appendix ablation).
+    comparison=("dsage", "dsage_only_anc", "dsage_only_down", "dsage_basic", "map_elites", "dr"),
+    audit=AuditSpec(
+        # ``regression`` also needs a reference agent.
+        objectives=("failure_rate", "regret", "regression"),
+        # What the level looks like, not what the agent did.
+        measures=("num_walls", "optimal_path_length"),
+        # The PPO agent shipped with the package.
+        default_agent="rllib:ppo_maze",
+        episodes_key="maze.episodes",
+    ),
+    cli="dsage_ray.domains.maze.cli",
+)

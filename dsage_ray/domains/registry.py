@@ -1,0 +1,182 @@
+"""The domain registry: every domain, built in or not, is a :class:`DomainSpec` found by name.
+
+A package makes a domain available by naming its spec in the ``dsage_ray.domains`` entry-point
+group of its ``pyproject.toml`` (Maze and Mario do exactly this in dsage_ray's own)::
+
+    [project.entry-points."dsage_ray.domains"]
+    gridpath = "dsage_ray_gridpath.plugin:DOMAIN"
+
+Entry points are listed without being imported; a spec is loaded the first time its name is
+asked for, so importing dsage_ray imports no simulator (no MiniGrid, no JPype). An entry point is
+visible to every process of the environment, Ray's simulator actors included, which is why it is
+the way to ship a domain; :func:`register_domain` adds one to the calling process only (tests,
+notebooks). See docs/EXTENDING.md.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import importlib
+import importlib.metadata
+from typing import Any, Callable, Mapping
+
+from dsage_ray.errors import InputError
+
+#: The entry-point group a package registers its domains in.
+ENTRY_POINT_GROUP = "dsage_ray.domains"
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class AuditSpec:
+    """What ``dsage-ray audit`` needs to know about a domain before building one.
+
+    Attributes:
+        objectives: Objectives an audit may maximise (the first is the default); ``"regression"``
+            among them means the domain compares two agents (``--reference``, ``dsage-ray compare``).
+        measures: Measures of the default audit.
+        default_agent: The agent spec audited when none is named.
+        episodes_key: The dotted config key of the episodes (or runs) per evaluation.
+    """
+
+    objectives: tuple[str, ...]
+    measures: tuple[str, ...]
+    default_agent: str
+    episodes_key: str
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class DomainSpec:
+    """A domain's registration record: everything the package reads about it besides the domain object.
+
+    Attributes:
+        name: The ``domain`` config value, the config section's name and the entry point's name.
+        config: The config section, a dataclass whose fields all have defaults. It must have
+            ``measures``, ``archive_dims`` and ``measure_ranges`` (checked generically), and may
+            define ``validate(need)`` for its own keys: ``need(condition, key, why)`` with ``key``
+            relative to the section (``"episodes"``).
+        domain: The domain class as ``"module:Class"``, imported only when a domain is built; it is
+            called as ``Class(config=section)`` and implements :class:`dsage_ray.types.Domain`.
+        presets: Keys per preset name (dotted, over the dataclass defaults); ``tiny`` is the one
+            tests and smoke runs use. Must hold ``paper``, the default preset.
+        variants: Keys per variant, merged over the DSAGE variants every domain has
+            (:data:`dsage_ray.config.COMMON_VARIANTS`): typically the domain's QD baselines.
+        comparison: The variants ``dsage-ray ablate`` runs by default.
+        audit: What an audit needs (``None``: the domain cannot be audited).
+        cli: A module with ``add_subparser(subparsers)`` adding ``dsage-ray NAME ...`` commands.
+        actor_env: Extra environment variables of a Ray simulator actor (e.g. a preload library),
+            computed in the driver when the actor starts.
+    """
+
+    name: str
+    config: type
+    domain: str
+    presets: Mapping[str, Mapping[str, Any]]
+    variants: Mapping[str, Mapping[str, Any]] = dataclasses.field(default_factory=dict)
+    comparison: tuple[str, ...] = ("dsage",)
+    audit: AuditSpec | None = None
+    cli: str | None = None
+    actor_env: Callable[[], dict[str, str]] | None = None
+
+    def __post_init__(self) -> None:
+        if not self.name.isidentifier():
+            raise InputError(f"domain name {self.name!r} must be a Python identifier (it names a config section)")
+        if not dataclasses.is_dataclass(self.config):
+            raise InputError(f"domain {self.name!r}: config must be a dataclass, got {self.config!r}")
+        missing = {"measures", "archive_dims", "measure_ranges"} - {f.name for f in dataclasses.fields(self.config)}
+        if missing:
+            raise InputError(f"domain {self.name!r}: config section {self.config.__name__} lacks {sorted(missing)}")
+        if "paper" not in self.presets:
+            raise InputError(f"domain {self.name!r}: presets need a 'paper' entry (the default preset)")
+        if ":" not in self.domain:
+            raise InputError(f"domain {self.name!r}: domain must read 'module:Class', got {self.domain!r}")
+
+    def domain_class(self) -> type:
+        """Imports and returns the domain class."""
+        module, _, attribute = self.domain.partition(":")
+        return getattr(importlib.import_module(module), attribute)
+
+
+_registered: dict[str, DomainSpec] = {}
+#: Entry points by domain name, read once (and again when a name is missing: a package installed since).
+_entry_points: dict[str, importlib.metadata.EntryPoint] | None = None
+#: Names two installed packages claim, with both entry-point values (an error only when the name is used).
+_clashes: dict[str, tuple[str, str]] = {}
+
+
+def register_domain(spec: DomainSpec) -> DomainSpec:
+    """Adds ``spec`` to this process's registry and returns it.
+
+    Registering the same spec object again is a no-op (an entry point that also calls this).
+
+    Raises:
+        InputError: Another spec already holds the name.
+    """
+    held = _registered.get(spec.name)
+    if held is not None and held is not spec:
+        raise InputError(f"domain {spec.name!r} is already registered (config {held.config.__module__}."
+                         f"{held.config.__name__}); pick another name")
+    _registered[spec.name] = spec
+    return spec
+
+
+def domain_names() -> list[str]:
+    """Every domain a config may name: installed entry points (none imported), then ones registered in-process."""
+    return list(dict.fromkeys([*_scan(), *_registered]))
+
+
+def get_domain(name: str) -> DomainSpec:
+    """The spec of domain ``name``, loading its entry point on first use.
+
+    Raises:
+        InputError: No such domain (the message lists the known ones, with a did-you-mean), or an
+            entry point that does not load to a :class:`DomainSpec` of that name.
+    """
+    if name in _registered:
+        return _registered[name]
+    points = _scan()
+    if name not in points:
+        importlib.invalidate_caches()  # a package installed since the last look
+        points = _scan(refresh=True)
+    if name not in points:
+        known = domain_names()
+        close = difflib.get_close_matches(str(name), known, n=1, cutoff=0.6)
+        raise InputError(f"unknown domain {name!r} (known: {', '.join(known) or 'none'})"
+                         + (f"; did you mean {close[0]!r}?" if close else "")
+                         + ("" if known else f"; is dsage_ray installed (pip install -e .)? Domains are "
+                                             f"entry points of the {ENTRY_POINT_GROUP!r} group"))
+    if name in _clashes:
+        first, second = _clashes[name]
+        raise InputError(f"domain {name!r} is registered twice: {first!r} and {second!r} "
+                         f"(two installed packages claim the name; uninstall one)")
+    point = points[name]
+    try:
+        spec = point.load()
+    except Exception as exc:  # a plug-in's import error, reported with the plug-in's name
+        raise InputError(f"domain {name!r}: cannot load entry point {point.value!r}: {exc}") from exc
+    if not isinstance(spec, DomainSpec) or spec.name != name:
+        raise InputError(f"domain {name!r}: entry point {point.value!r} must name a DomainSpec with "
+                         f"name={name!r}, got {spec!r}")
+    return register_domain(spec)
+
+
+def unregister_domain(name: str) -> None:
+    """Forgets ``name`` and re-reads the entry points (tests that install or register a domain clean up with it)."""
+    _registered.pop(name, None)
+    _scan(refresh=True)
+
+
+def _scan(*, refresh: bool = False) -> dict[str, importlib.metadata.EntryPoint]:
+    global _entry_points
+    if _entry_points is None or refresh:
+        points = importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)
+        # dsage_ray's own domains first, so listings start with the built-in ones.
+        ordered = sorted(points, key=lambda p: (p.dist is None or p.dist.name != "dsage_ray"))
+        found: dict[str, importlib.metadata.EntryPoint] = {}
+        _clashes.clear()
+        for point in ordered:
+            held = found.setdefault(point.name, point)
+            if held.value != point.value:
+                _clashes[point.name] = (held.value, point.value)
+        _entry_points = found
+    return _entry_points
