@@ -114,6 +114,7 @@ class DSAGE:
                 num_measures=len(self.domain.measure_names),
                 config=config.surrogate,
                 seed=int(self._next_qd_seed()),
+                measure_ranges=self.domain.measure_ranges,
             )
             self.dataset = self.surrogate.make_dataset()
         else:
@@ -169,6 +170,9 @@ class DSAGE:
             tic = time.perf_counter()
             losses = self.surrogate.train(self.dataset)
             metrics["surrogate_loss"] = losses.pop("total")
+            metrics["surrogate_epochs"] = losses.pop("epochs")
+            if "validation" in losses:
+                metrics["surrogate_validation_loss"] = losses.pop("validation")
             metrics.update({f"surrogate_loss_{self._head_name(k)}": v for k, v in losses.items()})
             times["train"] = time.perf_counter() - tic
             if self.holdout is not None:

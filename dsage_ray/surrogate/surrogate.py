@@ -110,10 +110,12 @@ class Surrogate:
         num_measures: Number of measures.
         config: Training and prediction settings.
         seed: Seeds the initial weights and the minibatch order.
+        measure_ranges: ``(low, high)`` per measure; required by ``config.target_scaling = "range"``.
     """
 
     def __init__(self, *, kind: str, input_channels: int, input_shape: tuple[int, int],
-                 occupancy_shape: tuple[int, int], num_measures: int, config: SurrogateConfig, seed: int) -> None:
+                 occupancy_shape: tuple[int, int], num_measures: int, config: SurrogateConfig, seed: int,
+                 measure_ranges: Sequence[tuple[float, float]] | None = None) -> None:
         if kind not in KINDS:
             raise ValueError(f"surrogate kind must be one of {KINDS}, got {kind!r}")
         size, width = input_shape
@@ -126,6 +128,8 @@ class Surrogate:
         self.occupancy_shape = tuple(occupancy_shape)
         self.num_measures = num_measures
         self.device = resolve_device(config.device)
+        self._measure_offset, self._measure_scale = _target_scaling(config.target_scaling, measure_ranges,
+                                                                    num_measures, self.device)
         #: ``"fp32"`` or ``"bf16"``: what ``config.precision`` resolved to on this machine.
         self.precision = resolve_precision(config.precision, self.device)
         # Weights are drawn on the CPU inside a forked RNG: the same seed gives the same network on
@@ -156,9 +160,10 @@ class Surrogate:
 
     def _losses(self, output: ModelOutput, objective: torch.Tensor, measures: torch.Tensor,
                 occupancy: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Returns the training loss and the per-head MSEs (``head_names`` order)."""
+        """Returns the training loss and the per-head MSEs (``head_names`` order, measures in scaled units)."""
         predicted = torch.cat([output.objective[:, None], output.measures], dim=1)
-        target = torch.cat([objective[:, None], measures], dim=1)
+        scaled = (measures - self._measure_offset) / self._measure_scale
+        target = torch.cat([objective[:, None], scaled], dim=1)
         head_mse = F.mse_loss(predicted, target, reduction="none").mean(dim=0)
         loss = head_mse.mean()
         if output.occupancy is None:
@@ -167,32 +172,71 @@ class Surrogate:
         return loss + self.config.occupancy_weight * occupancy_mse, torch.cat([head_mse, occupancy_mse[None]])
 
     def train(self, dataset: SurrogateDataset) -> dict[str, float]:
-        """Fits the model for ``config.epochs`` epochs on the most recent ``config.train_window`` samples.
+        """Fits the model on the most recent ``config.train_window`` samples.
+
+        Trains ``config.epochs`` epochs; with ``config.validation_fraction > 0`` a random share of the
+        window is held out instead, training stops after ``config.patience`` epochs without a lower
+        validation loss, and the weights of the best epoch are kept.
 
         Returns:
-            The last epoch's sample-weighted mean MSE per head (``head_names``; occupancy unweighted)
-            and ``"total"``, the loss that was minimised.
+            The last epoch's sample-weighted mean MSE per head (``head_names``; occupancy unweighted),
+            ``"total"``, the loss that was minimised, and ``"epochs"``, the epochs trained; with early
+            stopping also ``"validation"``, the best validation loss.
         """
         window = dataset.recent(self.config.train_window)
         n = len(window)
         if n == 0:
             raise ValueError("cannot train the surrogate on an empty dataset")
+        train_indices = np.arange(n)
+        validation_indices = None
+        n_validation = int(n * self.config.validation_fraction)
+        if 0 < n_validation < n:
+            split = torch.randperm(n, generator=self._shuffle_rng).numpy()
+            validation_indices, train_indices = np.sort(split[:n_validation]), np.sort(split[n_validation:])
         batch_size = self.config.batch_size
-        self.model.train()
-        for epoch in range(self.config.epochs):
-            order = torch.randperm(n, generator=self._shuffle_rng).numpy()
-            # Accumulated on the device: one host sync per call, not one per minibatch.
+        best_loss, best_weights, stale = float("inf"), None, 0
+        epochs = 0
+        for _ in range(self.config.epochs):
+            self.model.train()
+            order = train_indices[torch.randperm(len(train_indices), generator=self._shuffle_rng).numpy()]
+            # Accumulated on the device: one host sync per epoch, not one per minibatch.
             sums = torch.zeros(len(self.head_names) + 1, device=self.device)
-            for start in range(0, n, batch_size):
+            for start in range(0, len(order), batch_size):
                 indices = order[start:start + batch_size]
                 levels, *targets = window.batch(indices, self.device)
                 loss, head_mse = self._losses(self.model(levels), *targets)
                 self.optimizer.zero_grad(set_to_none=True)
                 loss.backward()
                 self.optimizer.step()
-                if epoch == self.config.epochs - 1:
-                    sums += torch.cat([head_mse, loss[None]]).detach() * len(indices)
-        return dict(zip((*self.head_names, "total"), (sums / n).tolist()))
+                sums += torch.cat([head_mse, loss[None]]).detach() * len(indices)
+            epochs += 1
+            if validation_indices is None:
+                continue
+            validation_loss = self._validation_loss(window, validation_indices)
+            if validation_loss < best_loss:
+                best_loss, best_weights, stale = validation_loss, _cpu_copy(self.model.state_dict()), 0
+            else:
+                stale += 1
+                if stale >= self.config.patience:
+                    break
+        losses = dict(zip((*self.head_names, "total"), (sums / len(train_indices)).tolist()))
+        losses["epochs"] = float(epochs)
+        if best_weights is not None:
+            self.model.load_state_dict(best_weights)
+            losses["validation"] = best_loss
+        return losses
+
+    def _validation_loss(self, window, indices: np.ndarray) -> float:
+        """The training loss on held-out samples, in ``eval()`` mode (BatchNorm's running statistics)."""
+        self.model.eval()
+        total = 0.0
+        with torch.inference_mode():
+            for start in range(0, len(indices), self.config.predict_batch_size):
+                chunk = indices[start:start + self.config.predict_batch_size]
+                levels, *targets = window.batch(chunk, self.device)
+                loss, _ = self._losses(self.model(levels), *targets)
+                total += float(loss) * len(chunk)
+        return total / len(indices)
 
     # --------------------------------------------------------------------------------- prediction
 
@@ -216,8 +260,10 @@ class Surrogate:
             height, width = self.occupancy_shape
             return Prediction(objective=np.zeros(0, np.float32), measures=np.zeros((0, self.num_measures), np.float32),
                               occupancy=np.zeros((0, height, width), np.float32) if self.kind == "two_stage" else None)
-        fields = [None if parts[0] is None else torch.cat(parts).cpu().numpy() for parts in zip(*chunks)]
-        return Prediction(*fields)
+        objective, measures, occupancy = (None if parts[0] is None else torch.cat(parts) for parts in zip(*chunks))
+        measures = measures * self._measure_scale + self._measure_offset
+        return Prediction(objective.cpu().numpy(), measures.cpu().numpy(),
+                          None if occupancy is None else occupancy.cpu().numpy())
 
     def mae(self, encoded: EncodedLevels, results: Sequence[EvaluationResult],
             prediction: Prediction | None = None) -> dict[str, float]:
@@ -268,6 +314,23 @@ class Surrogate:
         # only if needed) and updates them in place: copy, so the checkpoint itself never changes.
         self.optimizer.load_state_dict(_cpu_copy(state["optimizer"]))
         self._shuffle_rng.set_state(state["shuffle_rng"])
+
+
+def _target_scaling(name: str, measure_ranges: Sequence[tuple[float, float]] | None, num_measures: int,
+                    device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(offset, scale)`` per measure: the network learns ``(measure - offset) / scale``."""
+    if name == "none":
+        return torch.zeros(num_measures, device=device), torch.ones(num_measures, device=device)
+    if name != "range":
+        raise ValueError(f"surrogate target_scaling must be 'none' or 'range', got {name!r}")
+    if measure_ranges is None or len(measure_ranges) != num_measures:
+        raise ValueError(f"target_scaling 'range' needs one (low, high) per measure ({num_measures}), "
+                         f"got {measure_ranges!r}")
+    low = torch.tensor([float(lo) for lo, _ in measure_ranges], device=device)
+    high = torch.tensor([float(hi) for _, hi in measure_ranges], device=device)
+    if not bool(torch.all(high > low)):
+        raise ValueError(f"every measure range needs high > low, got {measure_ranges!r}")
+    return low, high - low
 
 
 def _cpu_copy(tree: Any) -> Any:

@@ -36,7 +36,7 @@ def test_training_reduces_loss_on_a_learnable_task(kind):
     first = surrogate.train(dataset)
     for _ in range(4):
         last = surrogate.train(dataset)
-    assert set(first) == {*surrogate.head_names, "total"}
+    assert set(first) == {*surrogate.head_names, "total", "epochs"} and first["epochs"] == 3
     assert last["total"] < 0.5 * first["total"]
     # Held-out levels: the model learned the task, not the samples.
     held_out = random_levels(32, size=8, seed=99)
@@ -168,3 +168,50 @@ def test_rejects_bad_arguments():
     with pytest.raises(ValueError, match="square"):
         Surrogate(kind="one_stage", input_channels=5, input_shape=(8, 16), occupancy_shape=OCC, num_measures=2,
                   config=SurrogateConfig(device="cpu"), seed=0)
+
+
+def test_early_stopping_keeps_the_best_epoch_and_says_how_many_it_trained(monkeypatch):
+    surrogate = make(epochs=40, lr=3e-2, validation_fraction=0.25, patience=2)
+    dataset, _ = toy_dataset(surrogate)
+    seen: list[tuple[float, dict]] = []
+    score = surrogate._validation_loss
+
+    def recording(window, indices):
+        assert len(indices) == 16  # a quarter of the 64 samples, never trained on this call
+        loss = score(window, indices)
+        seen.append((loss, {k: v.clone() for k, v in surrogate.model.state_dict().items()}))
+        return loss
+
+    monkeypatch.setattr(surrogate, "_validation_loss", recording)
+    losses = surrogate.train(dataset)
+    losses_by_epoch = [loss for loss, _ in seen]
+    best = int(np.argmin(losses_by_epoch))
+    assert losses["epochs"] == len(seen)
+    # It stopped `patience` epochs after the best one (or ran out of epochs).
+    assert len(seen) == 40 or len(seen) == best + 1 + 2
+    assert losses["validation"] == losses_by_epoch[best]
+    for key, value in surrogate.model.state_dict().items():
+        torch.testing.assert_close(value, seen[best][1][key])
+
+
+def test_without_validation_every_epoch_trains_and_no_validation_is_reported():
+    surrogate = make(epochs=4)
+    dataset, _ = toy_dataset(surrogate)
+    losses = surrogate.train(dataset)
+    assert losses["epochs"] == 4 and "validation" not in losses
+
+
+def test_range_scaling_maps_the_network_output_onto_each_measure_range():
+    surrogate = Surrogate(kind="one_stage", input_channels=5, input_shape=(8, 8), occupancy_shape=OCC, num_measures=2,
+                          config=SurrogateConfig(device="cpu", precision="fp32", target_scaling="range"), seed=0,
+                          measure_ranges=[(0.0, 648.0), (10.0, 20.0)])
+    heads = surrogate.model.measure_predictor.heads
+    with torch.no_grad():
+        heads.weight.zero_()
+        heads.bias.copy_(torch.tensor([0.25, 0.5, 1.0]))
+    prediction = surrogate.predict(random_levels(3, size=8, seed=1))
+    np.testing.assert_allclose(prediction.objective, 0.25)
+    np.testing.assert_allclose(prediction.measures, [[324.0, 20.0]] * 3)
+    with pytest.raises(ValueError, match="one \\(low, high\\) per measure"):
+        Surrogate(kind="one_stage", input_channels=5, input_shape=(8, 8), occupancy_shape=OCC, num_measures=2,
+                  config=SurrogateConfig(device="cpu", target_scaling="range"), seed=0)

@@ -8,7 +8,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dsage_ray.domains.maze.encoding import CHANNELS, SPARE, encode_levels
+from dsage_ray.domains.maze.encoding import CHANNELS, PATH_CHANNELS, SPARE, encode_levels
 from dsage_ray.domains.maze.evaluate import MazeEvaluation, evaluate
 from dsage_ray.domains.maze.layout import format_layout, load_layout
 from dsage_ray.domains.maze.level import MazeLevel
@@ -49,7 +49,7 @@ class MazeDomain:
             for d, (low, high) in zip(config.archive_dims, self.measure_ranges)
         )
         self.occupancy_shape = (self.height, self.width)
-        self.encoding_channels = len(CHANNELS)
+        self.encoding_channels = len(CHANNELS) + (len(PATH_CHANNELS) if config.path_channels else 0)
         # Sizes that are not a square power of two get padded for the surrogate: padding cells
         # are marked "spare", which no real cell uses, so they never look like floor or wall.
         self.encoding_pad_channel = SPARE
@@ -99,7 +99,8 @@ class MazeDomain:
         return np.array([level.walls.ravel() for level in levels], dtype=self.solution_dtype).reshape(n, -1)
 
     def encode(self, solutions: Solutions) -> EncodedLevels:
-        return encode_levels(np.asarray(solutions).reshape(-1, self.solution_dim), self.height, self.width)
+        return encode_levels(np.asarray(solutions).reshape(-1, self.solution_dim), self.height, self.width,
+                             path_channels=self.config.path_channels)
 
     def run(self, solution: Solution, seed: int) -> MazeEvaluation:
         """The full evaluation of one solution (the agent is not loaded for an invalid level)."""

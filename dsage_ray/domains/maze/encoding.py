@@ -7,15 +7,20 @@ from typing import Sequence
 import numpy as np
 
 from dsage_ray.domains.maze.level import MazeLevel
-from dsage_ray.domains.maze.paths import furthest_pairs
+from dsage_ray.domains.maze.paths import furthest_pairs, path_masks
 
 #: Channel per cell kind; exactly one is hot per cell. ``spare`` is never set (kept for the
 #: original model's 5-channel input).
 CHANNELS = ("empty", "wall", "start", "goal", "spare")
 EMPTY, WALL, START, GOAL, SPARE = range(len(CHANNELS))
+#: Extra 0/1 channels of ``path_channels``: cells reachable from the start, and cells on a shortest
+#: start-goal path. Not in the paper: the occupancy predictor's 3×3 convolutions see 11×11 cells, so
+#: without them it cannot tell which corridors lead to the goal across a 16×16 maze.
+PATH_CHANNELS = ("reachable", "shortest_path")
 
 
-def encode_levels(levels: np.ndarray | Sequence[MazeLevel], height: int, width: int) -> np.ndarray:
+def encode_levels(levels: np.ndarray | Sequence[MazeLevel], height: int, width: int, *,
+                  path_channels: bool = False) -> np.ndarray:
     """One-hot encodes levels.
 
     Args:
@@ -23,9 +28,11 @@ def encode_levels(levels: np.ndarray | Sequence[MazeLevel], height: int, width: 
             are the furthest pair) or a sequence of :class:`MazeLevel` of that size.
         height: H.
         width: W.
+        path_channels: Append :data:`PATH_CHANNELS`.
 
     Returns:
-        ``(n, 5, H, W)`` float32 with channels :data:`CHANNELS`.
+        ``(n, 5, H, W)`` float32 with channels :data:`CHANNELS`, then :data:`PATH_CHANNELS` if asked
+        (``(n, 7, H, W)``).
     """
     if isinstance(levels, np.ndarray):
         walls = np.asarray(levels).reshape(len(levels), height, width) > 0.5
@@ -45,4 +52,11 @@ def encode_levels(levels: np.ndarray | Sequence[MazeLevel], height: int, width: 
             if level.start is not None:
                 kind[n][level.start] = START
                 kind[n][level.goal] = GOAL
-    return np.eye(len(CHANNELS), dtype=np.float32)[kind].transpose(0, 3, 1, 2).copy()
+    encoded = np.eye(len(CHANNELS), dtype=np.float32)[kind].transpose(0, 3, 1, 2)
+    if not path_channels:
+        return encoded.copy()
+    walls = encoded[:, WALL] > 0.5
+    flat = lambda channel: encoded[:, channel].reshape(len(encoded), -1).argmax(axis=1)  # noqa: E731
+    has_pair = encoded[:, START].any(axis=(1, 2))
+    pairs = np.where(has_pair[:, None], np.stack([flat(START), flat(GOAL), np.zeros(len(encoded), np.int64)], 1), -1)
+    return np.concatenate([encoded, path_masks(walls, pairs).astype(np.float32)], axis=1)

@@ -83,3 +83,67 @@ def furthest_pairs(walls: np.ndarray) -> np.ndarray:
     if walls.ndim != 3:
         raise ValueError(f"expected (n, H, W) bitmaps, got shape {walls.shape}")
     return _furthest_pairs(np.ascontiguousarray(~walls))
+
+
+@numba.njit(cache=True, nogil=True)
+def _path_masks(empty: np.ndarray, pairs: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    n, height, width = empty.shape
+    size = height * width
+    out = np.zeros((n, 2, size), dtype=np.uint8)
+    from_start = np.empty(size, dtype=np.int64)
+    from_goal = np.empty(size, dtype=np.int64)
+    queue = np.empty(size, dtype=np.int64)
+    for m in range(n):
+        if pairs[m, 0] < 0:
+            continue
+        flat = empty[m].ravel()
+        for which in range(2):
+            dist = from_start if which == 0 else from_goal
+            source = pairs[m, which]
+            dist[:] = -1
+            dist[source] = 0
+            queue[0] = source
+            head, tail = 0, 1
+            while head < tail:
+                cell = queue[head]
+                head += 1
+                row, col = cell // width, cell % width
+                d = dist[cell] + 1
+                if row > 0 and flat[cell - width] and dist[cell - width] < 0:
+                    dist[cell - width] = d
+                    queue[tail] = cell - width
+                    tail += 1
+                if row < height - 1 and flat[cell + width] and dist[cell + width] < 0:
+                    dist[cell + width] = d
+                    queue[tail] = cell + width
+                    tail += 1
+                if col > 0 and flat[cell - 1] and dist[cell - 1] < 0:
+                    dist[cell - 1] = d
+                    queue[tail] = cell - 1
+                    tail += 1
+                if col < width - 1 and flat[cell + 1] and dist[cell + 1] < 0:
+                    dist[cell + 1] = d
+                    queue[tail] = cell + 1
+                    tail += 1
+        length = from_start[pairs[m, 1]]
+        for cell in range(size):
+            if from_start[cell] >= 0:
+                out[m, 0, cell] = 1
+                if from_goal[cell] >= 0 and from_start[cell] + from_goal[cell] == length:
+                    out[m, 1, cell] = 1
+    return out.reshape(n, 2, height, width)
+
+
+def path_masks(walls: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """The cells an agent can reach from the start, and those on some shortest start-goal path.
+
+    Args:
+        walls: ``(n, H, W)`` bool wall bitmaps.
+        pairs: ``(n, 3)`` from :func:`furthest_pairs` (start, goal, length; ``-1`` without a pair).
+
+    Returns:
+        ``(n, 2, H, W)`` uint8: channel 0 reachable from the start, channel 1 on a shortest path
+        to the goal; all zeros for a maze without a start.
+    """
+    walls = np.asarray(walls, dtype=bool)
+    return _path_masks(np.ascontiguousarray(~walls), np.ascontiguousarray(pairs, dtype=np.int64))
