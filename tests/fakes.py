@@ -40,6 +40,7 @@ class BitmapDomain:
     archive_dims = (16, 8)
     occupancy_shape = (8, 8)
     encoding_channels = 2
+    encoding_pad_channel = 0
     solution_dtype = np.int8
 
     def __init__(self, *, fail_on: tuple[int, ...] = (), fail_once: bool = True) -> None:
@@ -50,6 +51,8 @@ class BitmapDomain:
 
     def random_solutions(self, n: int, rng: np.random.Generator) -> np.ndarray:
         return rng.integers(0, 2, size=(n, self.solution_dim)).astype(np.int8)
+
+    random_valid_solutions = random_solutions  # every bitmap is a level
 
     def encode(self, solutions: np.ndarray) -> np.ndarray:
         walls = np.asarray(solutions, dtype=np.float32).reshape(-1, 8, 8)

@@ -59,3 +59,31 @@ def test_only_the_entry_point_is_the_cli():
     importers = [module_name(path) for path in sorted(PACKAGE.rglob("*.py"))
                  if module_name(path) != "dsage_ray.cli" and "dsage_ray.cli" in imports(path)]
     assert not importers
+
+
+def runtime_imports(path: Path) -> set[str]:
+    """The dsage_ray modules ``path`` imports when it runs (``if TYPE_CHECKING:`` blocks left out)."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    skipped = {id(node) for block in ast.walk(tree) if isinstance(block, ast.If)
+               and getattr(block.test, "id", getattr(block.test, "attr", None)) == "TYPE_CHECKING"
+               for node in ast.walk(block)}
+    names = set()
+    for node in ast.walk(tree):
+        if id(node) in skipped:
+            continue
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module)
+            names.update(f"{node.module}.{alias.name}" for alias in node.names)
+    return {name for name in names if within(name, "dsage_ray")}
+
+
+def test_no_module_imports_one_that_imports_it_back():
+    modules = {module_name(path): path for path in PACKAGE.rglob("*.py")}
+    graph = {module: {name for name in runtime_imports(path) if name in modules and name != module}
+             for module, path in modules.items()}
+    # A package's __init__ importing its own submodules is how packages expose names, not a cycle.
+    cycles = sorted(f"{a} <-> {b}" for a in graph for b in graph[a]
+                    if a < b and a in graph.get(b, ()) and not (within(b, a) or within(a, b)))
+    assert not cycles

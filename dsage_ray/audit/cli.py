@@ -67,7 +67,8 @@ def run_audit_command(args: argparse.Namespace) -> int:
 
     Errors end the command through :func:`dsage_ray.cli.main` (one line, the exit code of their kind).
     """
-    from dsage_ray.audit.collection import agent_slug, audit_config, audit_spec, load_collection
+    from dsage_ray.audit.collection import agent_slug, audit_config, audit_spec
+    from dsage_ray.audit.collection_file import load_collection
     from dsage_ray.audit.run import run_audit
     from dsage_ray.config import parse_override
 

@@ -13,7 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from dsage_ray.audit.collection import load_collection, reevaluate
+from dsage_ray.audit.collection import reevaluate
+from dsage_ray.audit.collection_file import load_collection
 from dsage_ray.config import RunConfig, flatten
 
 #: A success-rate difference larger than this counts as "worse"/"better".

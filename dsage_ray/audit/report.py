@@ -22,6 +22,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from dsage_ray.audit.collection_file import load_collection
 from dsage_ray.audit.summary import FAILURE_CELL_RATE, failure_summary, grid_indices
 from dsage_ray.io import atomic_write_text
 
@@ -493,8 +494,6 @@ def _regions(c: dict[str, Any]) -> str:
 
 def write_report(collection_dir: str | Path) -> Path:
     """Writes ``report.html`` for the collection in ``collection_dir``; returns its path."""
-    from dsage_ray.audit.collection import load_collection
-
     collection_dir = Path(collection_dir)
     c = load_collection(collection_dir)
     levels = c["levels"]

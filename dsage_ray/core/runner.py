@@ -39,6 +39,7 @@ from scipy import stats
 
 from dsage_ray.config import RunConfig
 from dsage_ray.core.evaluation import InProcessEvaluator, evaluate_with_retry
+from dsage_ray.core.outputs import write_outputs
 from dsage_ray.domains import build_domain
 from dsage_ray.qd.archives import archive_stats, make_archive
 from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
@@ -282,10 +283,9 @@ class DSAGE:
     def _evaluate_holdout(self) -> None:
         """Evaluates the held-out levels for real, once; failed evaluations are left out of the set."""
         count = self.config.surrogate.holdout_levels
-        # Random *valid* levels where the domain can make them (an invalid Maze has path length 0
-        # whatever the agent: it would flatter the surrogate), else its ordinary random solutions.
-        sample = getattr(self.domain, "random_valid_solutions", self.domain.random_solutions)
-        solutions = sample(count, np.random.default_rng(self._holdout_levels_seed))
+        # Random *valid* levels: an invalid Maze has path length 0 whatever the agent, which would
+        # flatter the surrogate.
+        solutions = self.domain.random_valid_solutions(count, np.random.default_rng(self._holdout_levels_seed))
         seeds = [int(np.random.SeedSequence([self._holdout_eval_seed_root, i]).generate_state(1)[0])
                  for i in range(count)]
         if self.progress is not None:
@@ -336,8 +336,7 @@ class DSAGE:
 
     def _encode(self, solutions: Solutions) -> np.ndarray:
         """The surrogate's input: the domain's one-hot levels, padded to a square power of two."""
-        pad_channel = getattr(self.domain, "encoding_pad_channel", 0)
-        return pad_to_power_of_two(self.domain.encode(solutions), pad_channel=pad_channel)
+        return pad_to_power_of_two(self.domain.encode(solutions), pad_channel=self.domain.encoding_pad_channel)
 
     def _count_new_cells(self, measures: np.ndarray) -> int:
         """How many of these results land in a ground-truth cell that was empty before the batch."""
@@ -371,13 +370,11 @@ class DSAGE:
             ranges=self.domain.measure_ranges,
             occupancy_shape=self.domain.occupancy_shape if with_occupancy else None,
             seed=seed,
-            solution_dtype=getattr(self.domain, "solution_dtype", np.float64),
+            solution_dtype=self.domain.solution_dtype,
         )
 
     def write_outputs(self, run_dir) -> None:
         """Writes metrics.json, archive.csv, heatmap.png and a few elites into ``run_dir``."""
-        from dsage_ray.core.outputs import write_outputs
-
         write_outputs(self, run_dir)
 
     # ---------------------------------------------------------------------------------- state

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dsage_ray.audit.collection import audit_config, level_seed, load_collection
+from dsage_ray.audit.collection import audit_config, level_seed
+from dsage_ray.audit.collection_file import load_collection
 from dsage_ray.audit.compare import compare_agents, format_comparison
 from dsage_ray.audit.report import region_statistics
 from dsage_ray.cli import main

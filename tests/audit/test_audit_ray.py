@@ -8,7 +8,8 @@ import os
 import numpy as np
 import pytest
 
-from dsage_ray.audit.collection import audit_config, build_collection, load_collection
+from dsage_ray.audit.collection import audit_config, build_collection
+from dsage_ray.audit.collection_file import load_collection
 from dsage_ray.audit.compare import compare_agents
 from dsage_ray.cli import main
 from dsage_ray.domains import build_domain

@@ -7,7 +7,7 @@ import shlex
 
 import pytest
 
-from dsage_ray.audit.collection import load_collection
+from dsage_ray.audit.collection_file import load_collection
 from dsage_ray.cli import main
 from dsage_ray.domains.mario.tiles import load_level
 from tests.domains.mario.conftest import needs_java, needs_javac

@@ -8,7 +8,8 @@ import shlex
 import numpy as np
 import pytest
 
-from dsage_ray.audit.collection import audit_config, load_collection
+from dsage_ray.audit.collection import audit_config
+from dsage_ray.audit.collection_file import load_collection
 from dsage_ray.cli import main
 from dsage_ray.config import ConfigError, RunConfig
 from dsage_ray.domains.maze.domain import MazeDomain

@@ -11,6 +11,7 @@ import numpy as np
 from PIL import Image
 
 from dsage_ray.audit import collection as collection_module
+from dsage_ray.audit.collection_file import load_collection
 from dsage_ray.audit.report import WORST_SHOWN, write_compare_report, write_report, zoom_window
 from dsage_ray.audit.summary import failure_summary
 
@@ -91,7 +92,7 @@ def test_report_is_self_contained(tmp_path):
 def test_summary_numbers_and_metadata_appear(tmp_path):
     folder = make_collection(tmp_path / "c", levels=15)
     page = write_report(folder).read_text()
-    summary = failure_summary(collection_module.load_collection(folder))
+    summary = failure_summary(load_collection(folder))
     assert summary["never_solved"] == 3 and summary["with_failures"] == 12
     tiles = dict((label, value) for value, label in
                  re.findall(r"<div class='stat'><b>([^<]*)</b><span>([^<]*)</span>", page))
@@ -145,7 +146,7 @@ def test_regression_collection_shows_both_agents(tmp_path):
     for header in ("reference success rate", "reference mean path length", "regression"):
         assert f">{header}</th>" in page, header
     assert "id='regressed'" in page
-    summary = failure_summary(collection_module.load_collection(folder))
+    summary = failure_summary(load_collection(folder))
     assert f"<b>{summary['regressed']}</b><span>levels where the agent does worse" in page
 
 
