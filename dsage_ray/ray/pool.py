@@ -151,7 +151,7 @@ class SimulatorPool:
         self._in_placement_group = ray.util.get_current_placement_group() is not None
         if not self._in_placement_group:
             check_cluster_fits(bundles=[{"CPU": self.cpus_per_worker}] * self.num_workers,
-                               what=f"{self.num_workers} simulator actors")
+                               what=f"a pool of {self.num_workers} simulator actors")
         self._threads = max(1, int(self.cpus_per_worker))
         self._actors = [self._new_actor() for _ in range(self.num_workers)]
         self._generations = [0] * self.num_workers
@@ -319,7 +319,7 @@ def check_cluster_fits(*, bundles: list[dict[str, float]], what: str,
         have = total.get(key, 0.0)
         if need > have + 1e-9:
             raise PoolResourceError(
-                f"{what} need {need:g} {key} in all but the Ray cluster has {have:g} "
+                f"{what} needs {need:g} {key} in all but the Ray cluster has {have:g} "
                 f"({len(nodes)} node(s)); lower ray.num_workers / ray.cpus_per_worker / ray.trial_cpus "
                 f"or add nodes")
     for bundle in bundles:
