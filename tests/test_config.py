@@ -6,7 +6,7 @@ import typing
 
 import pytest
 
-from dsage_ray.config import ConfigError, EmitterName, RunConfig, SelectionMethod, presets, variants
+from dsage_ray.config import ConfigError, EmitterName, RunConfig, SelectionMethod, SurrogateKind, presets, variants
 from dsage_ray.domains import domain_names
 from dsage_ray.domains.maze.plugin import MazeObjective
 
@@ -22,6 +22,12 @@ def test_each_config_name_set_is_its_tables_keys(names, table):
 
     module, attribute = table
     assert list(typing.get_args(names)) == list(getattr(importlib.import_module(module), attribute))
+
+
+def test_surrogate_kinds_are_the_model_table_plus_none():
+    from dsage_ray.surrogate.surrogate import MODELS
+
+    assert list(typing.get_args(SurrogateKind)) == [*MODELS, "none"]
 
 
 @pytest.mark.parametrize("values, message", [

@@ -18,10 +18,11 @@ from __future__ import annotations
 import dataclasses
 import functools
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 import torch
+from torch import nn
 from torch.nn import functional as F
 
 from dsage_ray.config import SurrogateConfig
@@ -29,7 +30,16 @@ from dsage_ray.surrogate.dataset import SurrogateDataset, Targets
 from dsage_ray.surrogate.models import ModelOutput, OneStageModel, TwoStageModel
 from dsage_ray.types import EncodedLevels, EvaluationResult
 
-KINDS = ("two_stage", "one_stage")
+#: Surrogate kinds by name: ``two_stage`` predicts occupancy first (DSAGE), ``one_stage`` does not.
+#: With ``"none"`` (plain QD, no surrogate) these are the config's ``surrogate.kind`` names.
+MODELS: dict[str, Callable[..., nn.Module]] = {
+    "two_stage": lambda *, input_channels, input_size, occupancy_shape, num_measures: TwoStageModel(
+        input_channels=input_channels, input_size=input_size, occupancy_shape=occupancy_shape,
+        num_measures=num_measures),
+    "one_stage": lambda *, input_channels, input_size, occupancy_shape, num_measures: OneStageModel(
+        input_channels=input_channels, input_size=input_size, num_measures=num_measures),
+}
+KINDS = tuple(MODELS)
 PRECISIONS = ("auto", "fp32", "bf16")
 #: x86 CPU flags of native bf16 arithmetic. Without them bf16 is emulated and slower than float32.
 #: (ARM's bf16 extensions are left out: never measured here, so ``auto`` keeps float32 there.)
@@ -136,11 +146,8 @@ class Surrogate:
         # any device, and the global RNG stays untouched.
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(seed)
-            if kind == "two_stage":
-                model = TwoStageModel(input_channels=input_channels, input_size=size,
-                                      occupancy_shape=self.occupancy_shape, num_measures=num_measures)
-            else:
-                model = OneStageModel(input_channels=input_channels, input_size=size, num_measures=num_measures)
+            model = MODELS[kind](input_channels=input_channels, input_size=size,
+                                 occupancy_shape=self.occupancy_shape, num_measures=num_measures)
         self.model = model.to(self.device)
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr, betas=tuple(config.betas))
         self._shuffle_rng = torch.Generator().manual_seed(seed)
@@ -149,7 +156,7 @@ class Surrogate:
     def head_names(self) -> tuple[str, ...]:
         """Names of the predicted quantities, as used in :meth:`train` and :meth:`mae` results."""
         names = ("objective", *(f"measure_{i}" for i in range(self.num_measures)))
-        return (*names, "occupancy") if self.kind == "two_stage" else names
+        return (*names, "occupancy") if isinstance(self.model, TwoStageModel) else names
 
     def make_dataset(self, **kwargs: Any) -> SurrogateDataset:
         """An empty dataset whose shapes match this model; ``kwargs`` go to :class:`SurrogateDataset`."""
@@ -259,7 +266,7 @@ class Surrogate:
         if not chunks:
             height, width = self.occupancy_shape
             return Prediction(objective=np.zeros(0, np.float32), measures=np.zeros((0, self.num_measures), np.float32),
-                              occupancy=np.zeros((0, height, width), np.float32) if self.kind == "two_stage" else None)
+                              occupancy=np.zeros((0, height, width), np.float32) if "occupancy" in self.head_names else None)
         objective, measures, occupancy = (None if parts[0] is None else torch.cat(parts) for parts in zip(*chunks))
         measures = measures * self._measure_scale + self._measure_offset
         return Prediction(objective.cpu().numpy(), measures.cpu().numpy(),
