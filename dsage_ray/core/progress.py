@@ -96,6 +96,11 @@ class ConsoleProgress:
                 bar.close()
             bar = self._bars[phase] = tqdm(total=total, desc=phase, leave=phase == "evaluate", dynamic_ncols=True)
         bar.update(done - bar.n)
+        if done >= total and phase != "evaluate":
+            # A finished pass (held-out levels, one inner loop) leaves the screen; an open bar would
+            # be redrawn under every later line with its clock still running.
+            bar.close()
+            del self._bars[phase]
 
     def on_start(self, runner) -> None:
         """Starts the clock; a resumed run's ETA counts only the evaluations made since."""

@@ -58,3 +58,22 @@ def test_tensorboard_hint_uses_tensorboard_from_the_path(tmp_path, monkeypatch):
     monkeypatch.setenv("PATH", str(bin_dir))
     monkeypatch.chdir(bin_dir)
     assert tensorboard_hint(tmp_path / "runs") == f"tensorboard --logdir {tmp_path / 'runs'}"
+
+
+def test_console_bars_close_when_their_pass_ends_except_the_run_long_evaluate_bar():
+    from dsage_ray.core.progress import ConsoleProgress
+
+    console = ConsoleProgress(budget=100)
+    console.phase("holdout", 0, 10)
+    console.phase("evaluate", 20, 100)
+    console.phase("exploit", 3, 5)
+    assert set(console._bars) == {"holdout", "evaluate", "exploit"}
+    console.phase("holdout", 10, 10)
+    console.phase("exploit", 5, 5)
+    assert set(console._bars) == {"evaluate"}  # finished passes are gone, not redrawn with a running clock
+    console.phase("exploit", 1, 5)  # the next inner loop gets a fresh bar
+    assert console._bars["exploit"].n == 1
+    console.phase("evaluate", 100, 100)
+    assert set(console._bars) == {"evaluate", "exploit"}
+    console.close()
+    assert not console._bars
