@@ -290,6 +290,9 @@ class SimulatorPool:
                 ray.kill(actor, no_restart=True)
             except Exception:  # noqa: BLE001 - closing must not fail on an already-dead actor
                 pass
+        # Drop the handles now: released later, their __del__ can run inside the SIGTERM Tune sends a
+        # finished trial and print a "SystemExit" traceback that means nothing.
+        self._actors = []
 
     def __enter__(self) -> "SimulatorPool":
         return self
