@@ -49,7 +49,8 @@ def load_trials(experiment: Path) -> list[dict]:
         FileNotFoundError: ``experiment`` holds no Tune experiment.
     """
     try:
-        analysis = tune.ExperimentAnalysis(str(experiment))
+        # Tune (pyarrow) reads a relative path as a URI without a scheme and fails.
+        analysis = tune.ExperimentAnalysis(str(Path(experiment).resolve()))
     except ValueError:  # Tune's message spans lines and names its internal file pattern
         raise FileNotFoundError(f"no Tune experiment under {experiment}") from None
     trials = []

@@ -137,7 +137,7 @@ def test_explicit_target_budget_from_the_config_and_unfinished_runs(summarize, r
     assert (out / "summary.md").exists() and (out / "comparison.png").exists()
 
 
-def test_a_row_per_value_of_every_grid_key(summarize, ray_session, tmp_path, capsys):
+def test_a_row_per_value_of_every_grid_key(summarize, ray_session, tmp_path, capsys, monkeypatch):
     blocks = [[4, 3], [8, 6]]
     scripts = dict(trial(variant=variant, seed=seed, **{"selection.block": block}, evals=[100, 200],
                          qd_scores=[10, 10 * (i + 1) + seed + (5 if variant == "dsage" else 0)])
@@ -146,7 +146,9 @@ def test_a_row_per_value_of_every_grid_key(summarize, ray_session, tmp_path, cap
              "selection.block": tune.grid_search(blocks), "seed": tune.grid_search([0, 1])}
     experiment = run_experiment(tmp_path, "grid", space, scripts)
     capsys.readouterr()
-    assert summarize.main([str(experiment)]) == 0
+    # A relative folder, as a user types it (Tune reads a relative path as a URI without a scheme).
+    monkeypatch.chdir(tmp_path)
+    assert summarize.main([str(experiment.relative_to(tmp_path))]) == 0
     printed = capsys.readouterr().out
     lines = [line for line in printed.splitlines() if line.startswith("| ")]
     assert lines[0].startswith("| Variant | selection.block | Runs | QD-score |")
