@@ -60,7 +60,9 @@ def test_bad_specs(spec, needle):
     assert needle in str(load_error(spec))
 
 
-def test_register_new_kind_without_touching_others():
+def test_register_new_kind_without_touching_others(monkeypatch):
+    # The kind lives in this process's registry: gone after the test, so other tests see the usual kinds.
+    monkeypatch.setattr(loader, "_REGISTERED", {})
     class Constant(Agent):
         def initial_state(self, batch_size):
             return None
