@@ -31,6 +31,6 @@ def test_a_plug_in_kind_evaluates_in_the_pool_as_in_process(ray_session, agent_p
     with SimulatorPool(config=config) as pool:
         assert all(info["pid"] != os.getpid() for info in pool.actor_info)
         results = pool(solutions, seeds)
-    assert not any(result.failed for result in results), [result.info for result in results]
+    assert not any(result.failed for result in results), [result.error for result in results]
     assert [r.objective for r in results] == [r.objective for r in expected]
     assert all(np.array_equal(a.measures, b.measures) for a, b in zip(results, expected))
