@@ -12,6 +12,41 @@ import numpy as np
 
 
 @numba.njit(cache=True, nogil=True)
+def _bfs(flat: np.ndarray, height: int, width: int, source: int, dist: np.ndarray,
+         queue: np.ndarray) -> int:  # pragma: no cover - compiled
+    """4-neighbour BFS over the empty cells ``flat`` from ``source``; ``dist`` must be -1 on entry.
+
+    Fills ``dist`` for the reached cells and ``queue[:tail]`` with them in visiting order (non-decreasing
+    distance); returns ``tail``.
+    """
+    dist[source] = 0
+    queue[0] = source
+    head, tail = 0, 1
+    while head < tail:
+        cell = queue[head]
+        head += 1
+        row, col = cell // width, cell % width
+        d = dist[cell] + 1
+        if row > 0 and flat[cell - width] and dist[cell - width] < 0:
+            dist[cell - width] = d
+            queue[tail] = cell - width
+            tail += 1
+        if row < height - 1 and flat[cell + width] and dist[cell + width] < 0:
+            dist[cell + width] = d
+            queue[tail] = cell + width
+            tail += 1
+        if col > 0 and flat[cell - 1] and dist[cell - 1] < 0:
+            dist[cell - 1] = d
+            queue[tail] = cell - 1
+            tail += 1
+        if col < width - 1 and flat[cell + 1] and dist[cell + 1] < 0:
+            dist[cell + 1] = d
+            queue[tail] = cell + 1
+            tail += 1
+    return tail
+
+
+@numba.njit(cache=True, nogil=True)
 def _furthest_pairs(empty: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
     n, height, width = empty.shape
     size = height * width
@@ -24,30 +59,7 @@ def _furthest_pairs(empty: np.ndarray) -> np.ndarray:  # pragma: no cover - comp
         for source in range(size):
             if not flat[source]:
                 continue
-            dist[source] = 0
-            queue[0] = source
-            head, tail = 0, 1
-            while head < tail:
-                cell = queue[head]
-                head += 1
-                row, col = cell // width, cell % width
-                d = dist[cell] + 1
-                if row > 0 and flat[cell - width] and dist[cell - width] < 0:
-                    dist[cell - width] = d
-                    queue[tail] = cell - width
-                    tail += 1
-                if row < height - 1 and flat[cell + width] and dist[cell + width] < 0:
-                    dist[cell + width] = d
-                    queue[tail] = cell + width
-                    tail += 1
-                if col > 0 and flat[cell - 1] and dist[cell - 1] < 0:
-                    dist[cell - 1] = d
-                    queue[tail] = cell - 1
-                    tail += 1
-                if col < width - 1 and flat[cell + 1] and dist[cell + 1] < 0:
-                    dist[cell + 1] = d
-                    queue[tail] = cell + 1
-                    tail += 1
+            tail = _bfs(flat, height, width, source, dist, queue)
             # BFS dequeues in non-decreasing distance, so the furthest targets end the queue.
             # Sources ascend and the distance matrix is symmetric, so SPEC §2's tie-break (first
             # maximum in row-major order) is: a strictly longer distance wins, and among equals
@@ -99,32 +111,8 @@ def _path_masks(empty: np.ndarray, pairs: np.ndarray) -> np.ndarray:  # pragma: 
         flat = empty[m].ravel()
         for which in range(2):
             dist = from_start if which == 0 else from_goal
-            source = pairs[m, which]
             dist[:] = -1
-            dist[source] = 0
-            queue[0] = source
-            head, tail = 0, 1
-            while head < tail:
-                cell = queue[head]
-                head += 1
-                row, col = cell // width, cell % width
-                d = dist[cell] + 1
-                if row > 0 and flat[cell - width] and dist[cell - width] < 0:
-                    dist[cell - width] = d
-                    queue[tail] = cell - width
-                    tail += 1
-                if row < height - 1 and flat[cell + width] and dist[cell + width] < 0:
-                    dist[cell + width] = d
-                    queue[tail] = cell + width
-                    tail += 1
-                if col > 0 and flat[cell - 1] and dist[cell - 1] < 0:
-                    dist[cell - 1] = d
-                    queue[tail] = cell - 1
-                    tail += 1
-                if col < width - 1 and flat[cell + 1] and dist[cell + 1] < 0:
-                    dist[cell + 1] = d
-                    queue[tail] = cell + 1
-                    tail += 1
+            _bfs(flat, height, width, pairs[m, which], dist, queue)
         length = from_start[pairs[m, 1]]
         for cell in range(size):
             if from_start[cell] >= 0:
