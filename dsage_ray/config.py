@@ -339,6 +339,8 @@ COMMON_VARIANTS: dict[str, dict[str, Any]] = {
     # Not in the paper: DSAGE that spends no evaluation on a pick the ground-truth archive already
     # beats (predicted cell occupied with an objective >= the predicted one).
     "dsage_novel": {"surrogate.kind": "two_stage", "selection.method": "downsample", "selection.skip_filled": True},
+    # Domain randomisation: the random emitter draws every level from the domain's own generator.
+    "dr": {"surrogate.kind": "none", "qd.emitter": "random", "qd.num_emitters": 5, "qd.batch_size": 30},
 }
 
 
