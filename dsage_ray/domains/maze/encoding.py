@@ -37,26 +37,21 @@ def encode_levels(levels: np.ndarray | Sequence[MazeLevel], height: int, width: 
     if isinstance(levels, np.ndarray):
         walls = np.asarray(levels).reshape(len(levels), height, width) > 0.5
         pairs = furthest_pairs(walls)
-        kind = np.where(walls, WALL, EMPTY).reshape(len(levels), -1)
-        has_pair = pairs[:, 0] >= 0
-        rows = np.flatnonzero(has_pair)
-        kind[rows, pairs[has_pair, 0]] = START
-        kind[rows, pairs[has_pair, 1]] = GOAL
-        kind = kind.reshape(len(levels), height, width)
     else:
-        kind = np.empty((len(levels), height, width), dtype=np.int64)
+        walls = np.empty((len(levels), height, width), dtype=bool)
+        pairs = np.full((len(levels), 3), -1, dtype=np.int64)
         for n, level in enumerate(levels):
             if level.walls.shape != (height, width):
                 raise ValueError(f"level {n} is {level.height}x{level.width}, expected {height}x{width}")
-            kind[n] = np.where(level.walls, WALL, EMPTY)
+            walls[n] = level.walls
             if level.start is not None:
-                kind[n][level.start] = START
-                kind[n][level.goal] = GOAL
-    encoded = np.eye(len(CHANNELS), dtype=np.float32)[kind].transpose(0, 3, 1, 2)
+                pairs[n, :2] = [row * width + col for row, col in (level.start, level.goal)]
+    kind = np.where(walls, WALL, EMPTY).reshape(len(levels), -1)
+    has_pair = pairs[:, 0] >= 0
+    rows = np.flatnonzero(has_pair)
+    kind[rows, pairs[has_pair, 0]] = START
+    kind[rows, pairs[has_pair, 1]] = GOAL
+    encoded = np.eye(len(CHANNELS), dtype=np.float32)[kind.reshape(len(levels), height, width)].transpose(0, 3, 1, 2)
     if not path_channels:
         return encoded.copy()
-    walls = encoded[:, WALL] > 0.5
-    flat = lambda channel: encoded[:, channel].reshape(len(encoded), -1).argmax(axis=1)  # noqa: E731
-    has_pair = encoded[:, START].any(axis=(1, 2))
-    pairs = np.where(has_pair[:, None], np.stack([flat(START), flat(GOAL), np.zeros(len(encoded), np.int64)], 1), -1)
     return np.concatenate([encoded, path_masks(walls, pairs).astype(np.float32)], axis=1)
