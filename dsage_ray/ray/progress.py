@@ -81,9 +81,6 @@ class ProgressLines(tune.Callback):
             line = f"{_label(trial)}  {line}  trials done {finished}/{len(trials)}"
         _print(line)
 
-    def on_trial_complete(self, iteration: int, trials: list, trial, **info: Any) -> None:
-        self._finished.add(trial.trial_id)
-
     def on_trial_recover(self, iteration: int, trials: list, trial, **info: Any) -> None:
         _print(f"{_label(trial)}: failed; Tune restarts it from its last checkpoint")
 
