@@ -101,7 +101,7 @@ def main(argv: list[str] | None = None) -> dict:
         surrogate = Surrogate(kind=setting.surrogate.kind, input_channels=levels.shape[1],
                               input_shape=tuple(levels.shape[2:]), occupancy_shape=domain.occupancy_shape,
                               num_measures=num_measures, config=setting.surrogate, seed=config.seed,
-                              measure_ranges=domain.measure_ranges)
+                              measure_ranges=domain.measure_ranges, measure_names=domain.measure_names)
         rows = []
         for k in range(1, len(ends)):
             tic = time.perf_counter()

@@ -81,6 +81,10 @@ class SurrogateConfig:
     #: Early stopping: stop after this many epochs without a lower validation loss and keep the
     #: best epoch's weights (needs ``validation_fraction > 0``).
     patience: int = 5
+    #: Name of a measure that equals the sum of the occupancy grid (Maze: ``mean_path_length``, since
+    #: the grid counts the agent's steps); a two-stage surrogate then predicts it as the sum of its
+    #: predicted occupancy instead of with its own head. Empty (the paper): every measure has a head.
+    occupancy_sum_measure: str = ""
 
 
 @dataclasses.dataclass
@@ -296,6 +300,8 @@ class RunConfig:
         need(0.0 <= self.surrogate.validation_fraction < 1.0, "surrogate.validation_fraction",
              "must be in [0, 1) (0: no early stopping)")
         need(self.surrogate.patience >= 1, "surrogate.patience", "must be positive")
+        need(not self.surrogate.occupancy_sum_measure or self.surrogate.kind != "one_stage",
+             "surrogate.occupancy_sum_measure", "needs the two-stage surrogate (only it predicts occupancy)")
         for key in ("num_emitters", "batch_size", "exploit_iterations", "mutation_cells"):
             need(getattr(self.qd, key) >= 1, f"qd.{key}", "must be positive")
         need(self.qd.sigma0 > 0, "qd.sigma0", "must be positive")
@@ -333,8 +339,10 @@ class RunConfig:
 COMMON_VARIANTS: dict[str, dict[str, Any]] = {
     "dsage": {"surrogate.kind": "two_stage", "selection.method": "downsample"},
     "dsage_only_anc": {"surrogate.kind": "two_stage", "selection.method": "full"},
-    "dsage_only_down": {"surrogate.kind": "one_stage", "selection.method": "downsample"},
-    "dsage_basic": {"surrogate.kind": "one_stage", "selection.method": "full"},
+    # A one-stage model predicts no occupancy, so every measure has its own head.
+    "dsage_only_down": {"surrogate.kind": "one_stage", "selection.method": "downsample",
+                        "surrogate.occupancy_sum_measure": ""},
+    "dsage_basic": {"surrogate.kind": "one_stage", "selection.method": "full", "surrogate.occupancy_sum_measure": ""},
     "dsage_rsample": {"surrogate.kind": "two_stage", "selection.method": "random"},
     # Not in the paper: DSAGE that spends no evaluation on a pick the ground-truth archive already
     # beats (predicted cell occupied with an objective >= the predicted one).

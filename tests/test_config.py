@@ -114,3 +114,13 @@ def test_a_domain_section_round_trips_through_toml_and_json(tmp_path):
 
 def test_the_built_in_domains_are_registered_entry_points():
     assert {"maze", "mario"} <= set(domain_names())
+
+
+def test_occupancy_sum_measure_needs_a_model_that_predicts_occupancy():
+    with pytest.raises(ConfigError, match="surrogate.occupancy_sum_measure"):
+        RunConfig.build({"variant": "dsage", "surrogate.kind": "one_stage",
+                         "surrogate.occupancy_sum_measure": "mean_path_length"})
+    with pytest.raises(ConfigError, match="surrogate.occupancy_sum_measure"):
+        RunConfig.build({"variant": "dsage_basic", "surrogate.occupancy_sum_measure": "mean_path_length"})
+    built = RunConfig.build({"variant": "dsage", "surrogate.occupancy_sum_measure": "mean_path_length"})
+    assert built.surrogate.occupancy_sum_measure == "mean_path_length"

@@ -116,6 +116,7 @@ class DSAGE:
                 config=config.surrogate,
                 seed=int(self._next_qd_seed()),
                 measure_ranges=self.domain.measure_ranges,
+                measure_names=self.domain.measure_names,
             )
             self.dataset = self.surrogate.make_dataset()
         else:

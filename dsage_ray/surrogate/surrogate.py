@@ -121,11 +121,13 @@ class Surrogate:
         config: Training and prediction settings.
         seed: Seeds the initial weights and the minibatch order.
         measure_ranges: ``(low, high)`` per measure; required by ``config.target_scaling = "range"``.
+        measure_names: The measures' names; required by ``config.occupancy_sum_measure``, which names one.
     """
 
     def __init__(self, *, kind: str, input_channels: int, input_shape: tuple[int, int],
                  occupancy_shape: tuple[int, int], num_measures: int, config: SurrogateConfig, seed: int,
-                 measure_ranges: Sequence[tuple[float, float]] | None = None) -> None:
+                 measure_ranges: Sequence[tuple[float, float]] | None = None,
+                 measure_names: Sequence[str] | None = None) -> None:
         if kind not in KINDS:
             raise ValueError(f"surrogate kind must be one of {KINDS}, got {kind!r}")
         size, width = input_shape
@@ -140,6 +142,7 @@ class Surrogate:
         self.device = resolve_device(config.device)
         self._measure_offset, self._measure_scale = _target_scaling(config.target_scaling, measure_ranges,
                                                                     num_measures, self.device)
+        self._sum_index = _occupancy_sum_index(config.occupancy_sum_measure, kind, measure_names, num_measures)
         #: ``"fp32"`` or ``"bf16"``: what ``config.precision`` resolved to on this machine.
         self.precision = resolve_precision(config.precision, self.device)
         # Weights are drawn on the CPU inside a forked RNG: the same seed gives the same network on
@@ -168,6 +171,7 @@ class Surrogate:
     def _losses(self, output: ModelOutput, objective: torch.Tensor, measures: torch.Tensor,
                 occupancy: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Returns the training loss and the per-head MSEs (``head_names`` order, measures in scaled units)."""
+        output = self._sum_occupancy(output)
         predicted = torch.cat([output.objective[:, None], output.measures], dim=1)
         scaled = (measures - self._measure_offset) / self._measure_scale
         target = torch.cat([objective[:, None], scaled], dim=1)
@@ -245,6 +249,19 @@ class Surrogate:
                 total += float(loss) * len(chunk)
         return total / len(indices)
 
+    def _sum_occupancy(self, output: ModelOutput) -> ModelOutput:
+        """Replaces the ``occupancy_sum_measure`` head's output by the sum of the predicted occupancy.
+
+        The loss on that measure then trains the occupancy predictor directly, and its prediction
+        is consistent with the predicted occupancy by construction.
+        """
+        if self._sum_index is None:
+            return output
+        i = self._sum_index
+        total = (output.occupancy.float().sum(dim=(1, 2)) - self._measure_offset[i]) / self._measure_scale[i]
+        measures = torch.cat([output.measures[:, :i], total[:, None], output.measures[:, i + 1:]], dim=1)
+        return output._replace(measures=measures)
+
     # --------------------------------------------------------------------------------- prediction
 
     def predict(self, encoded: EncodedLevels) -> Prediction:
@@ -267,7 +284,8 @@ class Surrogate:
             height, width = self.occupancy_shape
             return Prediction(objective=np.zeros(0, np.float32), measures=np.zeros((0, self.num_measures), np.float32),
                               occupancy=np.zeros((0, height, width), np.float32) if "occupancy" in self.head_names else None)
-        objective, measures, occupancy = (None if parts[0] is None else torch.cat(parts) for parts in zip(*chunks))
+        objective, measures, occupancy = (None if parts[0] is None else torch.cat(parts)
+                                          for parts in zip(*map(self._sum_occupancy, chunks)))
         measures = measures * self._measure_scale + self._measure_offset
         return Prediction(objective.cpu().numpy(), measures.cpu().numpy(),
                           None if occupancy is None else occupancy.cpu().numpy())
@@ -321,6 +339,19 @@ class Surrogate:
         # only if needed) and updates them in place: copy, so the checkpoint itself never changes.
         self.optimizer.load_state_dict(_cpu_copy(state["optimizer"]))
         self._shuffle_rng.set_state(state["shuffle_rng"])
+
+
+def _occupancy_sum_index(name: str, kind: str, measure_names: Sequence[str] | None,
+                         num_measures: int) -> int | None:
+    """The index of ``config.occupancy_sum_measure`` among the measures, or None when it is unset."""
+    if not name:
+        return None
+    if kind != "two_stage":
+        raise ValueError(f"occupancy_sum_measure {name!r} needs the two_stage surrogate, not {kind!r}")
+    names = list(measure_names or ())
+    if len(names) != num_measures or name not in names:
+        raise ValueError(f"occupancy_sum_measure {name!r} is not one of the measures {names}")
+    return names.index(name)
 
 
 def _target_scaling(name: str, measure_ranges: Sequence[tuple[float, float]] | None, num_measures: int,

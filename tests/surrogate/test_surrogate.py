@@ -215,3 +215,41 @@ def test_range_scaling_maps_the_network_output_onto_each_measure_range():
     with pytest.raises(ValueError, match="one \\(low, high\\) per measure"):
         Surrogate(kind="one_stage", input_channels=5, input_shape=(8, 8), occupancy_shape=OCC, num_measures=2,
                   config=SurrogateConfig(device="cpu", target_scaling="range"), seed=0)
+
+
+def test_occupancy_sum_measure_is_the_sum_of_the_predicted_occupancy_in_raw_units():
+    config = SurrogateConfig(device="cpu", precision="fp32", target_scaling="range",
+                             occupancy_sum_measure="path")
+    surrogate = Surrogate(kind="two_stage", input_channels=5, input_shape=(8, 8), occupancy_shape=OCC,
+                          num_measures=2, config=config, seed=0, measure_ranges=[(0.0, 10.0), (0.0, 648.0)],
+                          measure_names=["walls", "path"])
+    prediction = surrogate.predict(random_levels(4, size=8, seed=1))
+    np.testing.assert_allclose(prediction.measures[:, 1], prediction.occupancy.sum(axis=(1, 2)), rtol=1e-5)
+    # The other head is untouched: the same weights without the option predict the same first measure.
+    plain = Surrogate(kind="two_stage", input_channels=5, input_shape=(8, 8), occupancy_shape=OCC, num_measures=2,
+                      config=SurrogateConfig(device="cpu", precision="fp32", target_scaling="range"), seed=0,
+                      measure_ranges=[(0.0, 10.0), (0.0, 648.0)])
+    np.testing.assert_allclose(prediction.measures[:, 0], plain.predict(random_levels(4, size=8, seed=1)).measures[:, 0])
+
+
+def test_occupancy_sum_measure_trains_the_occupancy_through_the_measure_loss():
+    surrogate = Surrogate(kind="two_stage", input_channels=5, input_shape=(8, 8), occupancy_shape=OCC, num_measures=2,
+                          config=SurrogateConfig(device="cpu", precision="fp32", epochs=1, occupancy_weight=0.0,
+                                                 occupancy_sum_measure="m1"),
+                          seed=0, measure_names=["m0", "m1"])
+    dataset, _ = toy_dataset(surrogate, n=16)
+    before = [p.detach().clone() for p in surrogate.model.occupancy_predictor.parameters()]
+    surrogate.train(dataset)
+    after = list(surrogate.model.occupancy_predictor.parameters())
+    # With no occupancy loss, only the summed measure's loss can move the occupancy predictor.
+    assert any(not torch.equal(b, a) for b, a in zip(before, after))
+
+
+def test_occupancy_sum_measure_must_name_a_measure_of_a_two_stage_model():
+    config = SurrogateConfig(device="cpu", occupancy_sum_measure="path")
+    with pytest.raises(ValueError, match="not one of the measures"):
+        Surrogate(kind="two_stage", input_channels=5, input_shape=(8, 8), occupancy_shape=OCC, num_measures=2,
+                  config=config, seed=0, measure_names=["walls", "length"])
+    with pytest.raises(ValueError, match="needs the two_stage surrogate"):
+        Surrogate(kind="one_stage", input_channels=5, input_shape=(8, 8), occupancy_shape=OCC, num_measures=2,
+                  config=config, seed=0, measure_names=["walls", "path"])
