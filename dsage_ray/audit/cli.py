@@ -27,6 +27,9 @@ def add_subparser(subparsers) -> None:
                             "(objective regression)")
     add_config_arguments(audit)
     audit.set_defaults(preset="cpu")
+    audit.add_argument("--variant", default="dsage",
+                       help="the search: dsage (default) or another variant of the domain, e.g. map_elites or dr "
+                            "(experiments/audit_comparison.py compares them)")
     audit.add_argument("--budget", type=int, help="real evaluations of the search (default: the preset's)")
     audit.add_argument("--objective",
                        help="what the search maximises on valid levels. maze: failure_rate (default), regret, "
@@ -82,7 +85,8 @@ def run_audit_command(args: argparse.Namespace) -> int:
         raise InputError(f"--workers must be >= 0 (0: simulate in the trial process), got {args.workers}")
     measures = tuple(m.strip() for m in args.measures.split(",") if m.strip()) if args.measures else None
     config = audit_config(domain=args.domain, agent=args.agent, reference=args.reference, preset=args.preset,
-                          objective=args.objective, measures=measures, budget=args.budget, seed=args.seed,
+                          variant=args.variant, objective=args.objective, measures=measures, budget=args.budget,
+                          seed=args.seed,
                           overrides=dict(parse_override(item) for item in args.overrides))
     agent = args.agent or spec.audit.default_agent
     out = (Path(args.out) if args.out

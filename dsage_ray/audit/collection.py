@@ -63,6 +63,7 @@ def audit_config(
     agent: str | None = None,
     reference: str | None = None,
     preset: str = "cpu",
+    variant: str = "dsage",
     objective: str | None = None,
     measures: Sequence[str] | None = None,
     budget: int | None = None,
@@ -78,6 +79,8 @@ def audit_config(
         reference: Maze only: a reference agent spec; the audit then searches for levels where ``agent``
             does worse than it (objective ``regression``).
         preset: The domain's preset (``cpu``, ``tiny``, ...).
+        variant: The search: ``dsage`` (default), or any variant of the domain (``map_elites``, ``dr``, ...),
+            e.g. to compare how many failures each finds at the same budget.
         objective: One of the registration's ``audit.objectives`` (default: its first, or ``regression`` with a
             reference).
         measures: Measure names (default: the registration's ``audit.measures``).
@@ -92,7 +95,7 @@ def audit_config(
     spec = audit_spec(domain)
     cls = spec.domain_class()
     agent = agent or spec.audit.default_agent
-    values: dict[str, Any] = {"name": name or f"audit_{agent_slug(agent)}", "domain": domain, "variant": "dsage",
+    values: dict[str, Any] = {"name": name or f"audit_{agent_slug(agent)}", "domain": domain, "variant": variant,
                               "preset": preset, "seed": seed}
     values.update(cls.audit_values(agent=agent, reference=reference, objective=objective, measures=measures))
     num_measures = len(values[f"{domain}.measures"])

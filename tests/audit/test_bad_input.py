@@ -88,3 +88,9 @@ def test_mario_audit_config_uses_the_paper_measures_and_the_agent_spec():
     assert config.mario.measures == ("sky_tiles", "mean_jumps")
     assert config.mario.archive_dims == (150, 100) and config.mario.measure_ranges == ((0.0, 150.0), (0.0, 100.0))
     assert audit_config(domain="mario").mario.astar_iterations == 1000  # plain "astar": the config's default
+
+
+def test_unknown_variant(tmp_path):
+    message = audit_error(["--agent", "builtin:random", "--variant", "map_elite", "--local", "--out", str(tmp_path / "a")])
+    assert "unknown variant 'map_elite'" in message and message.endswith("did you mean 'map_elites'?")
+    assert not (tmp_path / "a").exists()

@@ -1,0 +1,135 @@
+"""Which search finds the most diverse failures? ``dsage-ray audit`` per variant × seed, one table.
+
+    python experiments/audit_comparison.py --agent dcd:accel --preset cpu --seeds 3
+    python experiments/audit_comparison.py --agent builtin:wall_follower --preset tiny --seeds 1 --variants dsage,dr
+    python experiments/audit_comparison.py --out tb_logs/audit_comparison --summary-only   # the table again
+
+Every (variant, seed) is one audit (``dsage-ray audit --local --variant V --seed K``) in ``OUT/V_seedK``:
+the same agent, objective, measures and budget, and a collection whose elites are all re-evaluated
+with recorded seeds, so the counts compare searches, not the luck of the search's own episodes. The
+table (``OUT/summary.md``, mean ± standard error over seeds) holds the failure-diversity numbers of
+each collection (``dsage_ray.audit.summary``): never-solved levels, distinct archive cells with a
+level failing at least half the time, levels with any failure. Audits run ``--jobs`` at a time, each
+in its own process on one thread; one already collected is skipped and an interrupted one resumes,
+so the command can be run again after a stop.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+#: The columns of the table: (summary key, heading).
+COLUMNS = (("never_solved", "Never solved"), ("failure_cells", "Cells with failure rate ≥ 0.5"),
+           ("with_failures", "Levels with failures"), ("levels", "Levels"))
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--agent", default="dcd:accel", help="agent spec to audit (default dcd:accel)")
+    parser.add_argument("--domain", default="maze")
+    parser.add_argument("--preset", default="cpu")
+    parser.add_argument("--variants", default="dsage,map_elites,dr", help="comma-separated searches to compare")
+    parser.add_argument("--seeds", type=int, default=3, help="seeds 0..K-1")
+    parser.add_argument("--budget", type=int, help="real evaluations per search (default: the preset's)")
+    parser.add_argument("--jobs", type=int, default=2, help="audits at a time (one CPU each)")
+    parser.add_argument("--out", type=Path, default=Path("tb_logs/audit_comparison"))
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="any config key, for every audit")
+    parser.add_argument("--summary-only", action="store_true", help="only write the table from finished audits")
+    return parser.parse_args(argv)
+
+
+def audit_command(args: argparse.Namespace, variant: str, seed: int, folder: Path) -> list[str]:
+    """The ``dsage-ray audit`` command of one grid point (resuming its search if one was started)."""
+    command = [sys.executable, "-m", "dsage_ray.cli", "audit", "--local", "--domain", args.domain,
+               "--agent", args.agent, "--preset", args.preset, "--variant", variant, "--seed", str(seed),
+               "--out", str(folder)]
+    if args.budget is not None:
+        command += ["--budget", str(args.budget)]
+    for item in args.overrides:
+        command += ["--set", item]
+    if (folder / "search").is_dir():
+        command.append("--resume")
+    return command
+
+
+def run_audit(args: argparse.Namespace, variant: str, seed: int) -> tuple[str, int, int, float]:
+    """Runs one audit to completion (output to ``OUT/V_seedK.log``); returns its exit code and seconds."""
+    folder = args.out / f"{variant}_seed{seed}"
+    log = args.out / f"{variant}_seed{seed}.log"
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    started = time.perf_counter()
+    with log.open("a") as stream:
+        code = subprocess.run(audit_command(args, variant, seed, folder), stdout=stream, stderr=subprocess.STDOUT,
+                              env=env, check=False).returncode
+    return variant, seed, code, time.perf_counter() - started
+
+
+def collection_file(out: Path, variant: str, seed: int) -> Path:
+    return out / f"{variant}_seed{seed}" / "collection" / "collection.json"
+
+
+def summarize(out: Path, variants: list[str], seeds: int) -> str:
+    """The markdown table over the finished audits in ``out`` (mean ± s.e. over seeds per variant)."""
+    import numpy as np
+
+    from dsage_ray.audit.collection_file import load_collection
+    from dsage_ray.audit.summary import failure_summary
+
+    lines = ["| Variant | Audits | " + " | ".join(title for _, title in COLUMNS) + " |",
+             "|---" * (len(COLUMNS) + 2) + "|"]
+    per_run: dict[str, list[dict]] = {}
+    for variant in variants:
+        summaries = [failure_summary(load_collection(collection_file(out, variant, seed).parent))
+                     for seed in range(seeds) if collection_file(out, variant, seed).is_file()]
+        per_run[variant] = summaries
+        if not summaries:
+            continue
+        cells = []
+        for key, _ in COLUMNS:
+            values = np.array([s[key] for s in summaries], dtype=float)
+            error = values.std(ddof=1) / np.sqrt(len(values)) if len(values) > 1 else float("nan")
+            cells.append(f"{values.mean():,.1f} ± {error:,.1f}" if len(values) > 1 else f"{values[0]:,.0f}")
+        lines.append(f"| {variant} | {len(summaries)} | " + " | ".join(cells) + " |")
+    (out / "summary.json").write_text(json.dumps(per_run, indent=1))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    variants = [v.strip() for v in args.variants.split(",") if v.strip()]
+    args.out.mkdir(parents=True, exist_ok=True)
+    if not args.summary_only:
+        todo = [(v, s) for v in variants for s in range(args.seeds) if not collection_file(args.out, v, s).is_file()]
+        print(f"{len(todo)} audits to run ({len(variants)} variants × {args.seeds} seeds, "
+              f"{len(variants) * args.seeds - len(todo)} already collected), {args.jobs} at a time; logs in {args.out}")
+        failed = []
+        with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+            for variant, seed, code, seconds in pool.map(lambda point: run_audit(args, *point), todo):
+                status = "done" if code == 0 else f"FAILED (exit {code})"
+                print(f"  {variant} seed {seed}: {status} in {seconds / 60:.1f} min "
+                      f"({args.out / f'{variant}_seed{seed}.log'})", flush=True)
+                if code != 0:
+                    failed.append((variant, seed))
+        if failed:
+            print(f"{len(failed)} audits failed; run the command again to resume them", file=sys.stderr)
+    table = summarize(args.out, variants, args.seeds)
+    (args.out / "summary.md").write_text(
+        f"{table}\n\nAgent `{args.agent}`, preset `{args.preset}`"
+        + (f", budget {args.budget}" if args.budget else "")
+        + f", seeds 0..{args.seeds - 1}; mean ± standard error over seeds. Every level of a collection was "
+          "re-evaluated with its recorded seed.\n")
+    print(table)
+    print(f"table: {args.out / 'summary.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
