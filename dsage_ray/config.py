@@ -302,6 +302,10 @@ class RunConfig:
         need(self.surrogate.patience >= 1, "surrogate.patience", "must be positive")
         need(not self.surrogate.occupancy_sum_measure or self.surrogate.kind != "one_stage",
              "surrogate.occupancy_sum_measure", "needs the two-stage surrogate (only it predicts occupancy)")
+        measure_names = getattr(self.sections[self.domain], "measures", None)
+        need(not self.surrogate.occupancy_sum_measure or measure_names is None
+             or self.surrogate.occupancy_sum_measure in measure_names, "surrogate.occupancy_sum_measure",
+             f"{self.surrogate.occupancy_sum_measure!r} is not one of the measures {list(measure_names or [])}")
         for key in ("num_emitters", "batch_size", "exploit_iterations", "mutation_cells"):
             need(getattr(self.qd, key) >= 1, f"qd.{key}", "must be positive")
         need(self.qd.sigma0 > 0, "qd.sigma0", "must be positive")

@@ -192,8 +192,12 @@ class MazeDomain:
             low, high = get_measure(name).natural_range(16, 16)
             return 50 if high - low <= 1 else int(round(high - low))
 
-        return {"maze.agent": agent, "maze.reference": reference or "", "maze.objective": objective,
-                "maze.measures": measures, "maze.archive_dims": tuple(cells(m) for m in measures)}
+        values = {"maze.agent": agent, "maze.reference": reference or "", "maze.objective": objective,
+                  "maze.measures": measures, "maze.archive_dims": tuple(cells(m) for m in measures)}
+        if "mean_path_length" not in measures:
+            # The cpu preset predicts the path length as the occupancy sum; without that measure there is none.
+            values["surrogate.occupancy_sum_measure"] = ""
+        return values
 
     def preflight(self) -> None:
         """Loads the agent (and the reference) now, so a bad spec fails in one line before any search.
