@@ -1,6 +1,11 @@
 """A finished ablation experiment → the paper's tables (Markdown) and a comparison plot (PNG).
 
     python experiments/summarize.py tb_logs/ablation_maze_cpu [--target 1107] [--out DIR]
+    python experiments/summarize.py NEW_EXPERIMENT OLD_EXPERIMENT:map_elites,dr --out DIR   # rows from two
+
+An experiment may be followed by ``:VARIANT,VARIANT`` to take only those variants' trials from it, so
+a table can combine variants re-run after a change with unchanged ones from an earlier experiment; a
+variant found in two of the experiments given is an error (its runs would be mixed silently).
 
 Reads the experiment through Tune's results API (:class:`ray.tune.ExperimentAnalysis`, offline: no
 cluster needed): each trial's config, its grid values and its results, one per outer iteration.
@@ -78,6 +83,39 @@ def load_trials(experiment: Path) -> list[dict]:
             "qd_score": rows["qd_score"].to_numpy(dtype=float),
             "coverage": rows["coverage"].to_numpy(dtype=float),
         })
+    return trials
+
+
+def split_spec(spec: str) -> tuple[Path, list[str] | None]:
+    """``"folder:a,b"`` → ``(Path("folder"), ["a", "b"])``; a bare (or existing, colon-named) folder → ``(folder, None)``."""
+    if Path(spec).exists() or ":" not in spec:
+        return Path(spec), None
+    folder, variants = spec.rsplit(":", 1)
+    return Path(folder), [v.strip() for v in variants.split(",") if v.strip()]
+
+
+def load_experiments(specs: list[str]) -> list[dict]:
+    """The trials of several ``EXPERIMENT[:VARIANT,...]`` specs (:func:`load_trials`), filtered by variant.
+
+    Raises:
+        FileNotFoundError: A folder holds no Tune experiment.
+        ValueError: A variant named after ``:`` has no trial there, or one variant has trials in two experiments.
+    """
+    trials, source = [], {}
+    for spec in specs:
+        folder, wanted = split_spec(spec)
+        found = load_trials(folder)
+        if wanted is not None:
+            missing = sorted(set(wanted) - {t["variant"] for t in found})
+            if missing:
+                raise ValueError(f"{folder} has no trials of {', '.join(missing)}")
+            found = [t for t in found if t["variant"] in wanted]
+        for variant in sorted({t["variant"] for t in found}):
+            if variant in source:
+                raise ValueError(f"variant {variant} has trials in both {source[variant]} and {folder}: "
+                                 f"choose one with EXPERIMENT:VARIANTS")
+            source[variant] = folder
+        trials += found
     return trials
 
 
@@ -232,19 +270,20 @@ def plot(trials: list[dict], path: Path, *, target: float | None = None) -> None
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("experiment", type=Path, help="the experiment folder (storage/name)")
+    parser.add_argument("experiments", nargs="+", metavar="EXPERIMENT[:VARIANTS]",
+                        help="experiment folder(s) (storage/name), each optionally with :v1,v2 to take only those variants")
     parser.add_argument("--target", type=float,
                         help="QD-score for the evaluations-to-reach column (default: the paper's, see above)")
     parser.add_argument("--out", type=Path, help="where summary.md and comparison.png go (default: experiment)")
     args = parser.parse_args(argv)
 
     try:
-        trials = load_trials(args.experiment)
-    except FileNotFoundError as exc:
+        trials = load_experiments(args.experiments)
+    except (FileNotFoundError, ValueError) as exc:
         print(f"summarize: {exc}", file=sys.stderr)
         return 1
     if not trials:
-        print(f"summarize: no Tune trials with results under {args.experiment}", file=sys.stderr)
+        print(f"summarize: no Tune trials with results under {', '.join(args.experiments)}", file=sys.stderr)
         return 1
     if args.target is not None:
         target, source = args.target, "--target"
@@ -257,7 +296,7 @@ def main(argv: list[str] | None = None) -> int:
     markdown = (f"{table(trials, target)}\n\nEvaluations to QD-score {target:,.1f} ({source}); a run that never "
                 f"reaches it counts as its budget (≥). Mean ± standard error over seeds.")
     print(markdown)
-    out = args.out or args.experiment
+    out = args.out or split_spec(args.experiments[0])[0]
     out.mkdir(parents=True, exist_ok=True)
     (out / "summary.md").write_text(markdown + "\n")
     plot(trials, out / "comparison.png", target=target)

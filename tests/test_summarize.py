@@ -202,3 +202,25 @@ def test_mean_se(summarize):
     mean, se = summarize.mean_se([4.0])
     assert mean == 4.0 and math.isnan(se)
     assert summarize.fmt(4.0, se, ".1f") == "4.0"
+
+
+def test_rows_from_two_experiments_with_a_variant_filter(summarize, ray_session, tmp_path, capsys):
+    old = maze_experiment(tmp_path / "old")
+    evals = [100, 200, 300]
+    scripts = dict([trial(variant="dsage", seed=0, qd_scores=[60, 150, 200], evals=evals),
+                    trial(variant="dsage", seed=1, qd_scores=[60, 160, 220], evals=evals)])
+    space = {"domain": "maze", "preset": "tiny", "budget": 300, "variant": "dsage", "seed": tune.grid_search([0, 1])}
+    new = run_experiment(tmp_path / "new", "rerun", space, scripts)
+    out = tmp_path / "out"
+    capsys.readouterr()
+    assert summarize.main([str(new), f"{old}:map_elites,dr", "--out", str(out)]) == 0
+    table = rows(capsys.readouterr().out)
+    assert list(table) == ["dsage", "map_elites", "dr"]
+    assert table["dsage"][:2] == ["2", "210.0 ± 10.0"]  # the re-run's, not the old experiment's 140
+    assert table["map_elites"][1] == "110.0 ± 10.0"
+    # Without the filter dsage would come from both: refused, nothing written.
+    assert summarize.main([str(new), str(old), "--out", str(tmp_path / "mixed")]) == 1
+    assert "variant dsage has trials in both" in capsys.readouterr().err
+    assert not (tmp_path / "mixed").exists()
+    assert summarize.main([str(new), f"{old}:dsage_basic"]) == 1
+    assert "has no trials of dsage_basic" in capsys.readouterr().err
