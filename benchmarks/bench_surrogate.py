@@ -11,12 +11,17 @@
     throughput of the same surrogate at the same batch (the inner loop's), timed interleaved in one run,
     on 1 thread (a Maze trial's default) and on ``--threads``.
 (3) Wall time of one training epoch on N Maze samples at batch 64.
+(4) With ``--run RUN_FOLDER`` (a finished Maze surrogate run): the same agreement for the surrogate that run
+    trained (its checkpoint), on its held-out levels and on mutations of its archive's elites (what the
+    inner loop predicts), next to that surrogate's own error on the held-out levels. A level changes cell
+    when the bf16 difference crosses a cell boundary, so the share that moves is about mean |bf16 - fp32|
+    divided by the cell width (1 wall, 4 steps of path length).
 
 Timings take the best of several interleaved repeats, because the machine is shared and other
 processes only ever make a repeat slower.
 
 Usage: python benchmarks/bench_surrogate.py [--threads 2] [--batch 150] [--train-samples 2000]
-       [--agent builtin:wall_follower] [--episodes 1] [--fit-levels 500] [--agree-levels 1000]
+       [--agent builtin:wall_follower] [--episodes 1] [--fit-levels 500] [--agree-levels 1000] [--run RUN_FOLDER]
 """
 
 from __future__ import annotations
@@ -185,6 +190,60 @@ def bench_precision(*, batch: int, repeats: int, calls: int, threads: list[int],
     torch.set_num_threads(previous)
 
 
+def agreement(fp32: np.ndarray, bf16: np.ndarray, archive, names) -> str:
+    """Share of levels both precisions put in the same archive cell, overall and per measure, and mean |Δ|."""
+    same = (archive.int_to_grid_index(archive.index_of(fp32)) == archive.int_to_grid_index(archive.index_of(bf16)))
+    return (f"same cell {same.all(axis=1).mean():.1%} (" + ", ".join(
+        f"{name} {share:.1%}, mean |Δ| {d:.3f}" for name, share, d in
+        zip(names, same.mean(axis=0), np.abs(bf16 - fp32).mean(axis=0))) + ")")
+
+
+def bench_run_precision(run, *, levels: int) -> None:
+    """(4): bf16 against fp32 on the surrogate a finished Maze run trained."""
+    from pathlib import Path
+
+    from dsage_ray.config import RunConfig
+    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint
+    from dsage_ray.domains import build_domain
+
+    state = load_checkpoint(Path(run) / CHECKPOINT_NAME)
+    config = RunConfig.build(state["config"])
+    if state.get("surrogate") is None or not state.get("holdout"):
+        raise SystemExit(f"{run}: needs a surrogate run with held-out levels (surrogate.holdout_levels > 0)")
+    domain = build_domain(config)
+
+    def encode(solutions):
+        return pad_to_power_of_two(domain.encode(solutions), domain.encoding_pad_channel)
+
+    names = domain.measure_names
+    sample = encode(domain.random_solutions(1, np.random.default_rng(0)))
+    surrogate = Surrogate(kind=config.surrogate.kind, input_channels=sample.shape[1], input_shape=sample.shape[2:],
+                          occupancy_shape=domain.occupancy_shape, num_measures=len(names), config=config.surrogate,
+                          seed=0, measure_ranges=domain.measure_ranges, measure_names=names)
+    surrogate.load_state_dict(state["surrogate"])
+    archive = make_archive(solution_dim=domain.solution_dim, dims=domain.archive_dims, ranges=domain.measure_ranges)
+    rng = np.random.default_rng(0)
+    # The inner loop's queries: uniformly chosen elites with mutation_cells random cells redrawn.
+    elites = state["archive"].data("solution")
+    mutated = elites[rng.integers(0, len(elites), levels)].copy()
+    for row in mutated:
+        row[rng.choice(row.size, config.qd.mutation_cells, replace=False)] = rng.integers(0, 2, config.qd.mutation_cells)
+    held = np.asarray(state["holdout"]["solutions"])
+    truth = np.array([r.measures for r in state["holdout"]["results"]])
+    print(f"run {run}: its trained surrogate ({config.surrogate.kind}, {len(state['history'])} outer iterations, "
+          f"{config.maze.agent})")
+    for label, solutions in ((f"{len(held)} held-out levels", held), (f"{levels} mutated archive elites", mutated)):
+        encoded = encode(solutions)
+        surrogate.precision = "fp32"
+        fp32 = surrogate.predict(encoded).measures
+        surrogate.precision = "bf16"
+        bf16 = surrogate.predict(encoded).measures
+        print(f"  bf16 / fp32 on {label}: {agreement(fp32, bf16, archive, names)}")
+        if solutions is held:
+            print("  the surrogate's own error there (fp32): MAE " + ", ".join(
+                f"{name} {e:.1f}" for name, e in zip(names, np.abs(fp32 - truth).mean(axis=0))))
+
+
 def bench_training(*, samples: int, batch_size: int, epochs: int) -> None:
     config = SurrogateConfig(device="cpu", epochs=1, batch_size=batch_size)
     surrogate = Surrogate(kind="two_stage", input_channels=CHANNELS, input_shape=(SIZE, SIZE),
@@ -225,6 +284,7 @@ def main() -> None:
     parser.add_argument("--heldout-levels", type=int, default=100, help="evaluated levels for its MAE")
     parser.add_argument("--agree-levels", type=int, default=1000, help="levels both precisions predict")
     parser.add_argument("--fit-epochs", type=int, default=20)
+    parser.add_argument("--run", help="also: bf16/fp32 agreement of the surrogate this finished Maze run trained")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     # Other processes on the cores make multi-threaded small convolutions much slower (threads wait on
@@ -236,6 +296,9 @@ def main() -> None:
                     agent=args.agent, episodes=args.episodes, fit_levels=args.fit_levels,
                     heldout_levels=args.heldout_levels, agree_levels=args.agree_levels, fit_epochs=args.fit_epochs)
     bench_training(samples=args.train_samples, batch_size=args.train_batch, epochs=args.train_epochs)
+    if args.run:
+        torch.set_num_threads(1)
+        bench_run_precision(args.run, levels=args.agree_levels)
 
 
 if __name__ == "__main__":
