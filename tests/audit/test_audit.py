@@ -153,3 +153,11 @@ def test_v1_collections_still_load_and_compare(collection, tmp_path, capsys):
     comparison = compare_agents(AUDITED, "builtin:wall_follower", collection_dir=v1)
     recorded = {lv["id"]: lv["success_rate"] for lv in c["levels"]}
     assert {r["id"]: r["success_a"] for r in comparison["levels"]} == recorded
+
+
+def test_a_cpu_audit_predicts_the_path_length_as_the_occupancy_sum_only_when_it_is_a_measure():
+    # The Maze cpu preset turns the occupancy sum on; the default audit measures have no path length.
+    assert audit_config(agent=AUDITED, preset="cpu").surrogate.occupancy_sum_measure == ""
+    with_path = audit_config(agent=AUDITED, preset="cpu", measures=("num_walls", "mean_path_length"))
+    assert with_path.surrogate.occupancy_sum_measure == "mean_path_length"
+    assert audit_config(agent=AUDITED, preset="cpu", variant="map_elites").surrogate.kind == "none"
