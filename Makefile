@@ -4,7 +4,10 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: venv run test bench clean
+.PHONY: venv run test bench bench-run clean
+
+# Benchmarks that read a finished run (RUN=its folder, holding checkpoint.dsage) instead of making their own data.
+RUN_BENCHMARKS := benchmarks/bench_surrogate_training.py benchmarks/bench_surrogate_ceiling.py
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
@@ -31,7 +34,12 @@ test: $(STAMP)
 	RAY_AUTH_MODE=disabled LD_PRELOAD=$(JSIG) $(BIN)/python -m pytest -q
 
 bench: $(STAMP)
-	for b in benchmarks/bench_*.py; do $(BIN)/python $$b || exit 1; done
+	for b in $(filter-out $(RUN_BENCHMARKS),$(wildcard benchmarks/bench_*.py)); do $(BIN)/python $$b || exit 1; done
+
+# e.g. make bench-run RUN=tb_logs/maze_dsage   (a Maze surrogate run with held-out levels)
+bench-run: $(STAMP)
+	@test -n "$(RUN)" || { echo "bench-run: set RUN=<a finished Maze run folder>"; exit 2; }
+	for b in $(RUN_BENCHMARKS); do $(BIN)/python $$b $(RUN) || exit 1; done
 
 clean:
 	rm -rf $(VENV)
