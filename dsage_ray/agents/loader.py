@@ -38,6 +38,7 @@ import pathlib
 from importlib import metadata
 from typing import Callable, Union
 
+from dsage_ray import plugins
 from dsage_ray.agents.base import Agent, AgentError
 
 #: ``factory(target, options) -> Agent``; it reads its options through :class:`SpecOptions`.
@@ -117,30 +118,30 @@ def agent_kinds() -> dict[str, str]:
     Kinds registered in this process with a callable show as ``"registered in this process"``.
     """
     kinds = dict(_BUILTIN_KINDS)
-    for entry in _entry_points():
-        kinds[entry.name] = entry.value
+    for name, entry in _plugins().points.items():
+        kinds[name] = entry.value
     for prefix, factory in _REGISTERED.items():
         kinds[prefix] = factory if isinstance(factory, str) else "registered in this process"
     return dict(sorted(kinds.items()))
 
 
-def _entry_points() -> list[metadata.EntryPoint]:
+def _plugins() -> plugins.Plugins:
     # Read on every call (a directory scan, milliseconds): a package installed while a process runs
     # is seen by its next load, as it is by a freshly started Ray actor.
-    return list(metadata.entry_points(group=ENTRY_POINT_GROUP))
+    return plugins.scan(ENTRY_POINT_GROUP)
 
 
 def _factory(kind: str, spec: str) -> AgentFactory | None:
     """The factory of ``kind``: registered in this process, else from an entry point, else built in."""
     if kind in _REGISTERED:
         return _resolve(_REGISTERED[kind])
-    entries = {entry.value: entry for entry in _entry_points() if entry.name == kind}
-    if len(entries) > 1:
-        providers = ", ".join(f"{_provider(entry)} ({value})" for value, entry in sorted(entries.items()))
+    found = _plugins()
+    if kind in found.clashes:
+        providers = ", ".join(sorted(plugins.describe(entry) for entry in found.clashes[kind]))
         raise AgentError(f"agent spec {spec!r}: kind {kind!r} is provided by more than one installed package: "
                          f"{providers}; uninstall all but one")
-    if entries:
-        (entry,) = entries.values()
+    entry = found.points.get(kind)
+    if entry is not None:
         try:
             factory = entry.load()
         except Exception as exc:  # noqa: BLE001 - a plug-in's import can fail in any way; say whose it is.
@@ -156,8 +157,8 @@ def _factory(kind: str, spec: str) -> AgentFactory | None:
 
 
 def _provider(entry: metadata.EntryPoint) -> str:
-    dist = getattr(entry, "dist", None)
-    return f"package {dist.name}" if dist is not None else "an installed package"
+    name = plugins.provider(entry)
+    return f"package {name}" if name else "an installed package"
 
 
 def parse_spec(spec: str) -> tuple[str, str, SpecOptions]:

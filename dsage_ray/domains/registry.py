@@ -22,6 +22,8 @@ import importlib.metadata
 from typing import Any, Callable, Mapping
 
 from dsage_ray.errors import InputError
+from dsage_ray.plugins import Plugins
+from dsage_ray.plugins import scan as scan_plugins
 
 #: The entry-point group a package registers its domains in.
 ENTRY_POINT_GROUP = "dsage_ray.domains"
@@ -98,10 +100,9 @@ class DomainSpec:
 
 
 _registered: dict[str, DomainSpec] = {}
-#: Entry points by domain name, read once (and again when a name is missing: a package installed since).
-_entry_points: dict[str, importlib.metadata.EntryPoint] | None = None
-#: Names two installed packages claim, with both entry-point values (an error only when the name is used).
-_clashes: dict[str, tuple[str, str]] = {}
+#: The installed domains, read once (and again when a name is missing: a package installed since). Names
+#: two packages claim are an error only when the name is used.
+_plugins: Plugins | None = None
 
 
 def register_domain(spec: DomainSpec) -> DomainSpec:
@@ -145,9 +146,9 @@ def get_domain(name: str) -> DomainSpec:
                          + (f"; did you mean {close[0]!r}?" if close else "")
                          + ("" if known else f"; is dsage_ray installed (pip install -e .)? Domains are "
                                              f"entry points of the {ENTRY_POINT_GROUP!r} group"))
-    if name in _clashes:
-        first, second = _clashes[name]
-        raise InputError(f"domain {name!r} is registered twice: {first!r} and {second!r} "
+    if name in _plugins.clashes:
+        claims = " and ".join(repr(point.value) for point in _plugins.clashes[name])
+        raise InputError(f"domain {name!r} is registered twice: {claims} "
                          f"(two installed packages claim the name; uninstall one)")
     point = points[name]
     try:
@@ -167,16 +168,7 @@ def unregister_domain(name: str) -> None:
 
 
 def _scan(*, refresh: bool = False) -> dict[str, importlib.metadata.EntryPoint]:
-    global _entry_points
-    if _entry_points is None or refresh:
-        points = importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)
-        # dsage_ray's own domains first, so listings start with the built-in ones.
-        ordered = sorted(points, key=lambda p: (p.dist is None or p.dist.name != "dsage_ray"))
-        found: dict[str, importlib.metadata.EntryPoint] = {}
-        _clashes.clear()
-        for point in ordered:
-            held = found.setdefault(point.name, point)
-            if held.value != point.value:
-                _clashes[point.name] = (held.value, point.value)
-        _entry_points = found
-    return _entry_points
+    global _plugins
+    if _plugins is None or refresh:
+        _plugins = scan_plugins(ENTRY_POINT_GROUP)
+    return _plugins.points

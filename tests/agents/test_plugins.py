@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from dsage_ray import plugins
 from dsage_ray.agents import Agent, AgentError, load_agent, loader
 from dsage_ray.agents.builtin import RandomAgent
 from dsage_ray.errors import InputError, describe
@@ -40,7 +41,7 @@ def entry(name: str, value: str) -> metadata.EntryPoint:
 
 
 def with_entry_points(monkeypatch, *entries: metadata.EntryPoint) -> None:
-    monkeypatch.setattr(loader, "_entry_points", lambda: list(entries))
+    monkeypatch.setattr(loader, "_plugins", lambda: plugins.collect(entries))
 
 
 def test_the_built_in_kinds_are_entry_points_of_the_package():
