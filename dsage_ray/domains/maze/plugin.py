@@ -71,8 +71,9 @@ PRESETS: dict[str, dict[str, Any]] = {
         # held-out Spearman ρ of the path length 0.18-0.37 with these channels vs 0.03-0.06 without.
         # More epochs, batch 64, a 20,000 window, early stopping and range-scaled targets did not help.
         "maze.path_channels": True,
-        # The path length is the sum of the agent's occupancy grid: predicted as the sum of the predicted
-        # occupancy it ended 3 seeds' runs at QD-score ... (README, "Does the surrogate predict the agent?").
+        # The path length is the sum of the agent's occupancy grid. Predicted as the sum of the predicted
+        # occupancy, 3 seeds of ACCEL runs ended at QD-score 1,597 ± 17.5 against 1,423.7 ± 24.7 with a
+        # head per measure (README, "Does the surrogate predict the agent?").
         "surrogate.occupancy_sum_measure": "mean_path_length",
     },
     "demo": {
