@@ -78,10 +78,9 @@ def collection_file(out: Path, variant: str, seed: int) -> Path:
 
 def summarize(out: Path, variants: list[str], seeds: int) -> str:
     """The markdown table over the finished audits in ``out`` (mean ± s.e. over seeds per variant)."""
-    import numpy as np
-
     from dsage_ray.audit.collection_file import load_collection
     from dsage_ray.audit.summary import failure_summary
+    from dsage_ray.core.metrics import format_mean_se, mean_se
 
     lines = ["| Variant | Audits | " + " | ".join(title for _, title in COLUMNS) + " |",
              "|---" * (len(COLUMNS) + 2) + "|"]
@@ -92,11 +91,7 @@ def summarize(out: Path, variants: list[str], seeds: int) -> str:
         per_run[variant] = summaries
         if not summaries:
             continue
-        cells = []
-        for key, _ in COLUMNS:
-            values = np.array([s[key] for s in summaries], dtype=float)
-            error = values.std(ddof=1) / np.sqrt(len(values)) if len(values) > 1 else float("nan")
-            cells.append(f"{values.mean():,.1f} ± {error:,.1f}" if len(values) > 1 else f"{values[0]:,.0f}")
+        cells = [format_mean_se(*mean_se(s[key] for s in summaries), ",.1f") for key, _ in COLUMNS]
         lines.append(f"| {variant} | {len(summaries)} | " + " | ".join(cells) + " |")
     (out / "summary.json").write_text(json.dumps(per_run, indent=1))
     return "\n".join(lines)

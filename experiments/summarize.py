@@ -36,7 +36,7 @@ import numpy as np
 from ray import tune
 
 from dsage_ray.config import ConfigError, RunConfig
-from dsage_ray.core.metrics import evals_to_reach
+from dsage_ray.core.metrics import evals_to_reach, format_mean_se, mean_se
 
 #: The variant whose mean final QD-score is the paper's Table 2 target, per domain (other domains: --target).
 TARGET_VARIANT = {"maze": "map_elites", "mario": "dsage_basic"}
@@ -158,17 +158,6 @@ def by_variant(trials: list[dict]) -> dict[str, list[dict]]:
     return dict(groups)
 
 
-def mean_se(values) -> tuple[float, float]:
-    """Mean and standard error; the error is NaN for a single run (it is not zero, just unknown)."""
-    values = np.asarray(values, dtype=float)
-    se = values.std(ddof=1) / math.sqrt(len(values)) if len(values) > 1 else math.nan
-    return float(values.mean()), float(se)
-
-
-def fmt(mean: float, se: float, spec: str) -> str:
-    return format(mean, spec) if math.isnan(se) else f"{format(mean, spec)} ± {format(se, spec)}"
-
-
 def default_target(trials: list[dict]) -> tuple[float, str]:
     """The paper's Table 2 target and where it comes from.
 
@@ -198,7 +187,7 @@ def evals_to_target(trial: dict, target: float) -> tuple[int, bool]:
 def to_target_cell(runs: list[dict], target: float) -> str:
     """``mean ± se`` of the evaluations to reach ``target``; "≥" when a run never did (it counts its budget)."""
     counts, reached = zip(*(evals_to_target(t, target) for t in runs))
-    text = fmt(*mean_se(counts), ",.0f")
+    text = format_mean_se(*mean_se(counts), ",.0f")
     if all(reached):
         return text
     return f"≥ {text}" + (f" ({sum(reached)}/{len(runs)} reached)" if any(reached) else "")
@@ -218,7 +207,7 @@ def table(trials: list[dict], target: float) -> str:
         cov = mean_se([100 * t["coverage"][-1] for t in runs])
         unfinished = sum(not t["done"] for t in runs)
         count = f"{len(runs)}" + (f" ({unfinished} unfinished)" if unfinished else "")
-        lines.append(f"| {' | '.join(label)} | {count} | {fmt(*qd, ',.1f')} | {fmt(*cov, '.2f')} | "
+        lines.append(f"| {' | '.join(label)} | {count} | {format_mean_se(*qd, ',.1f')} | {format_mean_se(*cov, '.2f')} | "
                      f"{to_target_cell(runs, target)} |")
     return "\n".join(lines)
 

@@ -7,7 +7,6 @@ makes Tune re-report iterations.
 
 import importlib.util
 import json
-import math
 import os
 from pathlib import Path
 
@@ -195,13 +194,6 @@ def test_mean_curve_is_a_step_function_of_evaluations_with_a_standard_error_band
     np.testing.assert_allclose(se, [0, 5, 5, 5, 5, 5])
     single_mean, single_se = summarize.mean_curve(runs[:1], "qd_score", grid)
     np.testing.assert_allclose(single_mean, [0, 10, 10, 10, 30, 30]) and not single_se.any()
-
-
-def test_mean_se(summarize):
-    assert summarize.mean_se([1.0, 3.0]) == (2.0, 1.0)
-    mean, se = summarize.mean_se([4.0])
-    assert mean == 4.0 and math.isnan(se)
-    assert summarize.fmt(4.0, se, ".1f") == "4.0"
 
 
 def test_rows_from_two_experiments_with_a_variant_filter(summarize, ray_session, tmp_path, capsys):
