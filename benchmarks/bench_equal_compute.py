@@ -1,0 +1,205 @@
+"""DSAGE against a baseline at equal evaluations AND at equal compute, with the cost curve that explains the gap.
+
+Reads finished run folders (``dsage-ray run … --local --out DIR``: each holds ``config.json`` and
+``metrics.json``, one row per outer iteration) and prints, per variant, as mean ± standard error over
+seeds:
+
+1. **Equal evaluations**: QD-score at ``--at-evals`` real evaluations (linear between the two outer
+   iterations around it; a run that stopped short counts with its last value, marked).
+2. **Equal time**: QD-score at ``--at-time`` seconds of the run's clock (default: the shortest run's
+   final time), read as a step function: an outer iteration's QD-score exists only once it ends.
+   ``--clock wall`` (default) or ``cpu`` uses the rows' cumulative ``wall_time`` / ``cpu_time``;
+   rows written before those columns existed fall back to the summed ``time_total``.
+3. **Cost profile** of each surrogate variant: the share of its time spent training, in the inner loop,
+   selecting, evaluating and on the held-out diagnostic.
+4. **Why**: the same comparison with the surrogate free (each run's clock counting only its
+   evaluations), which bounds what any speed-up of the surrogate can buy; and the simulator cost at
+   which the surrogate variant breaks even with the baseline at equal time (the evaluation cost scaled
+   by k for both searches, the surrogate's own time fixed).
+
+    python benchmarks/bench_equal_compute.py /work/runs/eq/dsage_s1* /work/runs/eq/map_elites_s1* \\
+        --baseline map_elites --at-evals 2000
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from dsage_ray.core.metrics import format_mean_se, mean_se
+
+#: Phases a surrogate outer iteration is timed in (``time_<phase>`` metric columns).
+PHASES = ("train", "exploit", "select", "evaluate", "holdout")
+
+
+def mean_pm(values: list[float], spec: str = ",.1f") -> str:
+    """``"1,597.0 ± 17.5"`` over runs."""
+    return format_mean_se(*mean_se(values), spec)
+
+
+def load_run(folder: Path) -> dict:
+    """A run folder's variant, seed and per-iteration history (with a cumulative clock per row).
+
+    Raises:
+        SystemExit: ``folder`` is not a finished run folder.
+    """
+    # A --local run folder has config.json; a Tune trial folder has params.json (the flat config).
+    config_file = folder / "config.json" if (folder / "config.json").exists() else folder / "params.json"
+    try:
+        config = json.loads(config_file.read_text())
+        history = json.loads((folder / "metrics.json").read_text())
+    except (OSError, ValueError) as exc:
+        raise SystemExit(f"{folder}: not a finished run folder (config.json or params.json, and metrics.json): "
+                         f"{exc}") from None
+    if isinstance(history, dict):
+        history = history.get("history", [])
+    if not history:
+        raise SystemExit(f"{folder}: metrics.json holds no outer iteration")
+    summed = np.cumsum([row.get("time_total", 0.0) for row in history])
+    for row, fallback in zip(history, summed):
+        row.setdefault("wall_time", float(fallback))
+        row.setdefault("cpu_time", float(fallback))
+    return {"folder": folder, "variant": config.get("variant", "?"), "seed": config.get("seed", 0),
+            "history": history}
+
+
+def qd_at_evals(history: list[dict], evals: float) -> tuple[float, bool]:
+    """QD-score at ``evals`` evaluations, linear between outer iterations; ``(value, reached)``."""
+    xs = np.array([0.0] + [row["evals"] for row in history])
+    ys = np.array([0.0] + [row["qd_score"] for row in history])
+    if evals > xs[-1]:
+        return float(ys[-1]), False
+    return float(np.interp(evals, xs, ys)), True
+
+
+def qd_at_time(history: list[dict], seconds: float, clock: str, *, evaluation_only: bool = False) -> float:
+    """QD-score of the last outer iteration that ended by ``seconds`` on ``clock`` (0 before the first).
+
+    With ``evaluation_only`` the clock counts only the evaluations (``time_evaluate``): the run as it
+    would be with a free surrogate.
+    """
+    if evaluation_only:
+        ends = np.cumsum([row.get("time_evaluate", 0.0) for row in history])
+    else:
+        ends = np.array([row[f"{clock}_time"] for row in history])
+    done = [row["qd_score"] for row, end in zip(history, ends) if end <= seconds]
+    return float(done[-1]) if done else 0.0
+
+
+def evals_and_time_to(history: list[dict], qd_score: float) -> tuple[float, float] | None:
+    """Evaluations and evaluation seconds at which the run first reached ``qd_score`` (linear within an
+    outer iteration), or ``None`` if it never did."""
+    previous_evals, previous_qd, previous_eval_time = 0.0, 0.0, 0.0
+    eval_time = 0.0
+    for row in history:
+        eval_time += row.get("time_evaluate", 0.0)
+        if row["qd_score"] >= qd_score:
+            share = (qd_score - previous_qd) / max(row["qd_score"] - previous_qd, 1e-9)
+            return (previous_evals + share * (row["evals"] - previous_evals),
+                    previous_eval_time + share * (eval_time - previous_eval_time))
+        previous_evals, previous_qd, previous_eval_time = row["evals"], row["qd_score"], eval_time
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("runs", nargs="+", type=Path, help="finished run folders (config.json + metrics.json)")
+    parser.add_argument("--baseline", default="map_elites", help="the variant every other is compared with")
+    parser.add_argument("--at-evals", type=float, default=2000, help="evaluations of the equal-evaluation table")
+    parser.add_argument("--at-time", type=float, help="seconds of the equal-time table (default: shortest run)")
+    parser.add_argument("--clock", choices=["wall", "cpu"], default="wall")
+    args = parser.parse_args(argv)
+
+    runs = [load_run(folder) for folder in args.runs if folder.is_dir()]
+    by_variant: dict[str, list[dict]] = defaultdict(list)
+    for run in runs:
+        by_variant[run["variant"]].append(run)
+    if args.baseline not in by_variant:
+        print(f"no {args.baseline!r} run among the folders given (variants: {sorted(by_variant)})", file=sys.stderr)
+        return 2
+    at_time = args.at_time or min(run["history"][-1][f"{args.clock}_time"] for run in runs)
+
+    print(f"{len(runs)} runs: " + ", ".join(f"{v} × {len(r)} (seeds {sorted(x['seed'] for x in r)})"
+                                           for v, r in sorted(by_variant.items())))
+    print(f"\n1-2. QD-score at {args.at_evals:,.0f} evaluations and at {at_time:,.0f} s of {args.clock} time")
+    print("| variant | runs | QD at equal evaluations | QD at equal time | evaluations done by then |")
+    print("|---|---|---|---|---|")
+    at_evals, at_time_qd = {}, {}
+    for variant, group in sorted(by_variant.items()):
+        values = [qd_at_evals(run["history"], args.at_evals) for run in group]
+        at_evals[variant] = [v for v, _ in values]
+        short = sum(not reached for _, reached in values)
+        at_time_qd[variant] = [qd_at_time(run["history"], at_time, args.clock) for run in group]
+        evals_then = [max([0.0] + [row["evals"] for row in run["history"] if row[f"{args.clock}_time"] <= at_time])
+                      for run in group]
+        note = f" ({short} stopped short)" if short else ""
+        print(f"| {variant} | {len(group)} | {mean_pm(at_evals[variant])}{note} | "
+              f"{mean_pm(at_time_qd[variant])} | {mean_pm(evals_then, ',.0f')} |")
+    base_e, base_t = np.mean(at_evals[args.baseline]), np.mean(at_time_qd[args.baseline])
+    for variant in sorted(by_variant):
+        if variant != args.baseline:
+            print(f"{variant} / {args.baseline}: {np.mean(at_evals[variant]) / base_e:.2f}x at equal evaluations, "
+                  f"{np.mean(at_time_qd[variant]) / max(base_t, 1e-9):.2f}x at equal {args.clock} time")
+
+    surrogate_variants = [v for v, g in by_variant.items()
+                          if any("time_exploit" in row for run in g for row in run["history"])]
+    if not surrogate_variants:
+        return 0
+    print("\n3. Where the time goes (share of the summed time_total)")
+    print("| variant | " + " | ".join(PHASES) + " | other | seconds per evaluation (evaluate only) |")
+    print("|---|" + "---|" * (len(PHASES) + 2))
+    eval_cost = {}
+    for variant, group in sorted(by_variant.items()):
+        totals = {phase: sum(row.get(f"time_{phase}", 0.0) for run in group for row in run["history"])
+                  for phase in PHASES}
+        total = sum(row.get("time_total", 0.0) for run in group for row in run["history"])
+        evals = sum(run["history"][-1]["evals"] for run in group)
+        eval_cost[variant] = totals["evaluate"] / max(evals, 1)
+        shares = [totals[phase] / max(total, 1e-9) for phase in PHASES]
+        print(f"| {variant} | " + " | ".join(f"{s:.1%}" for s in shares) + f" | {1 - sum(shares):.1%} | "
+              f"{eval_cost[variant]:.3f} |")
+
+    print("\n4. Why: the surrogate free, and the simulator cost at which it pays for itself")
+    baseline = by_variant[args.baseline]
+    for variant in surrogate_variants:
+        group = by_variant[variant]
+        horizon = float(np.mean([sum(row.get("time_evaluate", 0.0) for row in run["history"]) for run in group]))
+        free = [qd_at_time(run["history"], horizon, args.clock, evaluation_only=True) for run in group]
+        base_free = [qd_at_time(run["history"], horizon, args.clock, evaluation_only=True) for run in baseline]
+        print(f"{variant}, surrogate free, at {horizon:,.0f} s of evaluation: {mean_pm(free)} vs "
+              f"{args.baseline} {mean_pm(base_free)} → {np.mean(free) / max(np.mean(base_free), 1e-9):.2f}x "
+              f"(no speed-up of the surrogate can do better than this at this simulator's cost per level)")
+        target = float(np.mean([run["history"][-1]["qd_score"] for run in group]))
+        reached = [evals_and_time_to(run["history"], target) for run in baseline]
+        if any(r is None for r in reached):
+            print(f"  break-even: {args.baseline} did not reach {variant}'s final QD-score {target:,.1f} in every "
+                  f"run; give it a longer budget")
+            continue
+        base_eval_time = float(np.mean([t for _, t in reached]))
+        base_other = float(np.mean([sum(row.get("time_total", 0.0) - row.get("time_evaluate", 0.0)
+                                        for row in run["history"]) for run in baseline]))
+        base_other *= float(np.mean([e for e, _ in reached])) / float(np.mean([r["history"][-1]["evals"]
+                                                                                for r in baseline]))
+        own_eval_time = horizon
+        own_other = float(np.mean([sum(row.get("time_total", 0.0) - row.get("time_evaluate", 0.0)
+                                       for row in run["history"]) for run in group]))
+        gap = base_eval_time - own_eval_time
+        print(f"  to reach {target:,.1f}: {variant} {own_eval_time:,.0f} s evaluating + {own_other:,.0f} s else; "
+              f"{args.baseline} {base_eval_time:,.0f} s evaluating + {base_other:,.0f} s else")
+        if gap <= 0:
+            print(f"  break-even: never — {variant}'s evaluations alone cost more than {args.baseline}'s")
+        else:
+            factor = (own_other - base_other) / gap
+            cost = factor * eval_cost[args.baseline]
+            print(f"  break-even: at equal time {variant} is ahead once an evaluation costs more than "
+                  f"{max(factor, 0):.2f}x this simulator's ({max(cost, 0):.3f} s per {args.baseline} evaluation)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
