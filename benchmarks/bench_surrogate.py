@@ -17,11 +17,22 @@
     when the bf16 difference crosses a cell boundary, so the share that moves is about mean |bf16 - fp32|
     divided by the cell width (1 wall, 4 steps of path length).
 
+(5) With ``--setting NAME:key=value,...`` (repeatable; the syntax of ``bench_surrogate_training.py``, keys
+    on top of the Maze ``cpu`` preset): cost and accuracy of each setting in ONE table, instead of (1)-(4).
+    Cost, timed interleaved across the settings on ``--threads`` (the runs' torch_threads is 1): FLOPs per
+    prediction, predictions/s of ``Surrogate.predict`` at the inner-loop batch (the setting's precision),
+    training seconds per epoch over ``--train-samples`` levels (the cpu window) at the setting's batch size.
+    With ``--run RUN_FOLDER`` also accuracy: ``bench_surrogate_training.py``'s replay of that run's data
+    with ``--seeds`` initialisations per setting, summarised over its outer iterations as training seconds
+    per outer iteration, the held-out Spearman ρ and the selected-batch MAE of the last measure, each a
+    mean ± standard error over the seeds.
+
 Timings take the best of several interleaved repeats, because the machine is shared and other
 processes only ever make a repeat slower.
 
 Usage: python benchmarks/bench_surrogate.py [--threads 2] [--batch 150] [--train-samples 2000]
        [--agent builtin:wall_follower] [--episodes 1] [--fit-levels 500] [--agree-levels 1000] [--run RUN_FOLDER]
+       python benchmarks/bench_surrogate.py --setting paper: --setting c16:channels=16 [--run RUN_FOLDER --seeds 3]
 """
 
 from __future__ import annotations
@@ -264,6 +275,90 @@ def bench_training(*, samples: int, batch_size: int, epochs: int) -> None:
           f"({samples / min(times):,.0f} samples/s)")
 
 
+def setting_table(settings: list[str], *, threads: int, batch: int, repeats: int, calls: int, train_samples: int,
+                  run: str | None, seeds: int, json_path: str | None = None) -> None:
+    """(5): FLOPs, predictions/s, training s/epoch and (with ``run``) replayed accuracy per setting, one table."""
+    import dataclasses
+
+    from bench_surrogate_training import main as replay
+    from bench_surrogate_training import parse_setting
+
+    from dsage_ray.config import RunConfig
+    from dsage_ray.core.metrics import format_mean_se, mean_se
+
+    parsed = [parse_setting(text) for text in settings]
+    levels = random_valid_levels(max(batch, train_samples), seed=0, density_range=(0.0, 0.9))
+    walls = np.stack([level.walls.reshape(-1) for level in levels]).astype(np.int8)
+    rng = np.random.default_rng(0)
+    cases = []
+    for name, overrides in parsed:
+        config = RunConfig.build({"preset": "cpu", "maze.agent": "builtin:wall_follower", **overrides})
+        domain = MazeDomain(config=config.maze)
+        encoded = pad_to_power_of_two(domain.encode(walls), domain.encoding_pad_channel)
+        # One epoch per train() call; the epoch count and window are the replay's business.
+        train_config = dataclasses.replace(config.surrogate, device="cpu", epochs=1, incremental_epochs=0,
+                                           train_window=train_samples)
+        surrogate = Surrogate(kind=config.surrogate.kind, input_channels=encoded.shape[1],
+                              input_shape=encoded.shape[2:], occupancy_shape=domain.occupancy_shape,
+                              num_measures=len(domain.measure_names), config=train_config, seed=0,
+                              measure_ranges=domain.measure_ranges, measure_names=domain.measure_names)
+        dataset = surrogate.make_dataset()
+        dataset.append(encoded=encoded[:train_samples], results=[
+            EvaluationResult(objective=1.0, measures=rng.random(len(domain.measure_names)) * 100,
+                             occupancy=rng.random(domain.occupancy_shape, dtype=np.float32))
+            for _ in range(train_samples)])
+        cases.append(dict(name=name, surrogate=surrogate, dataset=dataset, levels=encoded[:batch],
+                          flops=flops_per_sample(surrogate.model, torch.from_numpy(encoded[:batch]))))
+    torch.set_num_threads(threads)
+    predict_s: dict[str, list[float]] = {case["name"]: [] for case in cases}
+    train_s: dict[str, list[float]] = {case["name"]: [] for case in cases}
+    for _ in range(repeats):  # interleaved, so that load from other processes hits every setting alike
+        for case in cases:
+            predict_s[case["name"]].append(best_time(lambda: case["surrogate"].predict(case["levels"]), calls=calls))
+        for case in cases:
+            train_s[case["name"]].append(best_time(lambda: case["surrogate"].train(case["dataset"]), calls=1))
+
+    accuracy: dict[str, dict[str, tuple[float, float]]] = {}
+    replays: dict[str, list] = {}
+    if run is not None:
+        for name, _ in parsed:
+            body = next(text.partition(":")[2] for text in settings if text.partition(":")[0] == name)
+            per_seed = []
+            for seed in range(seeds):
+                report = replay([run, "--threads", "1", "--setting", f"{name}:{body}{',' * bool(body)}seed={seed}"])
+                per_seed.append(report["settings"][name]["iterations"])
+            replays[name] = per_seed
+            measure = [k for k in per_seed[0][0] if k.startswith("holdout_spearman_")][-1].removeprefix(
+                "holdout_spearman_")
+            accuracy[name] = {
+                column: mean_se([float(np.mean([row[key] for row in rows])) for rows in per_seed])
+                for column, key in (("train s/iter", "train_s"), ("ρ", f"holdout_spearman_{measure}"),
+                                    ("MAE", f"mae_{measure}"), ("held-out MAE", f"holdout_mae_{measure}"))}
+
+    print(f"\nsettings on the Maze cpu preset: {threads} torch thread{'s' * (threads > 1)}, load average "
+          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs; predictions/s at batch {batch} and training s/epoch "
+          f"on {train_samples} levels, best of {repeats} interleaved repeats")
+    if accuracy:
+        print(f"replay of {run} ({seeds} seed{'s' * (seeds > 1)}; per outer iteration, mean ± s.e. over seeds): "
+              "held-out Spearman ρ and selected-batch MAE of the last measure")
+    header = ["setting", "MFLOP", "predictions/s", "train s/epoch", *(next(iter(accuracy.values()), {}))]
+    rows = []
+    for case in cases:
+        name = case["name"]
+        row = [name, f"{case['flops'] / 1e6:.1f}", f"{batch / min(predict_s[name]):,.0f}", f"{min(train_s[name]):.2f}"]
+        row += [format_mean_se(mean, se, ".3g") for mean, se in accuracy.get(name, {}).values()]
+        rows.append(row)
+    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
+    for row in [header, *rows]:
+        print(" | ".join(str(cell).ljust(width) for cell, width in zip(row, widths)))
+    if json_path:
+        import json
+
+        with open(json_path, "w") as file:
+            json.dump({"settings": settings, "threads": threads, "batch": batch, "table": [header, *rows],
+                       "predict_s": predict_s, "train_epoch_s": train_s, "replays": replays}, file, indent=1)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--threads", type=int, default=2)
@@ -284,8 +379,17 @@ def main() -> None:
     parser.add_argument("--heldout-levels", type=int, default=100, help="evaluated levels for its MAE")
     parser.add_argument("--agree-levels", type=int, default=1000, help="levels both precisions predict")
     parser.add_argument("--fit-epochs", type=int, default=20)
-    parser.add_argument("--run", help="also: bf16/fp32 agreement of the surrogate this finished Maze run trained")
+    parser.add_argument("--run", help="also: bf16/fp32 agreement of the surrogate this finished Maze run trained; "
+                        "with --setting: the run whose data the replay trains on")
+    parser.add_argument("--setting", action="append", default=[],
+                        help="NAME:key=value,... on the Maze cpu preset (repeatable): only the settings table")
+    parser.add_argument("--seeds", type=int, default=3, help="with --setting and --run: replays per setting")
+    parser.add_argument("--json", help="with --setting: also write the table and every replayed iteration here")
     args = parser.parse_args()
+    if args.setting:
+        setting_table(args.setting, threads=args.threads, batch=args.batch, repeats=args.repeats, calls=args.calls,
+                      train_samples=args.train_samples, run=args.run, seeds=args.seeds, json_path=args.json)
+        return
     torch.set_num_threads(args.threads)
     # Other processes on the cores make multi-threaded small convolutions much slower (threads wait on
     # each other at every op): read the numbers against the load average.

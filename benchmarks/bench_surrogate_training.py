@@ -15,9 +15,10 @@ another model chose: a fair, not identical, stand-in for the error a run with th
     python benchmarks/bench_surrogate_training.py RUN_FOLDER \
         [--setting NAME:key=value,key=value ...] [--threads 1] [--json out.json]
 
-Keys are ``surrogate.*`` keys without the prefix (``epochs=30,batch_size=64``) or any dotted config
-key (``maze.path_channels=true``: Maze levels are re-encoded from their wall channel); without
-``--setting`` the run's own settings are replayed.
+Keys are ``surrogate.*`` keys without the prefix (``epochs=30,batch_size=64,dilations=[1,2,4]``), any
+dotted config key (``maze.path_channels=true``: Maze levels are re-encoded from their wall channel) or
+``seed`` (the surrogate's initialisation and minibatch order; default the run's); without ``--setting``
+the run's own settings are replayed.
 """
 
 from __future__ import annotations
@@ -32,10 +33,14 @@ def parse_setting(text: str) -> tuple[str, dict]:
     """``"name:epochs=30,lr=3e-4"`` → ``("name", {"surrogate.epochs": 30, "surrogate.lr": 0.0003})``."""
     from dsage_ray.config import parse_override
 
+    import re
+
     name, _, body = text.partition(":")
-    if not name or any("=" not in item for item in body.split(",") if item):
+    parts = [item for item in re.split(r",(?![^\[]*\])", body) if item]  # commas inside [...] belong to a list
+    if not name or any("=" not in item for item in parts):
         raise SystemExit(f"--setting {text!r}: expected NAME:key=value,key=value")
-    items = [item if "." in item.partition("=")[0] else f"surrogate.{item}" for item in body.split(",") if item]
+    items = [item if "." in item.partition("=")[0] or item.startswith("seed=") else f"surrogate.{item}"
+             for item in parts]
     return name, dict(parse_override(item) for item in items)
 
 
@@ -100,7 +105,7 @@ def main(argv: list[str] | None = None) -> dict:
 
         surrogate = Surrogate(kind=setting.surrogate.kind, input_channels=levels.shape[1],
                               input_shape=tuple(levels.shape[2:]), occupancy_shape=domain.occupancy_shape,
-                              num_measures=num_measures, config=setting.surrogate, seed=config.seed,
+                              num_measures=num_measures, config=setting.surrogate, seed=setting.seed,
                               measure_ranges=domain.measure_ranges, measure_names=domain.measure_names)
         rows = []
         for k in range(1, len(ends)):

@@ -85,6 +85,15 @@ class SurrogateConfig:
     #: the grid counts the agent's steps); a two-stage surrogate then predicts it as the sum of its
     #: predicted occupancy instead of with its own head. Empty (the paper): every measure has a head.
     occupancy_sum_measure: str = ""
+    #: Width of the networks (the first convolution of both predictors); 64 is the paper's. The residual
+    #: blocks' cost grows as its square (benchmarks/bench_surrogate.py prints FLOPs and predictions/s).
+    channels: int = 64
+    #: The occupancy predictor's residual blocks, one per entry, each entry its convolutions' dilation.
+    #: ``(1, 1)`` is the paper's (an 11×11 receptive field); ``(1, 2, 4)`` sees 31×31 cells.
+    dilations: tuple[int, ...] = (1, 1)
+    #: Epochs of every training after the first, which trains ``epochs`` (the weights and Adam state
+    #: persist, so later trainings start from a fitted model); 0 (the paper): always ``epochs``.
+    incremental_epochs: int = 0
 
 
 @dataclasses.dataclass
@@ -293,8 +302,10 @@ class RunConfig:
         need(self.image_every >= 1, "image_every", "must be positive")
         need(self.image_levels >= 0, "image_levels", "must be >= 0")
         need(self.torch_threads >= 1, "torch_threads", "must be positive")
-        for key in ("epochs", "batch_size", "train_window", "predict_batch_size"):
+        for key in ("epochs", "batch_size", "train_window", "predict_batch_size", "channels"):
             need(getattr(self.surrogate, key) >= 1, f"surrogate.{key}", "must be positive")
+        need(all(d >= 1 for d in self.surrogate.dilations), "surrogate.dilations", "each dilation must be >= 1")
+        need(self.surrogate.incremental_epochs >= 0, "surrogate.incremental_epochs", "must be >= 0 (0: epochs)")
         need(self.surrogate.lr > 0, "surrogate.lr", "must be positive")
         need(self.surrogate.holdout_levels >= 0, "surrogate.holdout_levels", "must be >= 0 (0: off)")
         need(0.0 <= self.surrogate.validation_fraction < 1.0, "surrogate.validation_fraction",

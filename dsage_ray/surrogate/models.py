@@ -17,8 +17,11 @@ from torch.nn import functional as F
 
 #: Negative slope of every LeakyReLU in the surrogate (the paper's value).
 LEAKY_SLOPE = 0.2
-#: Channels of the first convolution of both predictors.
+#: Channels of the first convolution of both predictors (the paper's; ``surrogate.channels``).
 BASE_CHANNELS = 64
+#: Dilation of each residual block of the occupancy predictor: two plain blocks (the paper's;
+#: ``surrogate.dilations``).
+BASE_DILATIONS = (1, 1)
 #: The measure predictor downsamples until this spatial size, then flattens.
 FINAL_SIZE = 4
 
@@ -70,14 +73,20 @@ def _check_input_size(input_size: int) -> None:
 
 
 class ResidualBlock(nn.Module):
-    """conv3×3–BN–ReLU–conv3×3–BN, plus the identity, then ReLU (He et al., 2016)."""
+    """conv3×3–BN–ReLU–conv3×3–BN, plus the identity, then ReLU (He et al., 2016).
 
-    def __init__(self, *, channels: int) -> None:
+    With ``dilation`` d both convolutions read cells d apart (zero padding d keeps the size): the
+    block widens the receptive field by 4·d cells at the cost of a plain block.
+    """
+
+    def __init__(self, *, channels: int, dilation: int = 1) -> None:
         super().__init__()
+        if dilation < 1:
+            raise ValueError(f"dilation must be >= 1, got {dilation}")
         # No conv biases: the BatchNorm right after each conv has its own shift.
-        self.conv1 = nn.Conv2d(channels, channels, kernel_size=3, padding=1, bias=False)
+        self.conv1 = nn.Conv2d(channels, channels, kernel_size=3, padding=dilation, dilation=dilation, bias=False)
         self.bn1 = nn.BatchNorm2d(channels)
-        self.conv2 = nn.Conv2d(channels, channels, kernel_size=3, padding=1, bias=False)
+        self.conv2 = nn.Conv2d(channels, channels, kernel_size=3, padding=dilation, dilation=dilation, bias=False)
         self.bn2 = nn.BatchNorm2d(channels)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -89,17 +98,19 @@ class ResidualBlock(nn.Module):
 class OccupancyPredictor(nn.Module):
     """Predicts the occupancy grid (expected agent visits per cell) on the input grid.
 
-    Conv3×3(→64) + LeakyReLU(0.2), two residual blocks, Conv1×1(→1). Every layer keeps the spatial
-    size, so the output is aligned cell-for-cell with the input level.
+    Conv3×3(→64) + LeakyReLU(0.2), two residual blocks, Conv1×1(→1) in the paper; ``hidden_channels``
+    and ``dilations`` (one residual block per entry) change the width and the blocks. Every layer keeps
+    the spatial size, so the output is aligned cell-for-cell with the input level. The receptive field
+    is ``3 + 4·sum(dilations)`` cells wide (11 in the paper; ``(1, 2, 4)`` gives 31, a whole 16×16 maze).
     """
 
-    def __init__(self, *, input_channels: int, hidden_channels: int = BASE_CHANNELS) -> None:
+    def __init__(self, *, input_channels: int, hidden_channels: int = BASE_CHANNELS,
+                 dilations: tuple[int, ...] = BASE_DILATIONS) -> None:
         super().__init__()
         self.net = nn.Sequential(
             nn.Conv2d(input_channels, hidden_channels, kernel_size=3, padding=1),
             nn.LeakyReLU(LEAKY_SLOPE),
-            ResidualBlock(channels=hidden_channels),
-            ResidualBlock(channels=hidden_channels),
+            *(ResidualBlock(channels=hidden_channels, dilation=d) for d in dilations),
             nn.Conv2d(hidden_channels, 1, kernel_size=1),
         )
 
@@ -126,18 +137,19 @@ class OccupancyPredictor(nn.Module):
 class MeasurePredictor(nn.Module):
     """Predicts the objective and the measures from a (possibly occupancy-augmented) level.
 
-    Conv4×4 stride 2 (→64) + LeakyReLU(0.2), then Conv4×4 stride 2 doubling the channels, each with
-    BatchNorm + LeakyReLU, until the grid is 4×4; flatten; one linear head per output.
+    Conv4×4 stride 2 (→64, ``base_channels``) + LeakyReLU(0.2), then Conv4×4 stride 2 doubling the
+    channels, each with BatchNorm + LeakyReLU, until the grid is 4×4; flatten; one linear head per output.
     """
 
-    def __init__(self, *, input_channels: int, input_size: int, num_measures: int) -> None:
+    def __init__(self, *, input_channels: int, input_size: int, num_measures: int,
+                 base_channels: int = BASE_CHANNELS) -> None:
         super().__init__()
         _check_input_size(input_size)
         layers: list[nn.Module] = [
-            nn.Conv2d(input_channels, BASE_CHANNELS, kernel_size=4, stride=2, padding=1),
+            nn.Conv2d(input_channels, base_channels, kernel_size=4, stride=2, padding=1),
             nn.LeakyReLU(LEAKY_SLOPE),
         ]
-        channels, size = BASE_CHANNELS, input_size // 2
+        channels, size = base_channels, input_size // 2
         while size > FINAL_SIZE:
             layers += [
                 nn.Conv2d(channels, 2 * channels, kernel_size=4, stride=2, padding=1, bias=False),
@@ -165,10 +177,13 @@ class TwoStageModel(nn.Module):
         input_size: Side of the (square, power-of-two) input grid.
         occupancy_shape: ``(H, W)`` of the domain's occupancy grid, read from the top-left of the input grid.
         num_measures: Number of measure heads.
+        channels: Width of both predictors (:data:`BASE_CHANNELS`, the paper's 64).
+        dilations: The occupancy predictor's residual blocks (:class:`OccupancyPredictor`).
     """
 
     def __init__(self, *, input_channels: int, input_size: int, occupancy_shape: tuple[int, int],
-                 num_measures: int) -> None:
+                 num_measures: int, channels: int = BASE_CHANNELS,
+                 dilations: tuple[int, ...] = BASE_DILATIONS) -> None:
         super().__init__()
         _check_input_size(input_size)
         height, width = occupancy_shape
@@ -176,9 +191,10 @@ class TwoStageModel(nn.Module):
             raise ValueError(f"occupancy shape {occupancy_shape} does not fit the {input_size}x{input_size} input")
         self.occupancy_shape = (height, width)
         self.input_size = input_size
-        self.occupancy_predictor = OccupancyPredictor(input_channels=input_channels)
+        self.occupancy_predictor = OccupancyPredictor(input_channels=input_channels, hidden_channels=channels,
+                                                      dilations=tuple(dilations))
         self.measure_predictor = MeasurePredictor(input_channels=input_channels + 1, input_size=input_size,
-                                                  num_measures=num_measures)
+                                                  num_measures=num_measures, base_channels=channels)
 
     def forward(self, levels: torch.Tensor, *, bf16_blocks: bool = False) -> ModelOutput:
         """``bf16_blocks``: see :meth:`OccupancyPredictor.forward`; the measure predictor is float32 always."""
@@ -194,10 +210,11 @@ class TwoStageModel(nn.Module):
 class OneStageModel(nn.Module):
     """The ablation without ancillary data: the measure predictor on the one-hot level alone."""
 
-    def __init__(self, *, input_channels: int, input_size: int, num_measures: int) -> None:
+    def __init__(self, *, input_channels: int, input_size: int, num_measures: int,
+                 channels: int = BASE_CHANNELS) -> None:
         super().__init__()
         self.measure_predictor = MeasurePredictor(input_channels=input_channels, input_size=input_size,
-                                                  num_measures=num_measures)
+                                                  num_measures=num_measures, base_channels=channels)
 
     def forward(self, levels: torch.Tensor, *, bf16_blocks: bool = False) -> ModelOutput:
         """``bf16_blocks`` is accepted for a uniform interface; this model has no residual blocks."""

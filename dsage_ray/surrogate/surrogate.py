@@ -31,13 +31,14 @@ from dsage_ray.surrogate.models import ModelOutput, OneStageModel, TwoStageModel
 from dsage_ray.types import EncodedLevels, EvaluationResult
 
 #: Surrogate kinds by name: ``two_stage`` predicts occupancy first (DSAGE), ``one_stage`` does not.
-#: With ``"none"`` (plain QD, no surrogate) these are the config's ``surrogate.kind`` names.
+#: With ``"none"`` (plain QD, no surrogate) these are the config's ``surrogate.kind`` names. Each is
+#: built from the input's shape and the config's architecture keys (``channels``, ``dilations``).
 MODELS: dict[str, Callable[..., nn.Module]] = {
-    "two_stage": lambda *, input_channels, input_size, occupancy_shape, num_measures: TwoStageModel(
+    "two_stage": lambda *, input_channels, input_size, occupancy_shape, num_measures, config: TwoStageModel(
         input_channels=input_channels, input_size=input_size, occupancy_shape=occupancy_shape,
-        num_measures=num_measures),
-    "one_stage": lambda *, input_channels, input_size, occupancy_shape, num_measures: OneStageModel(
-        input_channels=input_channels, input_size=input_size, num_measures=num_measures),
+        num_measures=num_measures, channels=config.channels, dilations=tuple(config.dilations)),
+    "one_stage": lambda *, input_channels, input_size, occupancy_shape, num_measures, config: OneStageModel(
+        input_channels=input_channels, input_size=input_size, num_measures=num_measures, channels=config.channels),
 }
 KINDS = tuple(MODELS)
 PRECISIONS = ("auto", "fp32", "bf16")
@@ -150,7 +151,7 @@ class Surrogate:
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(seed)
             model = MODELS[kind](input_channels=input_channels, input_size=size,
-                                 occupancy_shape=self.occupancy_shape, num_measures=num_measures)
+                                 occupancy_shape=self.occupancy_shape, num_measures=num_measures, config=config)
         self.model = model.to(self.device)
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr, betas=tuple(config.betas))
         self._shuffle_rng = torch.Generator().manual_seed(seed)
@@ -185,7 +186,11 @@ class Surrogate:
     def train(self, dataset: SurrogateDataset) -> dict[str, float]:
         """Fits the model on the most recent ``config.train_window`` samples.
 
-        Trains ``config.epochs`` epochs; with ``config.validation_fraction > 0`` a random share of the
+        Trains ``config.epochs`` epochs, or ``config.incremental_epochs`` (when set) once the model has
+        trained before: the weights and Adam's moments persist, so a later training starts from a fitted
+        model and only has to follow the window's new samples. "Trained before" is read from Adam's state,
+        which checkpoints keep, so a resumed run counts exactly as an uninterrupted one.
+        With ``config.validation_fraction > 0`` a random share of the
         window is held out instead, training stops after ``config.patience`` epochs without a lower
         validation loss, and the weights of the best epoch are kept.
 
@@ -207,7 +212,8 @@ class Surrogate:
         batch_size = self.config.batch_size
         best_loss, best_weights, stale = float("inf"), None, 0
         epochs = 0
-        for _ in range(self.config.epochs):
+        incremental = self.config.incremental_epochs > 0 and bool(self.optimizer.state)
+        for _ in range(self.config.incremental_epochs if incremental else self.config.epochs):
             self.model.train()
             order = train_indices[torch.randperm(len(train_indices), generator=self._shuffle_rng).numpy()]
             # Accumulated on the device: one host sync per epoch, not one per minibatch.

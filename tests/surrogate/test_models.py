@@ -4,7 +4,16 @@ import numpy as np
 import pytest
 import torch
 
-from dsage_ray.surrogate.models import MeasurePredictor, OneStageModel, TwoStageModel, pad_to_power_of_two
+from dsage_ray.surrogate.models import (
+    BASE_CHANNELS,
+    BASE_DILATIONS,
+    MeasurePredictor,
+    OccupancyPredictor,
+    OneStageModel,
+    ResidualBlock,
+    TwoStageModel,
+    pad_to_power_of_two,
+)
 
 MAZE = dict(input_channels=5, input_size=16, occupancy_shape=(16, 16))
 MARIO = dict(input_channels=17, input_size=64, occupancy_shape=(16, 56))
@@ -76,3 +85,34 @@ def test_pad_to_power_of_two_sizes():
     assert pad_to_power_of_two(same) is same
     with pytest.raises(ValueError):
         pad_to_power_of_two(same, pad_channel=5)
+
+
+def _receptive_field(model: torch.nn.Module, size: int = 32) -> int:
+    """Width of the input square that moves the centre cell's output (eval mode, so BatchNorm is per cell)."""
+    x = torch.zeros(1, 5, size, size, requires_grad=True)
+    model.eval()(x)[0, size // 2, size // 2].backward()
+    cols = torch.nonzero(x.grad.abs().sum(dim=(0, 1, 2)))
+    return int(cols.max() - cols.min() + 1)
+
+
+@pytest.mark.parametrize("dilations, field", [((1, 1), 11), ((1, 2, 4), 31), ((), 3)])
+def test_occupancy_receptive_field_is_3_plus_4_times_the_dilations(dilations, field):
+    torch.manual_seed(0)
+    model = OccupancyPredictor(input_channels=5, hidden_channels=8, dilations=dilations)
+    assert _receptive_field(model) == field
+
+
+def test_width_and_blocks_are_configurable_and_default_to_the_paper():
+    paper = TwoStageModel(**MAZE, num_measures=2)
+    assert paper.occupancy_predictor.net[0].out_channels == BASE_CHANNELS == 64
+    assert sum(isinstance(m, ResidualBlock) for m in paper.modules()) == len(BASE_DILATIONS) == 2
+    small = TwoStageModel(**MAZE, num_measures=2, channels=16, dilations=(1, 2, 4))
+    blocks = [m for m in small.modules() if isinstance(m, ResidualBlock)]
+    assert [b.conv1.dilation for b in blocks] == [(1, 1), (2, 2), (4, 4)]
+    assert small.measure_predictor.features[0].out_channels == 16
+    assert OneStageModel(input_channels=5, input_size=16, num_measures=2, channels=8).measure_predictor.heads.in_features == 16 * 16
+    with torch.inference_mode():
+        out = small.eval()(torch.zeros(2, 5, 16, 16))
+    assert out.occupancy.shape == (2, 16, 16)
+    with pytest.raises(ValueError, match="dilation"):
+        ResidualBlock(channels=4, dilation=0)

@@ -253,3 +253,23 @@ def test_occupancy_sum_measure_must_name_a_measure_of_a_two_stage_model():
     with pytest.raises(ValueError, match="needs the two_stage surrogate"):
         Surrogate(kind="one_stage", input_channels=5, input_shape=(8, 8), occupancy_shape=OCC, num_measures=2,
                   config=config, seed=0, measure_names=["walls", "path"])
+
+
+def test_architecture_keys_reach_the_network():
+    surrogate = make(channels=8, dilations=(1, 2))
+    assert surrogate.model.occupancy_predictor.net[0].out_channels == 8
+    assert [b.conv1.dilation[0] for b in surrogate.model.occupancy_predictor.net[2:-1]] == [1, 2]
+    assert make("one_stage", channels=8).model.measure_predictor.features[0].out_channels == 8
+
+
+def test_incremental_epochs_apply_after_the_first_training_also_after_a_resume():
+    surrogate = make(epochs=3, incremental_epochs=1)
+    dataset, _ = toy_dataset(surrogate, n=20)
+    assert surrogate.train(dataset)["epochs"] == 3
+    state = pickle.loads(pickle.dumps(surrogate.state_dict()))
+    assert surrogate.train(dataset)["epochs"] == 1
+    resumed = make(epochs=3, incremental_epochs=1, seed=5)
+    resumed.load_state_dict(state)  # a fitted model: Adam's state says it has trained
+    assert resumed.train(dataset)["epochs"] == 1
+    paper = make(epochs=2)  # incremental_epochs 0: every training runs all epochs
+    assert [paper.train(dataset)["epochs"] for _ in range(2)] == [2, 2]
