@@ -17,10 +17,18 @@ standard error over seeds:
 - evaluations needed to reach a fixed QD-score (its Table 2). The target is ``--target``, by
   default as the paper sets it: the mean final QD-score of MAP-Elites (Maze) or of DSAGE Basic
   (Mario). A run that never reaches it counts as its full budget, and the cell then reads
-  "≥ …": the true figure is at least that.
+  "≥ …": the true figure is at least that. Without a target (no ``--target`` and no run of the
+  variant that sets it, e.g. a grid of DSAGE alone) the table has no such column and says why.
 
-Writes ``summary.md`` and ``comparison.png`` (QD-score and coverage against evaluations, a mean
-line and a ± s.e. band per group) into the experiment folder (or ``--out``).
+Then the same groups at *equal wall time*: QD-score, coverage and evaluations at the smallest final
+wall time of all the runs (the rows' cumulative ``wall_time``: time spent stepping, resumes
+included), each run read as a step function (an outer iteration's values exist once it ends).
+Experiments written before rows carried ``wall_time`` get a one-line note instead. Wall time depends
+on the machine and its load: compare only runs that shared the same kind of machine.
+
+Writes ``summary.md`` and ``comparison.png`` (QD-score and coverage against evaluations and, when the
+rows carry it, against wall time: a mean line and a ± s.e. band per group) into the experiment folder
+(or ``--out``).
 """
 
 from __future__ import annotations
@@ -48,7 +56,8 @@ AVERAGED_KEYS = ("seed",)
 
 def load_trials(experiment: Path) -> list[dict]:
     """One record per trial with results: domain, variant, seed, its other grid values, budget, whether
-    it spent its budget, and the per-iteration ``evals``/``qd_score``/``coverage``.
+    it spent its evaluation or time budget, and the per-iteration ``evals``/``qd_score``/``coverage`` and
+    ``wall_time`` (``None`` for rows written before it was recorded).
 
     Raises:
         FileNotFoundError: ``experiment`` holds no Tune experiment.
@@ -70,7 +79,10 @@ def load_trials(experiment: Path) -> list[dict]:
             continue
         config = trial.config
         evals = rows["evals"].to_numpy(dtype=float)
-        budget = _budget(config, evals)
+        budget, time_budget = _budgets(config, evals)
+        wall_time = rows["wall_time"].to_numpy(dtype=float) if "wall_time" in rows else None
+        if wall_time is not None and np.isnan(wall_time).any():
+            wall_time = None  # rows of a run resumed by a newer version after an older one: no common clock
         trials.append({
             "domain": config.get("domain", "maze"),
             "variant": config.get("variant", "?"),
@@ -78,10 +90,11 @@ def load_trials(experiment: Path) -> list[dict]:
             "grid": {key: value for key, value in (trial.evaluated_params or {}).items()
                      if key != "variant" and key not in AVERAGED_KEYS},
             "budget": budget,
-            "done": bool(evals[-1] >= budget),
+            "done": bool(evals[-1] >= budget or (wall_time is not None and 0 < time_budget <= wall_time[-1])),
             "evals": evals,
             "qd_score": rows["qd_score"].to_numpy(dtype=float),
             "coverage": rows["coverage"].to_numpy(dtype=float),
+            "wall_time": wall_time,
         })
     return trials
 
@@ -119,13 +132,15 @@ def load_experiments(specs: list[str]) -> list[dict]:
     return trials
 
 
-def _budget(config: dict, evals: np.ndarray) -> int:
-    """The trial's evaluation budget from its config (Tune keeps only keys that differ from the defaults)."""
+def _budgets(config: dict, evals: np.ndarray) -> tuple[int, float]:
+    """The trial's evaluation and time budgets from its config (Tune keeps only keys that differ from the
+    defaults); a time budget of 0 is none."""
     try:
-        return RunConfig.build(config).budget
+        built = RunConfig.build(config)
+        return built.budget, built.time_budget
     except ConfigError:
         # A config this version no longer reads: a finished run spent exactly its budget.
-        return int(config.get("budget", evals[-1]))
+        return int(config.get("budget", evals[-1])), float(config.get("time_budget", 0.0))
 
 
 def grid_keys(trials: list[dict]) -> list[str]:
@@ -193,12 +208,12 @@ def to_target_cell(runs: list[dict], target: float) -> str:
     return f"≥ {text}" + (f" ({sum(reached)}/{len(runs)} reached)" if any(reached) else "")
 
 
-def table(trials: list[dict], target: float) -> str:
+def table(trials: list[dict], target: float | None) -> str:
+    """The equal-evaluation table: final QD-score and coverage per group and, given a ``target``, the
+    evaluations each group needed to reach it."""
     keys = grid_keys(trials)
-    lines = [
-        "| " + " | ".join(["Variant", *keys]) + f" | Runs | QD-score | Coverage (%) | Evaluations to QD-score {target:,.1f} |",
-        "|" + "---|" * (len(keys) + 5),
-    ]
+    to_target = [f"Evaluations to QD-score {target:,.1f}"] if target is not None else []
+    lines = [_header(keys, ["Runs", "QD-score", "Coverage (%)", *to_target])]
     groups = by_group(trials)
     order = sorted(groups, key=lambda label: -mean_se([t["qd_score"][-1] for t in groups[label]])[0])
     for label in order:
@@ -207,51 +222,105 @@ def table(trials: list[dict], target: float) -> str:
         cov = mean_se([100 * t["coverage"][-1] for t in runs])
         unfinished = sum(not t["done"] for t in runs)
         count = f"{len(runs)}" + (f" ({unfinished} unfinished)" if unfinished else "")
-        lines.append(f"| {' | '.join(label)} | {count} | {format_mean_se(*qd, ',.1f')} | {format_mean_se(*cov, '.2f')} | "
-                     f"{to_target_cell(runs, target)} |")
+        cells = [count, format_mean_se(*qd, ',.1f'), format_mean_se(*cov, '.2f')]
+        if target is not None:
+            cells.append(to_target_cell(runs, target))
+        lines.append(_row(label, cells))
     return "\n".join(lines)
 
 
-def mean_curve(runs: list[dict], key: str, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and standard error over runs of ``key`` at each point of an evaluation ``grid``.
+def common_wall_time(trials: list[dict]) -> float | None:
+    """The equal-time comparison's time: the smallest final ``wall_time`` of all runs (every run got that
+    far), or ``None`` when some run's rows carry no wall time."""
+    if any(t["wall_time"] is None for t in trials):
+        return None
+    return min(float(t["wall_time"][-1]) for t in trials)
+
+
+def time_table(trials: list[dict], seconds: float) -> str:
+    """The equal-time table: per group, QD-score, coverage and evaluations at ``seconds`` of wall time
+    (:func:`values_at`), and the runs' full wall time, as mean ± s.e. over seeds."""
+    keys = grid_keys(trials)
+    lines = [_header(keys, ["Runs", f"QD-score at {seconds:,.0f} s", "Coverage (%)", "Evaluations",
+                            "Full run (s)"])]
+    groups = by_group(trials)
+    at = np.array([seconds])
+
+    def cell(runs: list[dict], key: str, spec: str, scale: float = 1.0) -> str:
+        return format_mean_se(*mean_se(scale * values_at(runs, key, at, x="wall_time")[:, 0]), spec)
+
+    order = sorted(groups, key=lambda label: -mean_se(values_at(groups[label], "qd_score", at, x="wall_time")[:, 0])[0])
+    for label in order:
+        runs = groups[label]
+        lines.append(_row(label, [str(len(runs)), cell(runs, "qd_score", ",.1f"), cell(runs, "coverage", ".2f", 100.0),
+                                  cell(runs, "evals", ",.0f"),
+                                  format_mean_se(*mean_se(t["wall_time"][-1] for t in runs), ",.0f")]))
+    return "\n".join(lines)
+
+
+def _header(keys: list[str], columns: list[str]) -> str:
+    return "| " + " | ".join(["Variant", *keys, *columns]) + " |\n|" + "---|" * (1 + len(keys) + len(columns))
+
+
+def _row(label: tuple[str, ...], cells: list[str]) -> str:
+    return f"| {' | '.join(label)} | {' | '.join(cells)} |"
+
+
+def values_at(runs: list[dict], key: str, grid: np.ndarray, *, x: str = "evals") -> np.ndarray:
+    """``(runs, points)``: each run's ``key`` at each point of ``grid`` on the axis ``x`` (``evals`` or
+    ``wall_time``), read as a step function: the value after the last outer iteration ending at or
+    before the point, 0 before its first (its values exist only once an iteration ends)."""
+    return np.stack([
+        np.where(grid >= t[x][0], t[key][np.clip(np.searchsorted(t[x], grid, side="right") - 1, 0, None)], 0.0)
+        for t in runs
+    ])
+
+
+def mean_curve(runs: list[dict], key: str, grid: np.ndarray, *, x: str = "evals") -> tuple[np.ndarray, np.ndarray]:
+    """Mean and standard error over runs of ``key`` at each point of a ``grid`` of evaluations (or of
+    wall time, with ``x="wall_time"``).
 
     Each run's value at ``e`` evaluations is its value after the last outer iteration ending at or
     before ``e`` (0 before its first): seeds finish iterations at different evaluation counts. The
     error is 0 for a single run.
     """
-    curves = np.stack([
-        np.where(grid >= t["evals"][0], t[key][np.clip(np.searchsorted(t["evals"], grid, side="right") - 1, 0, None)], 0.0)
-        for t in runs
-    ])
+    curves = values_at(runs, key, grid, x=x)
     mean = curves.mean(axis=0)
     se = curves.std(axis=0, ddof=1) / math.sqrt(len(runs)) if len(runs) > 1 else np.zeros_like(mean)
     return mean, se
 
 
-def plot(trials: list[dict], path: Path, *, target: float | None = None) -> None:
-    """QD-score and coverage against evaluations: mean over seeds with a ± s.e. band, the target dashed."""
+def plot(trials: list[dict], path: Path, *, target: float | None = None, at_time: float | None = None) -> None:
+    """QD-score and coverage against evaluations (top) and, given ``at_time`` (the equal-time table's
+    time, dotted), against wall time (bottom): mean over seeds with a ± s.e. band, the target dashed."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4), dpi=100)
+    axes_x = ["evals"] + (["wall_time"] if at_time is not None else [])
+    fig, axes = plt.subplots(len(axes_x), 2, figsize=(11, 4 * len(axes_x)), dpi=100, squeeze=False)
     keys = grid_keys(trials)
     for label, runs in sorted(by_group(trials).items()):
         name = " ".join([label[0], *(f"{key}={value}" for key, value in zip(keys, label[1:]))])
-        grid = np.linspace(0, max(t["evals"][-1] for t in runs), 200)
-        for ax, key, scale in ((axes[0], "qd_score", 1.0), (axes[1], "coverage", 100.0)):
-            mean, se = mean_curve(runs, key, grid)
-            (line,) = ax.plot(grid, scale * mean, label=f"{name} ({len(runs)})")
-            ax.fill_between(grid, scale * (mean - se), scale * (mean + se), color=line.get_color(), alpha=0.2)
-    if target is not None:
-        axes[0].axhline(target, color="grey", linestyle="--", linewidth=1, label=f"target {target:,.1f}")
-    axes[0].set_ylabel("QD-score")
-    axes[1].set_ylabel("coverage (%)")
-    for ax in axes:
-        ax.set_xlabel("evaluations")
-        ax.grid(alpha=0.3)
-    axes[0].legend(fontsize="small")
+        for row, x in zip(axes, axes_x):
+            grid = np.linspace(0, max(t[x][-1] for t in runs), 200)
+            for ax, key, scale in ((row[0], "qd_score", 1.0), (row[1], "coverage", 100.0)):
+                mean, se = mean_curve(runs, key, grid, x=x)
+                (line,) = ax.plot(grid, scale * mean, label=f"{name} ({len(runs)})")
+                ax.fill_between(grid, scale * (mean - se), scale * (mean + se), color=line.get_color(), alpha=0.2)
+    for row, x in zip(axes, axes_x):
+        if target is not None:
+            row[0].axhline(target, color="grey", linestyle="--", linewidth=1, label=f"target {target:,.1f}")
+        row[0].set_ylabel("QD-score")
+        row[1].set_ylabel("coverage (%)")
+        for ax in row:
+            ax.set_xlabel("evaluations" if x == "evals" else "wall time (s)")
+            ax.grid(alpha=0.3)
+        row[0].legend(fontsize="small")
+    if at_time is not None:
+        for ax in axes[1]:
+            ax.axvline(at_time, color="grey", linestyle=":", linewidth=1)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
@@ -274,21 +343,32 @@ def main(argv: list[str] | None = None) -> int:
     if not trials:
         print(f"summarize: no Tune trials with results under {', '.join(args.experiments)}", file=sys.stderr)
         return 1
+    target: float | None
     if args.target is not None:
         target, source = args.target, "--target"
     else:
         try:
             target, source = default_target(trials)
         except ValueError as exc:
-            print(f"summarize: {exc}", file=sys.stderr)
-            return 2
-    markdown = (f"{table(trials, target)}\n\nEvaluations to QD-score {target:,.1f} ({source}); a run that never "
-                f"reaches it counts as its budget (≥). Mean ± standard error over seeds.")
+            # Still a table, without the column that needs a target: e.g. a grid of DSAGE alone.
+            target, source = None, str(exc)
+    if target is not None:
+        note = (f"Evaluations to QD-score {target:,.1f} ({source}); a run that never reaches it counts as its "
+                f"budget (≥). Mean ± standard error over seeds.")
+    else:
+        note = f"Mean ± standard error over seeds. No evaluations-to-target column: {source}."
+    at_time = common_wall_time(trials)
+    if at_time is not None:
+        timed = (f"At equal wall time ({at_time:,.0f} s, the shortest run's; wall time is time spent stepping, "
+                 f"on this experiment's machines):\n\n{time_table(trials, at_time)}")
+    else:
+        timed = "No equal-time table: some runs' rows carry no wall_time (written before it was recorded)."
+    markdown = f"{table(trials, target)}\n\n{note}\n\n{timed}"
     print(markdown)
     out = args.out or split_spec(args.experiments[0])[0]
     out.mkdir(parents=True, exist_ok=True)
     (out / "summary.md").write_text(markdown + "\n")
-    plot(trials, out / "comparison.png", target=target)
+    plot(trials, out / "comparison.png", target=target, at_time=at_time)
     print(f"\nwrote {out / 'summary.md'} and {out / 'comparison.png'}")
     return 0
 

@@ -29,9 +29,12 @@ def script_key(config: dict) -> str:
     return json.dumps([config.get("variant"), config.get("seed"), config.get("selection.block")])
 
 
-def trial(*, qd_scores, evals, repeat_from=None, **grid_point):
-    """``(script_key, script)``: one trial's history; ``repeat_from`` re-reports iterations as a crash restore does."""
+def trial(*, qd_scores, evals, wall_times=None, repeat_from=None, **grid_point):
+    """``(script_key, script)``: one trial's history; ``repeat_from`` re-reports iterations as a crash restore does.
+    Without ``wall_times`` the rows are those of a run from before ``wall_time`` was recorded."""
     rows = [{"evals": e, "qd_score": q, "coverage": q / 1000} for e, q in zip(evals, qd_scores)]
+    for row, seconds in zip(rows, wall_times or ()):
+        row["wall_time"] = seconds
     return script_key(grid_point), {"rows": rows, "repeat_from": repeat_from}
 
 
@@ -160,7 +163,8 @@ def test_a_row_per_value_of_every_grid_key(summarize, ray_session, tmp_path, cap
     assert "Evaluations to QD-score 15.5 |" in lines[0]
 
 
-def test_mario_target_is_dsage_basic_and_a_missing_reference_is_one_error(summarize, ray_session, tmp_path, capsys):
+def test_mario_target_is_dsage_basic_and_without_a_reference_the_table_has_no_target_column(
+        summarize, ray_session, tmp_path, capsys):
     scripts = dict([trial(variant="dsage_basic", seed=0, qd_scores=[10, 20], evals=[100, 200]),
                     trial(variant="cma_me", seed=0, qd_scores=[30, 40], evals=[100, 200])])
     space = {"domain": "mario", "preset": "tiny", "budget": 200, "seed": 0,
@@ -172,14 +176,20 @@ def test_mario_target_is_dsage_basic_and_a_missing_reference_is_one_error(summar
     assert "Evaluations to QD-score 20.0 |" in printed and "dsage_basic" in printed
     assert rows(printed)["cma_me"][3] == "100"  # one run: no standard error
 
+    # A grid of DSAGE alone (issue 20): no map_elites run sets the target, so the table goes without that column.
     scripts = dict([trial(variant="dsage", seed=0, qd_scores=[1, 2], evals=[100, 150])])
     no_reference = run_experiment(tmp_path, "maze", {"domain": "maze", "preset": "tiny", "variant": "dsage",
                                                      "seed": 0}, scripts)
     capsys.readouterr()
-    assert summarize.main([str(no_reference)]) == 2
-    assert capsys.readouterr().err.strip() == (
-        "summarize: no map_elites runs to set the default target (the paper's, for maze): pass --target")
-    assert not (no_reference / "summary.md").exists()
+    assert summarize.main([str(no_reference)]) == 0
+    printed = capsys.readouterr().out
+    assert printed.splitlines()[0] == "| Variant | Runs | QD-score | Coverage (%) |"
+    assert rows(printed)["dsage"] == ["1", "2.0", "0.20"]
+    assert ("No evaluations-to-target column: no map_elites runs to set the default target (the paper's, for "
+            "maze): pass --target." in printed)
+    # Rows from before wall_time was recorded: one line instead of the equal-time table.
+    assert "No equal-time table: some runs' rows carry no wall_time" in printed and "At equal wall time" not in printed
+    assert (no_reference / "summary.md").exists()
     assert summarize.main([str(tmp_path / "empty")]) == 1
     assert capsys.readouterr().err.strip() == f"summarize: no Tune experiment under {tmp_path / 'empty'}"
 
@@ -216,3 +226,44 @@ def test_rows_from_two_experiments_with_a_variant_filter(summarize, ray_session,
     assert not (tmp_path / "mixed").exists()
     assert summarize.main([str(new), f"{old}:dsage_basic"]) == 1
     assert "has no trials of dsage_basic" in capsys.readouterr().err
+
+
+def test_equal_time_table_reads_each_run_at_the_shortest_runs_final_wall_time(summarize, ray_session, tmp_path,
+                                                                             capsys):
+    evals = [100, 200, 300]
+    scripts = dict([
+        # MAP-Elites is fast: its seed 0 ends first, at 30 s, which sets the common time.
+        trial(variant="map_elites", seed=0, qd_scores=[50, 80, 100], evals=evals, wall_times=[10, 20, 30]),
+        trial(variant="map_elites", seed=1, qd_scores=[60, 90, 120], evals=evals, wall_times=[12, 24, 36]),
+        # DSAGE is ahead per evaluation but slow: at 30 s seed 0 has ended one iteration (50), seed 1 two (100).
+        trial(variant="dsage", seed=0, qd_scores=[50, 115, 150], evals=evals, wall_times=[25, 50, 75]),
+        trial(variant="dsage", seed=1, qd_scores=[50, 100, 130], evals=evals, wall_times=[10, 30, 60]),
+    ])
+    space = {"domain": "maze", "preset": "tiny", "budget": 300,
+             "variant": tune.grid_search(["map_elites", "dsage"]), "seed": tune.grid_search([0, 1])}
+    experiment = run_experiment(tmp_path, "timed", space, scripts)
+    capsys.readouterr()
+    assert summarize.main([str(experiment)]) == 0
+    printed = capsys.readouterr().out
+    per_evaluation, _, timed = printed.partition("At equal wall time (30 s")
+    assert list(rows(per_evaluation)) == ["dsage", "map_elites"]  # by final QD-score
+    assert timed, "no equal-time table"
+    header = next(line for line in timed.splitlines() if line.startswith("| "))
+    assert header == "| Variant | Runs | QD-score at 30 s | Coverage (%) | Evaluations | Full run (s) |"
+    table = rows(timed)
+    assert list(table) == ["map_elites", "dsage"]  # at equal time the order turns
+    assert table["map_elites"] == ["2", "95.0 ± 5.0", "9.50 ± 0.50", "250 ± 50", "33 ± 3"]  # (100 + 90) / 2
+    assert table["dsage"] == ["2", "75.0 ± 25.0", "7.50 ± 2.50", "150 ± 50", "68 ± 8"]  # (50 + 100) / 2
+    from PIL import Image
+
+    with Image.open(experiment / "comparison.png") as image:
+        assert image.size == (1100, 800)  # the wall-time panels under the evaluation ones
+
+
+def test_values_at_reads_a_step_function_on_either_axis(summarize):
+    run = {"evals": np.array([100.0, 200.0]), "wall_time": np.array([4.0, 9.5]), "qd_score": np.array([10.0, 30.0])}
+    at = np.array([0.0, 3.9, 4.0, 9.4, 9.5, 20.0])
+    np.testing.assert_allclose(summarize.values_at([run], "qd_score", at, x="wall_time")[0], [0, 0, 10, 10, 30, 30])
+    np.testing.assert_allclose(summarize.values_at([run], "evals", at, x="wall_time")[0], [0, 0, 100, 100, 200, 200])
+    assert summarize.common_wall_time([run, {**run, "wall_time": np.array([2.0, 7.0])}]) == 7.0
+    assert summarize.common_wall_time([run, {**run, "wall_time": None}]) is None
