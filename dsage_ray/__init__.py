@@ -1,1 +1,39 @@
-"""dsage_ray."""
+"""dsage_ray: DSAGE on Ray, to search for diverse levels where a trained agent fails.
+
+    import dsage_ray
+
+    collection = dsage_ray.run_audit(agent="builtin:random", preset="tiny", local=True, out="tb_logs/api_audit")
+    result = dsage_ray.run("experiments/configs/maze_dsage.toml", preset="tiny", local=True)
+
+The public names (:mod:`dsage_ray.api`, docs/API.md) load on first use, so importing the package, or
+any of its modules (a Ray simulator actor does), imports no simulator, no torch and no Ray.
+"""
+
+from __future__ import annotations
+
+import importlib
+from importlib import metadata
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from dsage_ray.api import (Collection, CollectionLevel, DsageError, ExperimentResult, InputError, ResourceError,
+                               RunConfig, RunResult, TrialFailed, ablate, resolve_config, run, run_audit)
+
+try:
+    __version__ = metadata.version("dsage_ray")
+except metadata.PackageNotFoundError:  # a source checkout that was never installed
+    __version__ = "0+unknown"
+
+__all__ = ["Collection", "CollectionLevel", "DsageError", "ExperimentResult", "InputError", "ResourceError",
+           "RunConfig", "RunResult", "TrialFailed", "__version__", "ablate", "resolve_config", "run", "run_audit"]
+
+
+def __getattr__(name: str) -> Any:
+    # PEP 562: the API module (and what it imports) loads when a public name is first read.
+    if name in __all__:
+        return getattr(importlib.import_module("dsage_ray.api"), name)
+    raise AttributeError(f"module 'dsage_ray' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *__all__])

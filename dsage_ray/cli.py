@@ -1,4 +1,4 @@
-"""``dsage-ray``: the command-line interface (thin: it parses, then calls the library)."""
+"""``dsage-ray``: the command-line interface (thin: it parses, then calls the library's API)."""
 
 from __future__ import annotations
 
@@ -6,15 +6,36 @@ import argparse
 import importlib
 import os
 import sys
-from pathlib import Path
 
-from dsage_ray.cli_args import add_config_arguments, load_run_config
+from dsage_ray import __version__
+from dsage_ray.audit import cli as audit_cli
+from dsage_ray.cli_args import add_config_arguments, add_ray_arguments, load_run_config
 from dsage_ray.errors import DsageError, describe
 
+#: Help layout of every command: the description and the examples epilog keep their line breaks.
+HELP_FORMAT = argparse.RawDescriptionHelpFormatter
 
-def command_modules() -> list[str]:
-    """Modules that register sub-commands (each exposes ``add_subparser(subparsers)``): every domain's
-    ``cli`` from its registration (``dsage-ray maze ...``), then the audit's."""
+RUN_EXAMPLES = """\
+examples:
+  dsage-ray run experiments/configs/maze_dsage.toml --preset tiny --local      # a smoke run, no Ray
+  dsage-ray run experiments/configs/maze_dsage.toml --preset cpu --workers 4   # through Ray Tune
+  dsage-ray run experiments/configs/maze_dsage.toml --set maze.agent=rllib:ppo_maze --set budget=300
+  dsage-ray run experiments/configs/maze_dsage.toml --preset cpu --out tb_logs --resume   # after Ctrl+C
+  dsage-ray config experiments/configs/maze_dsage.toml --preset cpu                       # the keys it uses
+"""
+
+ABLATE_EXAMPLES = """\
+examples:
+  dsage-ray ablate experiments/configs/maze_dsage.toml --preset cpu            # the paper's variants x 5 seeds
+  dsage-ray ablate experiments/configs/maze_dsage.toml --preset tiny --variants dsage,map_elites --seeds 2
+  dsage-ray ablate experiments/configs/maze_dsage.toml --preset cpu --grid surrogate.epochs=10,50 --seeds 3
+  python experiments/summarize.py tb_logs/maze_dsage                            # the table and the plot
+"""
+
+
+def domain_command_modules() -> list[str]:
+    """The domains' command modules, named by their registrations (``dsage-ray maze ...``); each exposes
+    ``add_subparser(subparsers)``. Plug-in domains bring theirs, so they are found by name."""
     from dsage_ray.domains import domain_names, get_domain
 
     modules = []
@@ -25,17 +46,20 @@ def command_modules() -> list[str]:
             continue  # a plug-in that does not load has no sub-command; naming its domain says why
         if spec.cli:
             modules.append(spec.cli)
-    return [*modules, "dsage_ray.audit.cli"]
+    return modules
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="dsage-ray", description="DSAGE on Ray: search for diverse levels where an agent fails.")
+        prog="dsage-ray", description="DSAGE on Ray: search for diverse levels where an agent fails.",
+        epilog="start with: dsage-ray audit --help  (Python: import dsage_ray; see docs/API.md)")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True)
     _add_run(subparsers)
     _add_ablate(subparsers)
     _add_config(subparsers)
-    for module_name in command_modules():
+    audit_cli.add_subparser(subparsers)
+    for module_name in domain_command_modules():
         try:
             module = importlib.import_module(module_name)
         except ImportError as exc:
@@ -48,34 +72,43 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_run(subparsers) -> None:
-    parser = subparsers.add_parser("run", help="run DSAGE (or a baseline) from a config file")
+    parser = subparsers.add_parser(
+        "run", help="run DSAGE (or a baseline) from a config file", formatter_class=HELP_FORMAT,
+        description="Runs DSAGE, or the baseline the config's variant names, to its evaluation budget: through "
+                    "Ray Tune (one trial) unless --local.\nThe agents are loaded first, so a bad one fails "
+                    "before anything starts. Python: dsage_ray.run().",
+        epilog=RUN_EXAMPLES)
     parser.add_argument("config", help="a TOML/JSON config, e.g. experiments/configs/maze_dsage.toml")
-    add_config_arguments(parser)
-    parser.add_argument("--out", help="output folder (default: tb_logs/<name>; Tune keeps one folder per trial in it)")
-    parser.add_argument("--resume", action="store_true", help="continue the run in --out from its last checkpoint")
-    parser.add_argument("--local", action="store_true", help="run in this process, without Ray")
-    parser.add_argument("--workers", type=int, help="simulator actors (sets ray.num_workers)")
-    parser.add_argument("--address", help="join an existing Ray cluster (default: RAY_ADDRESS or a local one)")
+    add_config_arguments(parser.add_argument_group("config"))
+    output = parser.add_argument_group("output")
+    output.add_argument("--out", help="--local: the run folder (default tb_logs/<name>); through Tune: the storage "
+                                      "folder (default tb_logs), one folder per trial in <out>/<name>")
+    add_ray_arguments(parser, resume="continue the run in --out from its last checkpoint")
     parser.set_defaults(handler=_run)
 
 
 def _add_ablate(subparsers) -> None:
-    parser = subparsers.add_parser("ablate", help="run a grid (the paper's variant x seed, or any config keys) "
-                                                  "as one Tune experiment")
+    parser = subparsers.add_parser(
+        "ablate", help="run a grid (the paper's variant x seed, or any config keys) as one Tune experiment",
+        formatter_class=HELP_FORMAT,
+        description="Runs a grid of DSAGE runs as one Ray Tune experiment; every grid point is checked before Ray "
+                    "starts.\nPython: dsage_ray.ablate().",
+        epilog=ABLATE_EXAMPLES)
     parser.add_argument("config", help="a TOML/JSON config giving the domain and base settings")
-    add_config_arguments(parser)
-    parser.add_argument("--grid", action="append", default=[], metavar="KEY=V1,V2",
-                        help="a grid axis over any config key, values read like --set values, e.g. "
-                             "--grid surrogate.epochs=50,200 --grid selection.block=[4,3],[8,6]; "
-                             "--grid seed=0,1,2 and --grid variant=dsage,map_elites work too")
-    parser.add_argument("--seeds", type=int, help="seeds 0..K-1 per grid point (default 5)")
-    parser.add_argument("--variants", help="comma-separated variants (default: the paper's comparison, or the "
-                                           "config's variant when --grid names other keys)")
-    parser.add_argument("--api", choices=["tuner", "run"], default="tuner", help="tune.Tuner or tune.run")
-    parser.add_argument("--out", default="tb_logs", help="storage folder (default tb_logs)")
-    parser.add_argument("--resume", action="store_true", help="continue an interrupted experiment")
-    parser.add_argument("--workers", type=int, help="simulator actors per trial")
-    parser.add_argument("--address", help="join an existing Ray cluster")
+    add_config_arguments(parser.add_argument_group("config"))
+    grid = parser.add_argument_group("grid")
+    grid.add_argument("--grid", action="append", default=[], metavar="KEY=V1,V2",
+                      help="a grid axis over any config key, values read like --set values, e.g. "
+                           "--grid surrogate.epochs=50,200 --grid selection.block=[4,3],[8,6]; "
+                           "--grid seed=0,1,2 and --grid variant=dsage,map_elites work too")
+    grid.add_argument("--seeds", type=int, help="seeds 0..K-1 per grid point (default 5)")
+    grid.add_argument("--variants", help="comma-separated variants (default: the paper's comparison, or the "
+                                         "config's variant when --grid names other keys)")
+    output = parser.add_argument_group("output")
+    output.add_argument("--out", default="tb_logs", help="storage folder (default tb_logs); the experiment is "
+                                                         "<out>/<name>")
+    output.add_argument("--api", choices=["tuner", "run"], default="tuner", help="tune.Tuner (default) or tune.run")
+    add_ray_arguments(parser, local=False, resume="continue the interrupted experiment <out>/<name>")
     parser.set_defaults(handler=_ablate)
 
 
@@ -97,35 +130,25 @@ def _config(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    config = load_run_config(args, args.config)
-    if args.local:
-        from dsage_ray.core.loop import run_locally
-
-        out = Path(args.out) if args.out else Path("tb_logs") / config.name
-        run_dir = run_locally(config, out_dir=out, resume=args.resume)
-    else:
-        from dsage_ray.ray.cli import run_with_tune
-
-        run_dir = run_with_tune(config, workers=args.workers, address=args.address, resume=args.resume,
-                                out_dir=Path(args.out or "tb_logs").resolve())
     from dsage_ray.core.tensorboard_log import tensorboard_hint
+    from dsage_ray.runs import run
 
+    result = run(load_run_config(args, args.config), local=args.local, out=args.out, workers=args.workers,
+                 address=args.address, resume=args.resume)
     # Last, so that it is what the terminal shows when the run ends.
-    print(f"run folder: {run_dir}\nopen it in TensorBoard: {tensorboard_hint(run_dir)}")
+    print(f"run folder: {result.path}\nopen it in TensorBoard: {tensorboard_hint(result.path)}")
     return 0
 
 
 def _ablate(args: argparse.Namespace) -> int:
-    from dsage_ray.ray.cli import ablate
-
-    config = load_run_config(args, args.config)
-    variants = args.variants.split(",") if args.variants else None
-    folder = ablate(config, grid=args.grid, seeds=args.seeds, variants=variants, workers=args.workers,
-                    address=args.address, resume=args.resume, out_dir=Path(args.out).resolve(), api=args.api)
     from dsage_ray.core.tensorboard_log import tensorboard_hint
+    from dsage_ray.runs import ablate
 
-    print(f"experiment folder: {folder}\nsummarise it with: python experiments/summarize.py {folder}\n"
-          f"open it in TensorBoard: {tensorboard_hint(folder)}")
+    experiment = ablate(load_run_config(args, args.config), grid=args.grid, seeds=args.seeds,
+                        variants=args.variants.split(",") if args.variants else None, out=args.out,
+                        workers=args.workers, address=args.address, resume=args.resume, api=args.api)
+    print(f"experiment folder: {experiment.path}\nsummarise it with: python experiments/summarize.py "
+          f"{experiment.path}\nopen it in TensorBoard: {tensorboard_hint(experiment.path)}")
     return 0
 
 

@@ -7,20 +7,84 @@ so none of them needs to import :mod:`dsage_ray.cli` back.
 from __future__ import annotations
 
 import argparse
+import re
+
+#: Seconds per unit of a ``--time-budget`` (no unit: seconds).
+_DURATION_UNITS = {"": 1.0, "s": 1.0, "m": 60.0, "h": 3600.0}
+_DURATION = re.compile(r"(\d+(?:\.\d*)?|\.\d+)\s*([smh]?)")
 
 
-def add_config_arguments(parser: argparse.ArgumentParser) -> None:
-    """The config arguments every run-like command shares."""
-    parser.add_argument("--preset", help="preset of the domain (paper, cpu, tiny, ...)")
+def add_config_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """The config arguments every run-like command shares (on a parser or one of its argument groups)."""
+    parser.add_argument("--preset", help=preset_help())
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a config key, e.g. --set budget=2000 --set surrogate.epochs=50")
+    parser.add_argument("--time-budget", type=parse_duration, metavar="DURATION",
+                        help="also stop once the run has stepped this long (sets time_budget): 90, 90s, 10m or "
+                             "1.5h; the evaluation budget still applies, whichever comes first ends the run")
+
+
+def parse_duration(text: str) -> float:
+    """``"90"``, ``"90s"``, ``"10m"``, ``"1.5h"`` → seconds (``--time-budget``'s argparse type).
+
+    Raises:
+        argparse.ArgumentTypeError: Not a non-negative number with an optional ``s``/``m``/``h`` unit;
+            argparse prefixes the flag's name to the message.
+    """
+    match = _DURATION.fullmatch(text.strip().lower())
+    if match is None:
+        raise argparse.ArgumentTypeError(f"expected seconds or a duration such as 90s, 10m or 1.5h, got {text!r}")
+    return float(match[1]) * _DURATION_UNITS[match[2]]
 
 
 def load_run_config(args: argparse.Namespace, path: str | None):
-    """The :class:`~dsage_ray.config.RunConfig` of ``path`` (or the defaults) with ``--preset`` and ``--set`` applied."""
+    """The :class:`~dsage_ray.config.RunConfig` of ``path`` (or the defaults) with ``--preset``, ``--set`` and
+    ``--time-budget`` applied."""
     from dsage_ray.config import RunConfig, parse_override
 
     overrides = dict(parse_override(item) for item in args.overrides)
     if args.preset:
         overrides["preset"] = args.preset
+    if args.time_budget is not None:
+        overrides["time_budget"] = args.time_budget
     return RunConfig.from_file(path, overrides) if path else RunConfig.build(overrides)
+
+
+def add_ray_arguments(parser: argparse.ArgumentParser, *, resume: str, local: bool = True) -> None:
+    """Where a search runs (``--local``, ``--workers``, ``--address``) and ``--resume``: one definition,
+    one help group, for every command that searches (``run``, ``ablate``, ``audit``).
+
+    Args:
+        parser: The command's parser.
+        resume: What ``--resume`` continues, for its help.
+        local: Offer ``--local`` (``ablate`` runs through Tune only).
+    """
+    group = parser.add_argument_group("where it runs")
+    if local:
+        group.add_argument("--local", action="store_true", help="run in this process, without Ray")
+    group.add_argument("--workers", type=int,
+                       help="simulator actors per run (sets ray.num_workers; 0: simulate in the trial process)")
+    group.add_argument("--address", help="join an existing Ray cluster (default: RAY_ADDRESS, else a new local one)")
+    group.add_argument("--resume", action="store_true", help=resume)
+
+
+def preset_budgets(domain: str) -> dict[str, int]:
+    """The real evaluations of each preset of ``domain``, in its registration's order."""
+    from dsage_ray.config import RunConfig, presets
+
+    return {name: RunConfig.build(domain=domain, preset=name).budget for name in presets(domain)}
+
+
+def preset_help() -> str:
+    """``--preset``'s help, from the domain registrations: every domain's presets and their evaluations."""
+    from dsage_ray.domains import domain_names
+    from dsage_ray.errors import DsageError
+
+    listed = []
+    for domain in domain_names():
+        try:
+            budgets = preset_budgets(domain)
+        except DsageError:
+            continue  # a plug-in that does not load has no presets to offer
+        listed.append(f"{domain}: " + ", ".join(f"{name} {budget:,}" for name, budget in budgets.items()))
+    return "preset of the domain; evaluations per preset: " + "; ".join(listed)

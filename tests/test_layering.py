@@ -15,13 +15,17 @@ PACKAGE = Path(__file__).resolve().parents[1] / "dsage_ray"
 
 #: Package areas and what they must never import (dsage_ray modules, or third-party top-level names).
 FORBIDDEN = {
-    "dsage_ray.core": ("dsage_ray.cli", "dsage_ray.audit", "dsage_ray.ray", "ray"),
+    "dsage_ray.core": ("dsage_ray.cli", "dsage_ray.audit", "dsage_ray.ray", "dsage_ray.api", "dsage_ray.runs", "ray"),
     "dsage_ray.qd": ("dsage_ray.cli", "dsage_ray.audit", "dsage_ray.ray", "dsage_ray.core", "ray"),
     "dsage_ray.surrogate": ("dsage_ray.cli", "dsage_ray.audit", "dsage_ray.ray", "dsage_ray.core", "ray"),
     "dsage_ray.ray": ("dsage_ray.cli", "dsage_ray.audit"),
     "dsage_ray.audit": ("dsage_ray.cli",),
-    "dsage_ray.domains": ("dsage_ray.cli", "dsage_ray.audit", "dsage_ray.ray"),
-    "dsage_ray.agents": ("dsage_ray.cli", "dsage_ray.audit", "dsage_ray.ray", "dsage_ray.core"),
+    # A domain is a plug-in the core calls through the Domain protocol (dsage_ray.types), never the other way.
+    "dsage_ray.domains": ("dsage_ray.cli", "dsage_ray.audit", "dsage_ray.ray", "dsage_ray.core", "dsage_ray.api",
+                          "dsage_ray.runs"),
+    # Agents are policies any domain may load by spec; the Maze uses them, they know no domain.
+    "dsage_ray.agents": ("dsage_ray.cli", "dsage_ray.audit", "dsage_ray.ray", "dsage_ray.core", "dsage_ray.domains",
+                         "dsage_ray.api", "dsage_ray.runs"),
 }
 
 

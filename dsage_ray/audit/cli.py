@@ -1,52 +1,68 @@
-"""``dsage-ray audit`` and ``dsage-ray compare``."""
+"""``dsage-ray audit`` and ``dsage-ray compare``: they parse, call the library and print."""
 
 from __future__ import annotations
 
 import argparse
-import time
-from pathlib import Path
 
 from dsage_ray.errors import InputError
+
+AUDIT_EXAMPLES = """\
+examples:
+  dsage-ray audit                                         # a demo: the shipped PPO agent, --preset demo
+  dsage-ray audit --agent dcd:path/to/agent.tar --out tb_logs/audit_mine     # your agent (cpu preset)
+  dsage-ray audit --agent builtin:random --preset tiny --local               # a smoke test, no Ray
+  dsage-ray audit --agent rllib:path/to/new --reference rllib:path/to/old    # where new is worse than old
+  dsage-ray audit --domain mario --agent astar --preset tiny
+  dsage-ray audit --agent dcd:accel --out tb_logs/audit_accel --resume        # after Ctrl+C
+
+Without --agent the audit is a short demo on the domain's shipped agent (Maze: rllib:ppo_maze) with the
+domain's demo preset, and says so; a named agent gets the cpu preset (Maze: 2,000 evaluations).
+Python: dsage_ray.run_audit() takes the same arguments and returns the collection (docs/API.md).
+"""
 
 
 def add_subparser(subparsers) -> None:
     """Registers ``audit`` and ``compare`` on the top-level CLI's sub-parsers."""
-    from dsage_ray.cli_args import add_config_arguments
+    from dsage_ray.cli_args import add_config_arguments, add_ray_arguments
 
     audit = subparsers.add_parser(
         "audit", help="search for levels where an agent fails (or does worse than a reference) and save them",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Runs DSAGE with a failure-eliciting objective on valid levels (through Ray Tune unless "
-                    "--local), then re-evaluates every elite with a recorded seed and writes collection.json, "
-                    "level files, PNGs, the heatmap and report.html.")
-    audit.add_argument("--domain", default="maze", help="maze (default), mario, or a plug-in domain that declares audits")
-    audit.add_argument("--agent", metavar="SPEC",
-                       help="agent spec. maze (default rllib:ppo_maze): rllib:PATH, dcd:PATH, builtin:..., "
-                            "torchscript:PATH; mario (default astar): astar or astar:ITERATIONS")
-    audit.add_argument("--reference", metavar="SPEC",
-                       help="maze: search where --agent does worse than this agent, on the same seeds "
-                            "(objective regression)")
-    add_config_arguments(audit)
-    audit.set_defaults(preset="cpu")
-    audit.add_argument("--variant", default="dsage",
-                       help="the search: dsage (default) or another variant of the domain, e.g. map_elites or dr "
-                            "(experiments/audit_comparison.py compares them)")
-    audit.add_argument("--budget", type=int, help="real evaluations of the search (default: the preset's)")
-    audit.add_argument("--objective",
-                       help="what the search maximises on valid levels. maze: failure_rate (default), regret, "
-                            "regression (the default with --reference); mario: incompletion (1 - completion)")
-    audit.add_argument("--measures",
-                       help="comma-separated measures. maze default num_walls,optimal_path_length (the paper's: "
-                            "num_walls,mean_path_length); mario default the paper's sky_tiles,mean_jumps")
-    audit.add_argument("--seed", type=int, default=0, help="run seed (also seeds the collection's re-evaluations)")
-    audit.add_argument("--episodes", type=int, help="episodes (mario: runs) per re-evaluation in the collection")
-    audit.add_argument("--max-levels", type=int, help="keep only the N worst elites in the collection")
-    audit.add_argument("--out", help="audit folder (default tb_logs/audit-<agent>-<time>)")
-    audit.add_argument("--local", action="store_true", help="run in this process, without Ray")
-    audit.add_argument("--workers", type=int, help="simulator actors (sets ray.num_workers)")
-    audit.add_argument("--address", help="join an existing Ray cluster")
-    audit.add_argument("--resume", action="store_true", help="continue an interrupted search in --out")
-    audit.add_argument("--collect-only", action="store_true",
-                       help="skip the search: build the collection from the last checkpoint of the search in --out")
+                    "--local),\nthen re-evaluates every elite with a recorded seed and writes collection.json, "
+                    "level files,\nPNGs, the heatmap and report.html.",
+        epilog=AUDIT_EXAMPLES)
+    what = audit.add_argument_group("what to audit")
+    what.add_argument("--domain", default="maze",
+                      help="maze (default), mario, or a plug-in domain that declares audits")
+    what.add_argument("--agent", metavar="SPEC",
+                      help="agent spec. maze: rllib:PATH, dcd:PATH, torchscript:PATH, builtin:random, "
+                           "builtin:wall_follower; mario: astar or astar:ITERATIONS. Without it: a demo audit of "
+                           "the domain's shipped agent (maze: rllib:ppo_maze) with the demo preset")
+    what.add_argument("--reference", metavar="SPEC",
+                      help="maze: search where --agent does worse than this agent, on the same seeds "
+                           "(objective regression)")
+    search = audit.add_argument_group("the search")
+    add_config_arguments(search)
+    search.add_argument("--variant", default="dsage",
+                        help="dsage (default) or another variant of the domain, e.g. map_elites or dr "
+                             "(experiments/audit_comparison.py compares them)")
+    search.add_argument("--budget", type=int, help="real evaluations of the search (default: the preset's)")
+    search.add_argument("--objective",
+                        help="what the search maximises on valid levels. maze: failure_rate (default), regret, "
+                             "regression (the default with --reference); mario: incompletion (1 - completion)")
+    search.add_argument("--measures",
+                        help="comma-separated measures. maze default num_walls,optimal_path_length (the paper's: "
+                             "num_walls,mean_path_length); mario default the paper's sky_tiles,mean_jumps")
+    search.add_argument("--seed", type=int, default=0, help="run seed (also seeds the collection's re-evaluations)")
+    collection = audit.add_argument_group("the collection")
+    collection.add_argument("--episodes", type=int, help="episodes (mario: runs) per re-evaluation in the collection")
+    collection.add_argument("--max-levels", type=int, help="keep only the N worst elites in the collection")
+    collection.add_argument("--out", help="audit folder (default tb_logs/audit-<agent>-<time>)")
+    collection.add_argument("--collect-only", action="store_true",
+                            help="skip the search: build the collection from the last checkpoint of the search "
+                                 "in --out")
+    add_ray_arguments(audit, resume="continue the interrupted search in --out")
     audit.set_defaults(handler=run_audit_command)
 
     compare = subparsers.add_parser(
@@ -66,63 +82,59 @@ def add_subparser(subparsers) -> None:
 
 
 def run_audit_command(args: argparse.Namespace) -> int:
-    """Handler of ``dsage-ray audit``: every check that needs no Ray runs before the search starts.
+    """Handler of ``dsage-ray audit``: :func:`dsage_ray.run_audit`, then what it found.
 
     Errors end the command through :func:`dsage_ray.cli.main` (one line, the exit code of their kind).
     """
-    from dsage_ray.audit.collection import agent_slug, audit_config, audit_spec
-    from dsage_ray.audit.collection_file import load_collection
     from dsage_ray.audit.run import run_audit
     from dsage_ray.config import parse_override
 
-    spec = audit_spec(args.domain)
-    if args.collect_only and not args.out:
-        raise InputError("--collect-only needs the --out of the search to collect from")
-    for flag, value in (("--episodes", args.episodes), ("--max-levels", args.max_levels), ("--budget", args.budget)):
-        if value is not None and value < 1:
-            raise InputError(f"{flag} must be positive, got {value}")
-    if args.workers is not None and args.workers < 0:
-        raise InputError(f"--workers must be >= 0 (0: simulate in the trial process), got {args.workers}")
+    if args.agent is None:
+        print(_demo_notice(args), flush=True)
     measures = tuple(m.strip() for m in args.measures.split(",") if m.strip()) if args.measures else None
-    config = audit_config(domain=args.domain, agent=args.agent, reference=args.reference, preset=args.preset,
-                          variant=args.variant, objective=args.objective, measures=measures, budget=args.budget,
-                          seed=args.seed,
-                          overrides=dict(parse_override(item) for item in args.overrides))
-    agent = args.agent or spec.audit.default_agent
-    out = (Path(args.out) if args.out
-           else Path("tb_logs") / f"audit-{agent_slug(agent)}-{time.strftime('%Y%m%d-%H%M%S')}")
-    collection = run_audit(config, out_dir=out, local=args.local, workers=args.workers, address=args.address,
-                           resume=args.resume, episodes=args.episodes, max_levels=args.max_levels,
-                           collect_only=args.collect_only)
-    c = load_collection(collection)
-    print(f"collection: {collection}")
-    print(_summary_line(c))
-    for lv in c["levels"][:5]:
-        if "reference" in lv:
-            numbers = (f"success {lv['success_rate']:.2f}  reference {lv['reference']['success_rate']:.2f}  "
-                       f"regression {lv['regression']:+.2f}")
+    collection = run_audit(
+        agent=args.agent, domain=args.domain, reference=args.reference, preset=args.preset, variant=args.variant,
+        objective=args.objective, measures=measures, budget=args.budget, seed=args.seed,
+        overrides=dict(parse_override(item) for item in args.overrides)
+        | ({} if args.time_budget is None else {"time_budget": args.time_budget}), out=args.out, local=args.local,
+        workers=args.workers, address=args.address, resume=args.resume, episodes=args.episodes,
+        max_levels=args.max_levels, collect_only=args.collect_only)
+    print(f"collection: {collection.path}")
+    print(collection.summary_line)
+    for level in collection.levels[:5]:
+        if level.regression is not None:
+            numbers = (f"success {level.success_rate:.2f}  reference {level.fields['reference']['success_rate']:.2f}  "
+                       f"regression {level.regression:+.2f}")
         else:
-            numbers = f"{c['objective']} {lv['objective']:.3f}  success {lv['success_rate']:.2f}"
-        print(f"  #{lv['id']:<4} {numbers}  {collection / lv['level_file']}  seed {lv['seed']}")
-    if c["levels"]:
-        print(f"reproduce #0: {c['levels'][0]['reproduce']}")
-    if c.get("search_dir"):  # local searches write their event files too
+            numbers = f"{collection.objective} {level.objective:.3f}  success {level.success_rate:.2f}"
+        print(f"  #{level.id:<4} {numbers}  {level.level_path}  seed {level.seed}")
+    if collection.levels:
+        print(f"reproduce #0: {collection.levels[0].reproduce}")
+    if collection.search_dir is not None:
         from dsage_ray.core.tensorboard_log import tensorboard_hint
 
-        print(f"search in TensorBoard: {tensorboard_hint(c['search_dir'])}")
-    print(f"report: {collection / 'report.html'}")
+        print(f"search in TensorBoard: {tensorboard_hint(collection.search_dir)}")
+    print(f"report: {collection.report_path}")
     return 0
 
 
-def _summary_line(collection: dict) -> str:
-    """The collection's failure-diversity numbers (:mod:`dsage_ray.audit.summary`)."""
-    from dsage_ray.audit.summary import failure_summary, format_summary
+def _demo_notice(args: argparse.Namespace) -> str:
+    """The one line saying what ``dsage-ray audit`` without ``--agent`` audits, and how long it is."""
+    from dsage_ray.audit.collection import audit_spec
+    from dsage_ray.audit.run import default_preset
+    from dsage_ray.cli_args import preset_budgets
 
-    return format_summary(failure_summary(collection))
+    agent = audit_spec(args.domain).audit.default_agent
+    preset = args.preset or default_preset(args.domain, agent=None)
+    budget = args.budget or preset_budgets(args.domain).get(preset)  # an unknown preset is reported next
+    length = f" ({budget:,} evaluations)" if budget else ""
+    return f"no --agent: auditing the shipped demo agent {agent} with --preset {preset}{length}; name yours with --agent SPEC"
 
 
 def run_compare_command(args: argparse.Namespace) -> int:
     """Handler of ``dsage-ray compare``."""
+    from pathlib import Path
+
     from dsage_ray.audit.collection import agent_slug
     from dsage_ray.audit.compare import compare_agents, format_comparison
 

@@ -1,39 +1,52 @@
-"""``run_audit``: the DSAGE search (through Ray Tune, or in this process) followed by the collection."""
+"""An audit end to end: the DSAGE search (through Ray Tune, or in this process), then the collection.
+
+:func:`run_audit` is ``dsage-ray audit`` from Python (``dsage_ray.run_audit``); :func:`search_and_collect`
+does the same for a config built with :func:`~dsage_ray.audit.collection.audit_config`.
+"""
 
 from __future__ import annotations
 
+import os
+import time
 from pathlib import Path
+from typing import Any, Mapping, Sequence
 
-from dsage_ray.audit.collection import build_collection
-from dsage_ray.config import RunConfig
-from dsage_ray.domains import build_domain, get_domain
+from dsage_ray.audit.collection import agent_slug, audit_config, audit_spec, build_collection
+from dsage_ray.audit.results import Collection
+from dsage_ray.config import RunConfig, presets
+from dsage_ray.errors import InputError
+from dsage_ray.results import RunResult
 
 #: Sub-folders of an audit folder.
 SEARCH_DIR, COLLECTION_DIR = "search", "collection"
+#: The preset of an audit of a named agent, and of one of the domain's default agent (the shipped demo
+#: agent): a few minutes, so that ``dsage-ray audit`` alone is a demo, not a 2,000-evaluation search.
+AGENT_PRESET, DEMO_PRESET = "cpu", "demo"
 
 
-def check_audit_folder(out_dir: str | Path, *, resume: bool = False, collect_only: bool = False) -> None:
-    """Refuses to overwrite an audit by accident, or to continue one that is not there.
+def default_preset(domain: str, *, agent: str | None) -> str:
+    """The preset of an audit that names none: ``cpu`` for a named agent, else the domain's ``demo``.
 
-    Raises:
-        ValueError: ``out_dir`` already holds an audit and neither ``resume`` nor ``collect_only`` is set,
-            or one of them is set and ``out_dir`` holds no search.
+    A domain without that preset falls back to ``tiny``, then to ``paper`` (which every domain has).
     """
-    out_dir = Path(out_dir)
-    search = out_dir / SEARCH_DIR
-    if resume or collect_only:
-        if not search.is_dir():
-            raise ValueError(f"{out_dir} holds no audit search ({search} is missing): nothing to "
-                             f"{'resume' if resume else 'collect from'}")
-    elif search.exists() or (out_dir / COLLECTION_DIR).exists():
-        raise ValueError(f"{out_dir} already holds an audit: pass --resume to continue its search, --collect-only "
-                         f"to rebuild its collection, or choose another --out")
+    known = presets(domain)
+    wanted = AGENT_PRESET if agent else DEMO_PRESET
+    return next(name for name in (wanted, "tiny", "paper") if name in known)
 
 
 def run_audit(
-    config: RunConfig,
     *,
-    out_dir: str | Path,
+    agent: str | None = None,
+    domain: str = "maze",
+    reference: str | None = None,
+    preset: str | None = None,
+    variant: str = "dsage",
+    objective: str | None = None,
+    measures: Sequence[str] | None = None,
+    budget: int | None = None,
+    seed: int = 0,
+    overrides: Mapping[str, Any] | None = None,
+    out: str | os.PathLike[str] | None = None,
     local: bool = False,
     workers: int | None = None,
     address: str | None = None,
@@ -41,28 +54,106 @@ def run_audit(
     episodes: int | None = None,
     max_levels: int | None = None,
     collect_only: bool = False,
-) -> Path:
-    """Searches for failures of the config's agent and writes the collection; returns its folder.
+) -> Collection:
+    """Searches for levels where ``agent`` fails and saves them reproducibly: ``dsage-ray audit`` from Python.
 
-    Everything that can be checked without Ray is checked first (the audit folder, the agents, Java for
-    Mario), so bad input fails in one line before any search starts.
+    Everything that can be checked before the search is (the arguments, the audit folder, the agents,
+    Java for Mario), so bad input fails in one line before any search starts.
 
     Args:
-        config: An audit config (:func:`dsage_ray.audit.collection.audit_config`).
-        out_dir: Audit folder: the search goes to ``out_dir/search``, the collection to ``out_dir/collection``.
-        local: Run the search and the re-evaluations in this process instead of through Ray.
+        agent: The agent spec (``dcd:PATH``, ``rllib:PATH``, ``torchscript:PATH``, ``builtin:random``,
+            ...; Mario ``astar[:ITERATIONS]``). Default: the domain's shipped demo agent
+            (Maze ``rllib:ppo_maze``), with the ``demo`` preset unless ``preset`` is given.
+        domain: A domain that declares audits (``maze``, ``mario``, a plug-in's).
+        reference: Maze: search where ``agent`` does worse than this agent, on the same seeds.
+        preset: The domain's preset (default :func:`default_preset`: ``cpu`` for a named agent).
+        variant: The search: ``dsage`` or another variant of the domain (``map_elites``, ``dr``).
+        objective: What the search maximises (default: the domain's first audit objective, or
+            ``regression`` with a reference).
+        measures: Measure names (default: the domain's audit measures).
+        budget: Real evaluations of the search (default: the preset's).
+        seed: The run seed; also seeds the collection's re-evaluations.
+        overrides: Further dotted config keys, like ``--set``.
+        out: The audit folder (default ``tb_logs/audit-<agent>-<time>``): the search goes to
+            ``out/search``, the collection to ``out/collection``.
+        local: Search and re-evaluate in this process instead of through Ray.
         workers: Simulator actors (sets ``ray.num_workers``).
-        address: Ray cluster to join (default ``RAY_ADDRESS`` or a new local one).
-        resume: Continue an interrupted search from its last checkpoint.
+        address: A Ray cluster to join (default ``RAY_ADDRESS`` or a new local one).
+        resume: Continue the interrupted search in ``out``.
         episodes: Episodes (Mario: runs) per re-evaluation in the collection (default: the config's).
-        max_levels: Keep only this many of the worst elites.
-        collect_only: Skip the search; build the collection from the last checkpoint of the search in
-            ``out_dir`` (e.g. of an interrupted run, which ``resume`` could also continue).
+        max_levels: Keep only this many of the worst levels.
+        collect_only: Skip the search; build the collection from the last checkpoint of the search in ``out``.
+
+    Returns:
+        The collection (levels worst first, their seeds and numbers, the summary, the report's path).
 
     Raises:
-        ValueError: An existing audit in ``out_dir`` (without ``resume``/``collect_only``), a missing one
-            (with them), or an agent or simulator that cannot be used.
+        InputError: Bad arguments, an agent that does not load, an ``out`` that already holds an audit
+            (without ``resume``/``collect_only``) or holds none (with them).
+        ResourceError: The search's trial does not fit the machine.
+        TrialFailed: The Tune trial of the search failed.
     """
+    for name, value in (("episodes", episodes), ("max_levels", max_levels), ("budget", budget)):
+        if value is not None and value < 1:
+            raise InputError(f"{name} must be positive, got {value}")
+    if workers is not None and workers < 0:
+        raise InputError(f"workers must be >= 0 (0: simulate in the trial process), got {workers}")
+    if collect_only and out is None:
+        raise InputError("collect_only needs the out folder of the search to collect from")
+    spec = audit_spec(domain)  # an unknown domain, or one without audits, before its presets are read
+    config = audit_config(domain=domain, agent=agent, reference=reference,
+                          preset=preset or default_preset(domain, agent=agent), variant=variant,
+                          objective=objective, measures=measures, budget=budget, seed=seed,
+                          overrides=dict(overrides or {}))
+    if out is None:
+        out = Path("tb_logs") / f"audit-{agent_slug(agent or spec.audit.default_agent)}-{time.strftime('%Y%m%d-%H%M%S')}"
+    return search_and_collect(config, out_dir=out, local=local, workers=workers, address=address, resume=resume,
+                              episodes=episodes, max_levels=max_levels, collect_only=collect_only)
+
+
+def check_audit_folder(out_dir: str | Path, *, resume: bool = False, collect_only: bool = False) -> None:
+    """Refuses to overwrite an audit by accident, or to continue one that is not there.
+
+    Raises:
+        InputError: ``out_dir`` already holds an audit and neither ``resume`` nor ``collect_only`` is set,
+            or one of them is set and ``out_dir`` holds no search.
+    """
+    out_dir = Path(out_dir)
+    search = out_dir / SEARCH_DIR
+    if resume or collect_only:
+        if not search.is_dir():
+            raise InputError(f"{out_dir} holds no audit search ({search} is missing): nothing to "
+                             f"{'resume' if resume else 'collect from'}")
+    elif search.exists() or (out_dir / COLLECTION_DIR).exists():
+        raise InputError(f"{out_dir} already holds an audit: pass --resume to continue its search, --collect-only "
+                         f"to rebuild its collection, or choose another --out")
+
+
+def search_and_collect(
+    config: RunConfig,
+    *,
+    out_dir: str | os.PathLike[str],
+    local: bool = False,
+    workers: int | None = None,
+    address: str | None = None,
+    resume: bool = False,
+    episodes: int | None = None,
+    max_levels: int | None = None,
+    collect_only: bool = False,
+) -> Collection:
+    """The audit of an audit config: the search (:func:`dsage_ray.run`), then :func:`build_collection`.
+
+    Args:
+        config: An audit config (:func:`~dsage_ray.audit.collection.audit_config`).
+        out_dir, local, workers, address, resume, episodes, max_levels, collect_only: As in :func:`run_audit`.
+
+    Raises:
+        As :func:`run_audit`.
+    """
+    from dsage_ray.domains import get_domain
+    from dsage_ray.preflight import preflight
+    from dsage_ray.runs import run
+
     out_dir = Path(out_dir)
     search_dir = out_dir / SEARCH_DIR
     check_audit_folder(out_dir, resume=resume, collect_only=collect_only)
@@ -70,50 +161,48 @@ def run_audit(
         config = config.replace(**{"ray.num_workers": workers})
     collection_config = (config if episodes is None
                          else config.replace(**{get_domain(config.domain).audit.episodes_key: int(episodes)}))
-    build_domain(config).preflight()
-    if local:
-        from dsage_ray.core.loop import run_locally
+    if collect_only:
+        preflight(collection_config)
+        search = search_on_disk(search_dir, config=config)
+    else:
+        search = run(config, local=local, out=search_dir, address=address, resume=resume)
+    collection_dir = out_dir / COLLECTION_DIR
+    if local or collection_config.ray.num_workers == 0:
+        build_collection(search.archive, config=collection_config, out_dir=collection_dir, max_levels=max_levels,
+                         search_dir=search.path)
+        return Collection.load(collection_dir)
 
-        if not collect_only:
-            run_locally(config, out_dir=search_dir, resume=resume)
-        archive = final_archive(search_dir)
-        return build_collection(archive, config=collection_config, out_dir=out_dir / COLLECTION_DIR,
-                                max_levels=max_levels, search_dir=search_dir)
-
-    from dsage_ray.ray.cli import run_with_tune
+    from dsage_ray.ray.experiment import connect
     from dsage_ray.ray.pool import SimulatorPool
 
-    if collect_only:
-        experiment = search_dir / config.name
-    else:
-        experiment = Path(run_with_tune(config, address=address, resume=resume, out_dir=search_dir))
-    archive = final_archive(experiment)
-    workers = collection_config.ray.num_workers
-    pool = SimulatorPool(config=collection_config) if workers > 0 else None
+    connect(address)  # already connected unless collect_only
+    pool = SimulatorPool(config=collection_config)
     try:
-        return build_collection(archive, config=collection_config, out_dir=out_dir / COLLECTION_DIR,
-                                evaluator=pool, workers=max(workers, 1), max_levels=max_levels,
-                                search_dir=experiment)
+        build_collection(search.archive, config=collection_config, out_dir=collection_dir, evaluator=pool,
+                         workers=collection_config.ray.num_workers, max_levels=max_levels, search_dir=search.path)
     finally:
-        if pool is not None:
-            pool.close()
+        pool.close()
+    return Collection.load(collection_dir)
 
 
-def final_archive(search: Path):
-    """The ground-truth archive in the latest checkpoint of a search.
+def search_on_disk(search_dir: Path, *, config: RunConfig) -> RunResult:
+    """The search an earlier audit left in ``search_dir``, for ``collect_only`` (the one folder reader).
 
-    Args:
-        search: A ``--local`` run folder (its checkpoint file), or a Tune trial or experiment folder
-            (the checkpoint file in its latest ``checkpoint_NNNNNN`` folder).
+    A finished search is returned by :func:`dsage_ray.run`; this reads what an interrupted or earlier
+    one left: the checkpoint file of a ``local`` search, or the latest ``checkpoint_NNNNNN`` folder of
+    the Tune trial in ``search_dir/<name>/<trial>``.
 
     Raises:
-        CheckpointError: The search left no checkpoint, or it cannot be read.
+        CheckpointError: The search left no checkpoint.
     """
-    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, CheckpointError, load_checkpoint
+    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, CheckpointError
 
-    candidates = [search / CHECKPOINT_NAME] if (search / CHECKPOINT_NAME).is_file() else sorted(
-        [*search.glob(f"checkpoint_*/{CHECKPOINT_NAME}"), *search.glob(f"*/checkpoint_*/{CHECKPOINT_NAME}")],
-        key=lambda p: int(p.parent.name.rsplit("_", 1)[-1]))
-    if not candidates:
-        raise CheckpointError(f"{search}: the search left no checkpoint ({CHECKPOINT_NAME}) to read the archive from")
-    return load_checkpoint(candidates[-1])["archive"]
+    local = search_dir / CHECKPOINT_NAME
+    if local.is_file():
+        return RunResult(config=config, path=search_dir, checkpoint=local)
+    in_tune = sorted(search_dir.glob(f"*/*/checkpoint_*/{CHECKPOINT_NAME}"),
+                     key=lambda p: int(p.parent.name.rsplit("_", 1)[-1]))
+    if not in_tune:
+        raise CheckpointError(f"{search_dir}: the search left no checkpoint ({CHECKPOINT_NAME}) to read the "
+                              f"archive from")
+    return RunResult(config=config, path=in_tune[-1].parent.parent, checkpoint=in_tune[-1])

@@ -24,10 +24,13 @@ from typing import Any, Iterator, Literal, Mapping, Sequence
 import ray
 from ray import tune
 from ray.air.constants import EXPR_ERROR_FILE
+from ray.tune.logger import CSVLoggerCallback, JsonLoggerCallback
 
 from dsage_ray.config import ConfigError, RunConfig, key_hint, paper_comparison, parse_override
+from dsage_ray.core.checkpoint import CHECKPOINT_NAME
 from dsage_ray.domains import build_domain
 from dsage_ray.errors import Interrupted, TrialFailed
+from dsage_ray.results import ExperimentResult, RunResult
 from dsage_ray.ray.pool import DomainFactory, check_cluster_fits
 from dsage_ray.ray.progress import ProgressLines, quiet_tune_output
 from dsage_ray.ray.trainable import DSAGETrainable, resource_request
@@ -228,8 +231,11 @@ def run_experiment(
     checkpoint_every: int = 1,
     domain_factory: DomainFactory = build_domain,
     verbose: int = 0,
-) -> Path:
-    """Runs every trial of ``param_space`` to its evaluation budget; returns the experiment folder.
+) -> ExperimentResult:
+    """Runs every trial of ``param_space`` to its evaluation budget.
+
+    Tune's own result logs are the CSV and JSON ones (``experiments/summarize.py`` reads them), without
+    its TensorBoard logger: each trial writes its own ``dsage/*`` scalars against evaluations.
 
     Args:
         param_space: Flat Tune config (possibly with ``tune.grid_search`` axes).
@@ -244,6 +250,9 @@ def run_experiment(
         verbose: Tune's own console verbosity (1 adds its status tables). A progress line per
             trial result is printed at every verbosity (:class:`~dsage_ray.ray.progress.ProgressLines`).
 
+    Returns:
+        The experiment folder and, per trial, its folder and latest checkpoint as Tune reports them.
+
     Raises:
         TrialFailed: A trial failed more than ``max_failures`` times (its error and ``error.txt``).
         ExperimentInterrupted: Tune returned before every trial finished.
@@ -254,6 +263,7 @@ def run_experiment(
     # Tune checkpoints at the end too, so a finished trial's last state is always on disk.
     checkpoint_config = tune.CheckpointConfig(checkpoint_frequency=checkpoint_every, checkpoint_at_end=True,
                                               num_to_keep=2)
+    callbacks = [ProgressLines(), CSVLoggerCallback(), JsonLoggerCallback()]
 
     if api == "run":
         with quiet_tune_output(), _trial_failures():
@@ -266,10 +276,11 @@ def run_experiment(
                 max_failures=max_failures,
                 resume="AUTO+ERRORED" if resume else False,
                 verbose=verbose,
-                callbacks=[ProgressLines()],
+                callbacks=callbacks,
             )
         _check_finished(name, [trial.last_result for trial in analysis.trials])
-        return Path(analysis.experiment_path)
+        return ExperimentResult(path=Path(analysis.experiment_path), trials=tuple(
+            _run_result(trial.config, trial.path, trial.checkpoint) for trial in analysis.trials))
 
     if resume and tune.Tuner.can_restore(experiment_path):
         tuner = tune.Tuner.restore(str(experiment_path), trainable=trainable, resume_errored=True)
@@ -283,7 +294,7 @@ def run_experiment(
                 checkpoint_config=checkpoint_config,
                 failure_config=tune.FailureConfig(max_failures=max_failures),
                 verbose=verbose,
-                callbacks=[ProgressLines()],
+                callbacks=callbacks,
             ),
         )
     with quiet_tune_output():
@@ -292,7 +303,15 @@ def run_experiment(
     if failed:
         raise trial_failed(len(failed), len(results), failed[0].error, Path(failed[0].path) / EXPR_ERROR_FILE)
     _check_finished(name, [result.metrics for result in results])
-    return Path(results.experiment_path)
+    return ExperimentResult(path=Path(results.experiment_path), trials=tuple(
+        _run_result(result.config, result.path, result.checkpoint) for result in results))
+
+
+def _run_result(config: dict[str, Any], path: str, checkpoint: tune.Checkpoint | None) -> RunResult:
+    """A finished trial as Tune reports it: its flat config, its folder and its latest checkpoint."""
+    if checkpoint is None:  # checkpoint_at_end: a finished trial always has one
+        raise TrialFailed(f"the trial in {path} finished without a checkpoint")
+    return RunResult(config=RunConfig.build(config), path=Path(path), checkpoint=Path(checkpoint.path) / CHECKPOINT_NAME)
 
 
 def _check_finished(name: str, last_results: list[dict[str, Any] | None]) -> None:

@@ -20,11 +20,15 @@ from ray import tune
 from dsage_ray.core.progress import EvaluationRate, progress_line
 
 #: Set for the duration of a Tune run unless the user set them: the legacy console engine (no
-#: misleading TensorBoard hint), and no warning about frequent experiment snapshots, which
-#: ``checkpoint_frequency=1`` causes on purpose (a crashed trial loses at most one iteration).
+#: misleading TensorBoard hint), no warning about frequent experiment snapshots, which
+#: ``checkpoint_frequency=1`` causes on purpose (a crashed trial loses at most one iteration), and
+#: none of the loggers Tune adds by itself: its TensorBoard logger would copy every result as a
+#: ``ray/tune/*`` scalar against the iteration beside our ``dsage/*`` ones against evaluations, so
+#: :func:`~dsage_ray.ray.experiment.run_experiment` passes the CSV and JSON loggers it keeps.
 _QUIET_TUNE_ENV = {
     "RAY_AIR_NEW_OUTPUT": "0",
     "TUNE_WARN_EXCESSIVE_EXPERIMENT_CHECKPOINT_SYNC_THRESHOLD_S": "0",
+    "TUNE_DISABLE_AUTO_CALLBACK_LOGGERS": "1",
 }
 
 

@@ -44,12 +44,11 @@ def tune_trials(tmp_path_factory) -> dict[tuple[str, int], dict]:
     """``(variant, ray.num_workers)`` → the trial's resolved config, archive.csv and metrics."""
     base = RunConfig.build({**CONFIG, "variant": "dsage"})
     space = grid_param_space(base, {"variant": list(VARIANTS), "ray.num_workers": list(WORKERS)})
-    path = run_experiment(space, name="modes", storage_path=tmp_path_factory.mktemp("tune"), max_failures=0,
-                          checkpoint_every=base.checkpoint_every)
+    experiment = run_experiment(space, name="modes", storage_path=tmp_path_factory.mktemp("tune"), max_failures=0,
+                                checkpoint_every=base.checkpoint_every)
     trials = {}
-    for params in path.glob("*/params.json"):
-        config = RunConfig.build(json.loads(params.read_text()))
-        trials[config.variant, config.ray.num_workers] = outputs(params.parent, config)
+    for trial in experiment.trials:
+        trials[trial.config.variant, trial.config.ray.num_workers] = outputs(trial.path, trial.config)
     assert sorted(trials) == sorted((v, w) for v in VARIANTS for w in WORKERS)
     return trials
 
@@ -60,7 +59,9 @@ def outputs(run_dir, config: RunConfig) -> dict:
     return {
         "config": {k: v for k, v in config.to_flat().items() if not k.startswith("ray.")},
         "archive.csv": (run_dir / "archive.csv").read_bytes(),
-        "metrics": [{k: v for k, v in m.items() if not k.startswith("time_")} for m in history],
+        # Per-phase times (time_*) and the cumulative wall and CPU time differ from run to run.
+        "metrics": [{k: v for k, v in m.items() if not k.startswith("time_") and k not in ("wall_time", "cpu_time")}
+                    for m in history],
     }
 
 

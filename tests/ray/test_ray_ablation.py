@@ -32,7 +32,7 @@ def test_tiny_grid_ablation_writes_tensorboard_and_summarize_prints_a_row_per_gr
     assert len(trial_dirs) == 4  # 2 variants × 2 batch sizes
     for trial_dir in trial_dirs:
         scalars, images = tensorboard_tags(trial_dir)
-        assert "ray/tune/qd_score" in scalars, trial_dir.name
+        assert "dsage/qd_score" in scalars and not any(t.startswith("ray/tune/") for t in scalars), trial_dir.name
         assert "archive/heatmap" in images, trial_dir.name
 
     proc = run("experiments/summarize.py", str(experiment), timeout=300)

@@ -15,8 +15,9 @@ from tests.ray.helpers import tensorboard_tags
 def test_tiny_mario_dsage_through_tune_and_the_pool(ray_session, tmp_path):
     config = RunConfig.build(domain="mario", variant="dsage", preset="tiny", image_every=1,
                              **{"ray.num_workers": 2, "ray.cpus_per_worker": 0.5, "ray.trial_cpus": 0.5})
-    path = run_experiment(config.to_flat(), name="mario_tiny", storage_path=tmp_path, max_failures=0, verbose=0)
-    (trial_dir,) = [p.parent for p in path.glob("*/params.json")]
+    (trial,) = run_experiment(config.to_flat(), name="mario_tiny", storage_path=tmp_path, max_failures=0,
+                              verbose=0).trials
+    trial_dir = trial.path
 
     metrics = json.loads((trial_dir / "metrics.json").read_text())
     assert metrics[-1]["evals"] == config.budget and json.loads((trial_dir / "failures.json").read_text()) == []
@@ -26,6 +27,6 @@ def test_tiny_mario_dsage_through_tune_and_the_pool(ray_session, tmp_path):
     assert np.all(archive.filter(like="measures_").to_numpy() >= 0)
 
     scalars, images = tensorboard_tags(trial_dir)
-    assert "ray/tune/qd_score" in scalars
+    assert "dsage/qd_score" in scalars and not any(tag.startswith("ray/tune/") for tag in scalars)
     # The heatmap and sample levels (rendered with Mario's path) reach TensorBoard.
     assert {"archive/heatmap", "levels/elite_0"} <= images

@@ -1,0 +1,43 @@
+"""Checks before a search starts: the agents load, the simulator runs on this machine.
+
+A run whose agent cannot be loaded would otherwise fail every evaluation in the simulators and end in
+an error about something else (an empty surrogate dataset, a Tune traceback). Every entry point that
+starts a search (:func:`dsage_ray.run`, :func:`dsage_ray.ablate`, :func:`dsage_ray.run_audit`) calls
+:func:`preflight` first, so such input fails in one line before Ray or the run starts.
+"""
+
+from __future__ import annotations
+
+import json
+
+from dsage_ray.config import RunConfig
+from dsage_ray.domains import build_domain
+from dsage_ray.errors import DsageError, InputError, describe
+
+
+def preflight(*configs: RunConfig) -> None:
+    """Builds the domain of each distinct domain section among ``configs`` and runs its ``preflight()``.
+
+    Domains without a ``preflight`` method (it is optional, :class:`~dsage_ray.types.AuditableDomain`)
+    are only built.
+
+    Raises:
+        InputError: An agent that does not load (a missing file, a wrong checkpoint format); the
+            message names it.
+        ResourceError: A missing simulator (Java or the Mario AI jar).
+    """
+    seen = set()
+    for config in configs:
+        key = (config.domain, json.dumps(config.to_dict().get(config.domain), sort_keys=True))
+        if key in seen:
+            continue
+        seen.add(key)
+        check = getattr(build_domain(config), "preflight", None)
+        if check is None:
+            continue
+        try:
+            check()
+        except DsageError:
+            raise
+        except (ValueError, OSError) as exc:  # a plug-in's preflight may raise the built-in kinds
+            raise InputError(describe(exc)[1]) from exc

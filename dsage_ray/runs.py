@@ -1,0 +1,155 @@
+"""Running DSAGE from Python: one run (:func:`run`) or a grid of runs (:func:`ablate`).
+
+``dsage-ray run`` and ``dsage-ray ablate`` call these with the config the command line resolved; a
+script or notebook calls them with a config file, a :class:`~dsage_ray.config.RunConfig` or a dict of
+dotted keys. Ray is imported only for runs that go through Tune.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any, Literal, Mapping, Sequence, Union
+
+from dsage_ray.config import RunConfig, flatten
+from dsage_ray.errors import InputError
+from dsage_ray.preflight import preflight
+from dsage_ray.results import ExperimentResult, RunResult
+
+#: Where a run's config comes from: a TOML/JSON file, a built config, dotted (or nested) keys, or
+#: ``None`` for the defaults.
+ConfigSource = Union[str, "os.PathLike[str]", RunConfig, Mapping[str, Any], None]
+
+
+def resolve_config(
+    source: ConfigSource = None,
+    *,
+    preset: str | None = None,
+    overrides: Mapping[str, Any] | None = None,
+) -> RunConfig:
+    """The validated config of ``source`` with ``preset`` and ``overrides`` applied, as ``--preset``/``--set`` are.
+
+    Args:
+        source: A TOML/JSON config file, a :class:`~dsage_ray.config.RunConfig`, a dict of dotted
+            (``{"surrogate.epochs": 5}``) or nested keys, or ``None`` (the defaults: the Maze, preset
+            ``paper``).
+        preset: A preset of the config's domain (``tiny``, ``demo``, ``cpu``, ``paper``, ...).
+        overrides: Dotted keys applied last, like ``--set KEY=VALUE``.
+
+    Raises:
+        ConfigError: An unreadable file, an unknown key or preset, an invalid value; the message names it.
+        InputError: A ``preset`` for a ``RunConfig`` (its preset is already applied), or a source of
+            another type.
+    """
+    overrides = dict(overrides or {})
+    if isinstance(source, RunConfig):
+        if preset is not None:
+            raise InputError("preset: a RunConfig has its preset applied already; pass a config file or a dict "
+                             "of keys with the preset, or build the config with RunConfig.build(preset=...)")
+        return source.replace(**overrides) if overrides else source
+    layered = {**overrides, **({"preset": preset} if preset is not None else {})}
+    if source is None:
+        return RunConfig.build(layered)
+    if isinstance(source, Mapping):
+        return RunConfig.build({**flatten(dict(source)), **flatten(layered)})
+    if isinstance(source, (str, os.PathLike)):
+        return RunConfig.from_file(source, layered)
+    raise InputError(f"config: expected a file path, a RunConfig or a dict of keys, got {type(source).__name__}")
+
+
+def run(
+    config: ConfigSource = None,
+    *,
+    preset: str | None = None,
+    overrides: Mapping[str, Any] | None = None,
+    local: bool = False,
+    out: str | os.PathLike[str] | None = None,
+    workers: int | None = None,
+    address: str | None = None,
+    resume: bool = False,
+    max_failures: int = 2,
+) -> RunResult:
+    """Runs DSAGE (or the baseline its ``variant`` names) to its budget: ``dsage-ray run`` from Python.
+
+    The agents and simulators are checked before anything starts
+    (:func:`~dsage_ray.preflight.preflight`), so an agent that does not load fails at once.
+
+    Args:
+        config: The config source (:func:`resolve_config`): a TOML/JSON file, a ``RunConfig``, or a
+            dict of dotted keys.
+        preset: A preset of the config's domain (``tiny``, ``demo``, ``cpu``, ``paper``).
+        overrides: Dotted config keys applied last (``{"budget": 300}``), like ``--set``.
+        local: Run in this process without Ray (same archive for the same seed as through Tune).
+        out: ``local``: the run folder (default ``tb_logs/<name>``). Through Tune: the storage folder
+            (default ``tb_logs``); the run folder is then ``out/<name>/<trial>``.
+        workers: Simulator actors (sets ``ray.num_workers``; ignored by ``local`` runs).
+        address: A Ray cluster to join (default: ``RAY_ADDRESS``, else a new local cluster).
+        resume: Continue the run in ``out`` from its last checkpoint.
+        max_failures: Through Tune: restores of a crashed trial from its last checkpoint.
+
+    Returns:
+        The run's folder, checkpoint, metrics and final archive.
+
+    Raises:
+        InputError: A bad config, agent or ``out`` (e.g. holding a run without ``resume``).
+        ResourceError: The trial does not fit the machine or cluster (``workers`` too high).
+        TrialFailed: The Tune trial failed more than ``max_failures`` times.
+    """
+    config = resolve_config(config, preset=preset, overrides=overrides)
+    if workers is not None:
+        config = config.replace(**{"ray.num_workers": workers})
+    preflight(config)
+    if local:
+        from dsage_ray.core.checkpoint import CHECKPOINT_NAME
+        from dsage_ray.core.loop import run_locally
+
+        run_dir = run_locally(config, out_dir=Path(out) if out is not None else Path("tb_logs") / config.name,
+                              resume=resume)
+        return RunResult(config=config, path=run_dir, checkpoint=run_dir / CHECKPOINT_NAME)
+    from dsage_ray.ray.launch import run_with_tune
+
+    return run_with_tune(config, address=address, resume=resume, out_dir=Path(out if out is not None else "tb_logs"),
+                         max_failures=max_failures)
+
+
+def ablate(
+    config: ConfigSource = None,
+    *,
+    preset: str | None = None,
+    overrides: Mapping[str, Any] | None = None,
+    grid: Sequence[str] = (),
+    seeds: int | Sequence[int] | None = None,
+    variants: Sequence[str] | None = None,
+    out: str | os.PathLike[str] = "tb_logs",
+    workers: int | None = None,
+    address: str | None = None,
+    resume: bool = False,
+    api: Literal["tuner", "run"] = "tuner",
+    max_failures: int = 2,
+) -> ExperimentResult:
+    """Runs a grid of DSAGE runs as one Ray Tune experiment: ``dsage-ray ablate`` from Python.
+
+    Every grid point's config is validated, and its agents loaded, before Ray starts.
+
+    Args:
+        config, preset, overrides: The base config, as in :func:`run`.
+        grid: ``"KEY=V1,V2"`` axes over any config key (``"surrogate.epochs=50,200"``,
+            ``"variant=dsage,map_elites"``, ``"seed=0,1,2"``).
+        seeds: How many seeds (``0..K-1``) or which (default 5, unless ``grid`` names ``seed``).
+        variants: The variants to compare (default: the domain's paper comparison when ``grid``
+            names nothing else, else the config's variant).
+        out: Storage folder; the experiment is ``out/<name>``.
+        workers: Simulator actors per trial (``ray.num_workers``).
+        address, resume, max_failures: As in :func:`run`.
+        api: Tune's entry point: ``"tuner"`` (``tune.Tuner``) or ``"run"`` (``tune.run``).
+
+    Returns:
+        The experiment folder and one :class:`~dsage_ray.results.RunResult` per trial.
+    """
+    config = resolve_config(config, preset=preset, overrides=overrides)
+    if workers is not None:
+        config = config.replace(**{"ray.num_workers": workers})
+    from dsage_ray.ray.launch import ablate as ablate_with_tune
+
+    return ablate_with_tune(config, grid=grid, seeds=seeds, variants=variants, address=address, resume=resume,
+                            out_dir=Path(out), api=api, max_failures=max_failures)

@@ -1,0 +1,101 @@
+"""The public API (``from dsage_ray import ...``): what it returns, what it refuses, what it imports."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import dsage_ray
+from dsage_ray.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+CONFIG = ROOT / "experiments" / "configs" / "maze_dsage.toml"
+#: A run of two outer iterations on the deterministic stand-in agent.
+SMALL = {"maze.agent": "builtin:wall_follower", "budget": 60, "maze.episodes": 2}
+
+
+def test_importing_the_package_loads_no_torch_no_ray_and_gives_a_version():
+    code = ("import sys, dsage_ray; print(dsage_ray.__version__); "
+            "print(any(m in sys.modules for m in ('torch', 'ray', 'dsage_ray.api')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == [dsage_ray.__version__, "False"]
+    assert set(dsage_ray.__all__) <= set(dir(dsage_ray))
+    with pytest.raises(AttributeError, match="no attribute 'nope'"):
+        dsage_ray.nope  # noqa: B018
+
+
+def test_the_version_flag_prints_the_installed_version(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0 and capsys.readouterr().out.strip() == f"dsage-ray {dsage_ray.__version__}"
+
+
+def test_resolve_config_reads_files_dicts_and_configs_like_the_command_line():
+    from_file = dsage_ray.resolve_config(CONFIG, preset="tiny", overrides={"budget": 70})
+    assert from_file.preset == "tiny" and from_file.budget == 70 and from_file.name == "maze_dsage"
+    from_dict = dsage_ray.resolve_config({"surrogate.epochs": 3, "maze": {"episodes": 7}}, preset="tiny")
+    assert from_dict.surrogate.epochs == 3 and from_dict.maze.episodes == 7 and from_dict.preset == "tiny"
+    assert dsage_ray.resolve_config(from_file, overrides={"seed": 4}).seed == 4
+    with pytest.raises(dsage_ray.InputError, match="has its preset applied already"):
+        dsage_ray.resolve_config(from_file, preset="cpu")
+    with pytest.raises(dsage_ray.InputError, match="expected a file path, a RunConfig or a dict"):
+        dsage_ray.resolve_config(42)
+    with pytest.raises(ValueError, match="surogate"):  # ConfigError names the unknown key
+        dsage_ray.resolve_config({"surogate.epochs": 3})
+
+
+def test_run_returns_its_folder_metrics_archive_and_checkpoint_as_the_cli_writes_them(tmp_path, capsys):
+    result = dsage_ray.run(CONFIG, preset="tiny", overrides=SMALL, local=True, out=tmp_path / "api")
+    assert isinstance(result, dsage_ray.RunResult) and result.path == tmp_path / "api"
+    assert result.checkpoint.is_file() and result.metrics[-1]["evals"] == 60
+    assert result.metrics == json.loads((result.path / "metrics.json").read_text())
+    # The same run from the command line: same metrics (but the timings) and the same archive.
+    args = [f"--set={key}={value}" for key, value in SMALL.items()]
+    assert main(["run", str(CONFIG), "--preset", "tiny", *args, "--local", "--out", str(tmp_path / "cli")]) == 0
+    cli = json.loads((tmp_path / "cli" / "metrics.json").read_text())
+    untimed = lambda rows: [{k: v for k, v in row.items() if "time" not in k} for row in rows]  # noqa: E731
+    assert untimed(cli) == untimed(result.metrics)
+    assert (tmp_path / "cli" / "archive.csv").read_text() == (result.path / "archive.csv").read_text()
+    assert len(result.archive) == len(result.archive.data()["index"]) > 0
+
+
+def test_a_run_whose_agent_does_not_load_fails_before_anything_starts(tmp_path, capsys):
+    with pytest.raises(dsage_ray.InputError, match="agent 'dcd:/missing/agent.tar'"):
+        dsage_ray.run(CONFIG, preset="tiny", overrides={"maze.agent": "dcd:/missing/agent.tar"}, local=True,
+                      out=tmp_path / "run")
+    assert not (tmp_path / "run").exists()  # nothing half-written
+    # The command line says the same in one line, for a run through Tune too (no cluster is started).
+    assert main(["run", str(CONFIG), "--preset", "tiny", "--set", "maze.agent=dcd:/missing/agent.tar",
+                 "--out", str(tmp_path / "tune")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("dsage-ray run: error: agent 'dcd:/missing/agent.tar'") and err.count("\n") == 1, err
+    assert not (tmp_path / "tune").exists()
+
+
+def test_run_audit_refuses_bad_arguments_before_searching(tmp_path):
+    with pytest.raises(dsage_ray.InputError, match="budget must be positive"):
+        dsage_ray.run_audit(agent="builtin:random", budget=0, local=True, out=tmp_path / "a")
+    with pytest.raises(dsage_ray.InputError, match="collect_only needs the out folder"):
+        dsage_ray.run_audit(agent="builtin:random", collect_only=True)
+    assert not (tmp_path / "a").exists()
+
+
+def test_the_api_example_runs_and_returns_levels_with_seeds_and_a_report(tmp_path):
+    """``examples/api_quickstart.py``, as a user runs it from the project root."""
+    proc = subprocess.run([sys.executable, "examples/api_quickstart.py", str(tmp_path)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=600,
+                          env={"PATH": "/usr/bin:/bin", "RAY_AUTH_MODE": "disabled", "PYTHONPATH": str(ROOT)})
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-3000:]
+    collection = dsage_ray.Collection.load(tmp_path / "audit" / "collection")
+    assert collection.report_path.is_file() and collection.agent == "builtin:random" and collection.levels
+    stored = json.loads((collection.path / "collection.json").read_text())["levels"]
+    assert [(level.seed, level.success_rate) for level in collection.levels] == [
+        (entry["seed"], entry["success_rate"]) for entry in stored]
+    assert all(level.level_path.is_file() and level.image_path.is_file() for level in collection.levels)
+    assert f"report: {collection.report_path}" in proc.stdout
+    assert f"level #{collection.levels[0].id}: success {collection.levels[0].success_rate:.2f}" in proc.stdout
+    assert "run: 60 evaluations, QD-score" in proc.stdout and (tmp_path / "run" / "checkpoint.dsage").is_file()
