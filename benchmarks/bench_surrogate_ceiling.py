@@ -1,127 +1,466 @@
-"""How well could any surrogate predict the Maze agent's path length from a run's data? Three reference points.
+"""A fair surrogate benchmark for the Maze: the surrogate against trivial predictors, on the same test levels.
 
-For a finished Maze DSAGE run (its checkpoint holds every evaluated level with the agent's real
-measures, and its held-out levels) this prints, for the last measure (``mean_path_length``):
+Scores a Maze dataset, either a standalone .npz (``--data FILE.npz``, format in ``benchmarks/maze_dataset.py``)
+or a finished Maze surrogate run folder (converted in memory the same way), on the path-length measure
+``mean_path_length``. For each of ``--splits`` random splits, ``--test`` levels are set aside and, for each
+training size N, the surrogate setting is trained from scratch on N of the other levels, ``--inits`` times
+(weight initialisation and shuffling seeds), with a training window of at least N (the whole training set).
+Every predictor is scored by its Spearman ρ with the agent's path length on the split's test levels:
 
-1. **The agent against itself**: every held-out level, and a random sample of the run's own levels,
-   evaluated again with other seeds (same episodes). Spearman ρ and MAE between the two evaluations
-   bound what a predictor of the measured value can reach: if they are high, the measure is a
-   property of the level, not of the episodes' luck.
-2. **A learning curve**: the run's surrogate setting (or ``--set`` overrides) trained from scratch on
-   N = 200 … all-but-400 of the run's levels and scored on the same 400 levels it never saw, drawn from
-   the same distribution (in-distribution ρ and MAE), and on the held-out levels. Flat in N means
-   more of the same data will not help at this scale.
-3. **One hand-made feature**: the Spearman ρ of the level's optimal (shortest-path) length with the
-   agent's path length, in-distribution and on the held-out levels, and how the wall counts of the run's
-   levels and of the held-out levels differ (the held-out generator draws densities 0-0.5; DSAGE
-   searches where walls are many).
+* **surrogate**: the Maze ``cpu`` preset's surrogate (``--set`` / ``--setting`` change it), ``--epochs`` epochs;
+* **optimal path**: the BFS shortest start-goal distance alone (no training);
+* **GBM**: scikit-learn's HistGradientBoostingRegressor on BFS features of the level (distances, dead ends,
+  junctions, detours; trained on the same N levels);
+* **test-retest**: the agent's second evaluation (other seeds) where the data has one (``measures_retest``).
 
-    python benchmarks/bench_surrogate_ceiling.py RUN_FOLDER [--set surrogate.epochs=30] [--retest 300]
+mean ± s.e. are over the splits, each split's value being the mean over its initialisations (the splits
+are the independent repeats; initialisations of one split share its test levels). Also printed: each
+setting's FLOPs and predictions/s (encoding included, as in the inner loop) and the GBM's, the difference
+surrogate − baseline per split, the held-out levels' ρ (``--holdout FILE.npz``, or a run's own), and with an
+``iteration`` column the search's own next levels: the last ``--test`` levels in evaluation order, trained on
+the N levels evaluated just before them.
+
+The last lines, one per N, are exactly (the first setting's surrogate)::
+
+    N=<n>: surrogate ρ <x> ± <se> | optimal path ρ <y> ± <se> | GBM ρ <z> ± <se>
+
+Usage:
+    python benchmarks/bench_surrogate_ceiling.py --data FILE.npz [--sizes 200,400,800,1600] [--splits 3] [--inits 3]
+    python benchmarks/bench_surrogate_ceiling.py RUN_FOLDER [--retest 300]
+    python benchmarks/bench_surrogate_ceiling.py --data FILE.npz --setting cpu: \\
+        --setting dist:bench.distance_fields=true --setting dil:dilations=[1,2,4]
+
+``bench.distance_fields=true`` in a setting (benchmark only) wraps the network with
+``dsage_ray.surrogate.models.DistanceFields`` (BFS distance from the start, to the goal, and the detour, as
+three more input channels); other keys are the run config's (``surrogate.`` may be left out).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import math
+import os
+import sys
+import time
 from pathlib import Path
 
+import numpy as np
 
-def main(argv: list[str] | None = None) -> None:
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from maze_dataset import PATH_LENGTH, MazeData, MazeDatasetError  # noqa: E402
+
+#: Benchmark-only setting keys (not run config keys).
+BENCH_KEYS = ("bench.distance_fields",)
+
+
+# ------------------------------------------------------------------------------------------- features
+
+
+def bfs_fields(walls: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Start/goal pairs (the domain's furthest pair) and the BFS distances from the start and to the goal.
+
+    Returns:
+        ``pairs (n, 3)`` (start, goal flat indices, length; -1 without a pair), ``from_start`` and ``to_goal``
+        ``(n, H, W)`` float64 with -1 on cells that are not reached.
+    """
+    from dsage_ray.domains.maze.paths import _bfs, furthest_pairs
+
+    n, height, width = walls.shape
+    pairs = furthest_pairs(walls)
+    fields = np.full((2, n, height * width), -1.0)
+    dist = np.full(height * width, -1, dtype=np.int64)
+    queue = np.empty(height * width, dtype=np.int64)
+    for m in range(n):
+        if pairs[m, 0] < 0:
+            continue
+        flat = np.ascontiguousarray(~walls[m]).ravel()
+        for which in range(2):
+            dist[:] = -1
+            _bfs(flat, height, width, pairs[m, which], dist, queue)
+            fields[which, m] = dist
+    return pairs, fields[0].reshape(n, height, width), fields[1].reshape(n, height, width)
+
+
+FEATURE_NAMES = (
+    "walls", "reachable", "optimal_path", "on_shortest_paths", "dead_ends", "junctions", "shortest_path_junctions",
+    "mean_from_start", "max_from_start", "mean_detour", "max_detour", "detour<=2", "detour<=6", "detour<=12",
+    "start_row", "start_col", "goal_row", "goal_col", "manhattan", "path/manhattan",
+)
+
+
+def bfs_features(walls: np.ndarray) -> np.ndarray:
+    """``(n, len(FEATURE_NAMES))`` float64: hand-made BFS features of each level (what the GBM reads)."""
+    n, height, width = walls.shape
+    pairs, from_start, to_goal = bfs_fields(walls)
+    empty = ~walls
+    padded = np.pad(empty, ((0, 0), (1, 1), (1, 1)))
+    degree = (padded[:, :-2, 1:-1].astype(int) + padded[:, 2:, 1:-1] + padded[:, 1:-1, :-2] + padded[:, 1:-1, 2:])
+    out = np.zeros((n, len(FEATURE_NAMES)))
+    for m in range(n):
+        reach = from_start[m] >= 0
+        length = float(max(pairs[m, 2], 0))
+        detour = np.where(reach & (to_goal[m] >= 0), from_start[m] + to_goal[m] - length, np.nan)
+        on_path = detour == 0
+        start, goal = (divmod(int(p), width) if p >= 0 else (0, 0) for p in pairs[m, :2])
+        manhattan = abs(start[0] - goal[0]) + abs(start[1] - goal[1])
+        any_reach = bool(reach.any())
+        out[m] = (
+            walls[m].sum(), reach.sum(), length, on_path.sum(), (reach & (degree[m] == 1)).sum(),
+            (reach & (degree[m] >= 3)).sum(), (on_path & (degree[m] >= 3)).sum(),
+            from_start[m][reach].mean() if any_reach else 0.0, from_start[m].max(),
+            np.nanmean(detour) if any_reach else 0.0, np.nanmax(detour) if any_reach else 0.0,
+            (detour <= 2).sum(), (detour <= 6).sum(), (detour <= 12).sum(),
+            *start, *goal, manhattan, length / max(manhattan, 1),
+        )
+    return out
+
+
+# ------------------------------------------------------------------------------------------- settings
+
+
+@dataclasses.dataclass
+class Setting:
+    """One surrogate setting: a run config's surrogate/maze sections plus benchmark-only switches."""
+
+    name: str
+    config: object  # RunConfig
+    distance_fields: bool = False
+
+    @classmethod
+    def parse(cls, text: str, *, epochs: int | None, extra: dict) -> "Setting":
+        from bench_surrogate_training import parse_setting
+
+        from dsage_ray.config import RunConfig
+
+        name, overrides = parse_setting(text) if ":" in text else (text, {})
+        overrides = {**extra, **overrides}
+        bench = {key: overrides.pop(key) for key in list(overrides) if key in BENCH_KEYS}
+        unknown = [key for key in overrides if key.startswith("bench.")]
+        if unknown:
+            raise SystemExit(f"--setting {text!r}: unknown benchmark key(s) {unknown} (known: {BENCH_KEYS})")
+        values = {"domain": "maze", "preset": "cpu", "maze.agent": "builtin:wall_follower"}
+        if epochs is not None:
+            values["surrogate.epochs"] = epochs
+        config = RunConfig.build({**values, **overrides})
+        return cls(name=name, config=config, distance_fields=bool(bench.get("bench.distance_fields", False)))
+
+    def describe(self) -> str:
+        s = self.config.surrogate
+        parts = [s.kind, f"{s.epochs} epochs", f"batch {s.batch_size}", f"channels {s.channels}",
+                 f"dilations {list(s.dilations)}", f"path channels {self.config.maze.path_channels}"]
+        if s.occupancy_sum_measure:
+            parts.append(f"{s.occupancy_sum_measure} = occupancy sum")
+        if self.distance_fields:
+            parts.append("distance fields")
+        return ", ".join(parts)
+
+
+class Model:
+    """A surrogate of one setting for one dataset: encodes levels as the domain does, trains, predicts."""
+
+    def __init__(self, setting: Setting, data: MazeData, *, train_size: int, seed: int) -> None:
+        from dsage_ray.domains.maze.encoding import EMPTY, GOAL, SPARE, START
+        from dsage_ray.surrogate import Surrogate
+        from dsage_ray.surrogate.models import DistanceFields, WithDistanceFields
+
+        self.setting = setting
+        self.data = data
+        height, width = data.shape
+        surrogate_config = setting.config.surrogate
+        kind, sum_measure = surrogate_config.kind, surrogate_config.occupancy_sum_measure
+        if data.occupancy is None and kind == "two_stage":
+            kind, sum_measure = "one_stage", ""  # announced once by the caller
+        if sum_measure and sum_measure not in data.measure_names:
+            sum_measure = ""
+        config = dataclasses.replace(surrogate_config, device="cpu", precision="fp32",
+                                     train_window=max(surrogate_config.train_window, train_size),
+                                     occupancy_sum_measure=sum_measure)
+        sample = self.encode(data.walls[:1])
+        channels = sample.shape[1]
+        extra = DistanceFields.fields if setting.distance_fields else 0
+        ranges = [(float(lo), float(hi)) for lo, hi in zip(data.measures.min(axis=0), data.measures.max(axis=0) + 1)]
+        self.surrogate = Surrogate(kind=kind, input_channels=channels + extra, input_shape=tuple(sample.shape[2:]),
+                                   occupancy_shape=(height, width), num_measures=len(data.measure_names),
+                                   config=config, seed=seed, measure_ranges=ranges, measure_names=data.measure_names)
+        self.input_channels = channels
+        if setting.distance_fields:
+            import torch
+
+            fields = DistanceFields(free_channels=(EMPTY, START, GOAL), start_channel=START, goal_channel=GOAL,
+                                    norm=height * width / 2)
+            self.surrogate.model = WithDistanceFields(fields, self.surrogate.model)
+            self.surrogate.input_channels = channels  # what predict() and the dataset see: the one-hot level
+            self.surrogate.optimizer = torch.optim.Adam(self.surrogate.model.parameters(), lr=config.lr,
+                                                        betas=tuple(config.betas))
+        self.pad_channel = SPARE
+
+    def encode(self, walls: np.ndarray) -> np.ndarray:
+        from dsage_ray.domains.maze.encoding import SPARE, encode_levels
+        from dsage_ray.surrogate.models import pad_to_power_of_two
+
+        n, height, width = walls.shape
+        encoded = encode_levels(walls.reshape(n, -1).astype(np.int8), height, width,
+                                path_channels=self.setting.config.maze.path_channels)
+        return pad_to_power_of_two(encoded, pad_channel=SPARE)
+
+    def train(self, rows: np.ndarray, encoded: np.ndarray) -> float:
+        from dsage_ray.types import EvaluationResult
+
+        data = self.data
+        height, width = data.shape
+        occupancy = data.occupancy if data.occupancy is not None else np.zeros((len(data), height, width), np.float32)
+        dataset = self.surrogate.make_dataset()
+        dataset.append(encoded=encoded[rows], results=[
+            EvaluationResult(objective=1.0, measures=data.measures[i].astype(np.float64), occupancy=occupancy[i])
+            for i in rows])
+        start = time.perf_counter()
+        self.surrogate.train(dataset)
+        return time.perf_counter() - start
+
+    def predict(self, encoded: np.ndarray, column: int) -> np.ndarray:
+        return self.surrogate.predict(encoded).measures[:, column]
+
+
+# ------------------------------------------------------------------------------------------- scoring
+
+
+def spearman(a: np.ndarray, b: np.ndarray) -> float:
+    from scipy import stats
+
+    if np.ptp(a) == 0 or np.ptp(b) == 0:
+        return 0.0  # a constant prediction ranks nothing
+    return float(stats.spearmanr(a, b).statistic)
+
+
+def make_gbm(seed: int):
+    try:
+        from sklearn.ensemble import HistGradientBoostingRegressor
+    except ImportError:
+        raise SystemExit("the GBM baseline needs scikit-learn: pip install 'dsage_ray[bench]' "
+                         "(or pip install scikit-learn)") from None
+    return HistGradientBoostingRegressor(max_iter=300, learning_rate=0.05, random_state=seed)
+
+
+def flops_per_prediction(model, sample) -> float:
+    import torch
+    from bench_surrogate import flops_per_sample
+
+    return flops_per_sample(model.surrogate.model, torch.from_numpy(sample))
+
+
+def throughput(fn, batch: int, repeats: int = 5) -> float:
+    """Calls per second × batch: the best of ``repeats`` timed calls after a warm-up."""
+    from bench_surrogate import best_time
+
+    return batch / best_time(fn, calls=repeats)
+
+
+def summary(per_split, spec: str = ".3f") -> str:
+    from dsage_ray.core.metrics import format_mean_se, mean_se
+
+    return format_mean_se(*mean_se(per_split), spec)
+
+
+def load_data(args) -> tuple[MazeData, MazeData | None, str]:
+    import maze_dataset
+
+    if (args.run is None) == (args.data is None):
+        raise SystemExit("give a run folder or --data FILE.npz (one of them)")
+    try:
+        if args.data is not None:
+            data = maze_dataset.load(args.data)
+            held = maze_dataset.load(args.holdout) if args.holdout is not None else None
+            return data, held, str(args.data)
+        data, held = maze_dataset.from_run(args.run, retest=args.retest, seed=args.seed)
+        if args.holdout is not None:
+            held = maze_dataset.load(args.holdout)
+        return data, held, str(args.run)
+    except MazeDatasetError as exc:
+        raise SystemExit(f"error: {exc}") from None
+
+
+def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("run", type=Path, help="a finished Maze run folder (holding its checkpoint)")
+    parser.add_argument("run", type=Path, nargs="?", help="a finished Maze surrogate run folder")
+    parser.add_argument("--data", type=Path, help="a Maze dataset .npz (benchmarks/maze_dataset.py)")
+    parser.add_argument("--holdout", type=Path, help="another .npz scored too (default with a run: its held-out)")
+    parser.add_argument("--retest", type=int, default=0, help="with a run: re-evaluate this many of its levels")
+    parser.add_argument("--sizes", default="200,400,800,1600", help="training sizes N (those that fit are used)")
+    parser.add_argument("--test", type=int, default=400, help="test levels per split")
+    parser.add_argument("--splits", type=int, default=3)
+    parser.add_argument("--inits", type=int, default=3)
+    parser.add_argument("--epochs", type=int, default=30, help="training epochs (a setting's epochs= wins)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="training setting for the learning curve (default: the run's, 30 epochs)")
-    parser.add_argument("--retest", type=int, default=300, help="run levels evaluated again")
-    parser.add_argument("--test", type=int, default=400, help="in-distribution test levels of the learning curve")
+                        help="a run config key for every setting, on the Maze cpu preset")
+    parser.add_argument("--setting", action="append", default=[],
+                        help="NAME:key=value,... (repeatable; the first is the one of the last lines)")
+    parser.add_argument("--no-future", action="store_true", help="skip the search's-next-levels test")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads (a Maze run trains on 1)")
+    parser.add_argument("--batch", type=int, default=150, help="batch of the predictions/s figures (inner loop)")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
 
-    import numpy as np
     import torch
-    from scipy import stats
 
-    from dsage_ray.config import RunConfig, parse_override
-    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint
-    from dsage_ray.domains import build_domain
-    from dsage_ray.domains.maze.encoding import WALL
-    from dsage_ray.surrogate import Surrogate, SurrogateDataset
-    from dsage_ray.surrogate.models import pad_to_power_of_two
+    from dsage_ray.config import parse_override
 
-    torch.set_num_threads(1)
-    state = load_checkpoint(args.run / CHECKPOINT_NAME)
-    config = RunConfig.build(state["config"])
-    if config.domain != "maze" or state.get("dataset") is None or not state.get("holdout"):
-        raise SystemExit(f"{args.run}: needs a Maze surrogate run with held-out levels (surrogate.holdout_levels > 0)")
-    setting = RunConfig.build({**config.to_flat(), "surrogate.epochs": 30,
-                               **dict(parse_override(item) for item in args.overrides)})
-    domain = build_domain(setting)
-    names = domain.measure_names
-    m = len(names) - 1
-    stored = SurrogateDataset(level_shape=tuple(state["dataset"]["level_shape"]), num_measures=len(names),
-                              occupancy_shape=domain.occupancy_shape)
-    stored.load_state_dict(state["dataset"])
-    rows = stored.levels()
-    run_solutions = rows[:, WALL, :domain.height, :domain.width].reshape(len(rows), -1).astype(domain.solution_dtype)
-    run_values = stored.measures[:, m]
-    held_solutions = np.asarray(state["holdout"]["solutions"])
-    held_values = np.array([r.measures[m] for r in state["holdout"]["results"]])
+    torch.set_num_threads(args.threads)
+    data, held, source = load_data(args)
+    column = data.measure(PATH_LENGTH)
+    values = data.measures[:, column]
+    extra = dict(parse_override(item) for item in args.overrides)
+    settings = [Setting.parse(text, epochs=args.epochs, extra=extra) for text in (args.setting or ["cpu"])]
+    sizes = sorted({int(n) for n in args.sizes.split(",")})
+    pool_size = len(data) - args.test
+    fitting = [n for n in sizes if n <= pool_size]
+    if pool_size < 1 or not fitting:
+        raise SystemExit(f"{source}: {len(data)} levels cannot hold {args.test} test levels and N = {sizes[0]} "
+                         f"training levels (lower --test or --sizes)")
+    if fitting != sizes:
+        print(f"note: N = {[n for n in sizes if n not in fitting]} left out: {len(data)} levels minus {args.test} "
+              "test levels is fewer")
+    sizes = fitting
 
-    def rho(a, b) -> float:
-        return float(stats.spearmanr(a, b).statistic)
+    print(f"data {source}: {len(data)} levels, measure {PATH_LENGTH}; {args.splits} splits x {args.inits} "
+          f"initialisations, {args.test} test levels per split; torch threads {args.threads}, load average "
+          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
+    if data.occupancy is None:
+        print("note: the data has no occupancy: two-stage settings train as one_stage")
+    for setting in settings:
+        print(f"setting {setting.name}: {setting.describe()}; training window >= N")
 
-    def line(label: str, predicted, actual) -> str:
-        return f"{label}: Spearman ρ {rho(predicted, actual):.3f}, MAE {np.abs(predicted - actual).mean():.1f}"
+    features = bfs_features(data.walls)
+    optimal = features[:, FEATURE_NAMES.index("optimal_path")]
+    held_features = bfs_features(held.walls) if held is not None else None
+    encoded = {s.name: Model(s, data, train_size=1, seed=0).encode(data.walls) for s in settings}
+    held_encoded = ({s.name: Model(s, data, train_size=1, seed=0).encode(held.walls) for s in settings}
+                    if held is not None else {})
+    held_values = held.measures[:, held.measure(PATH_LENGTH)] if held is not None else None
 
-    print(f"run {args.run}: {len(rows)} evaluated levels, {len(held_values)} held-out levels, measure {names[m]} "
-          f"(agent {config.maze.agent}, {config.maze.episodes} episodes)")
-    # 1. The agent against itself, with seeds no run uses for these levels.
-    rng = np.random.default_rng(args.seed)
-    sample = np.sort(rng.choice(len(rows), size=min(args.retest, len(rows)), replace=False))
-    again_held = np.array([domain.evaluate(s, seed=1_000_003 + i).measures[m] for i, s in enumerate(held_solutions)])
-    again_run = np.array([domain.evaluate(run_solutions[i], seed=2_000_003 + int(i)).measures[m] for i in sample])
-    print("1. the agent evaluated again (other seeds):")
-    print("   " + line(f"held-out levels ({len(held_values)})", again_held, held_values))
-    print("   " + line(f"run levels ({len(sample)})", again_run, run_values[sample]))
+    # Costs per setting (and of the GBM), timed on the inner loop's batch, encoding included.
+    batch_walls = data.walls[np.arange(args.batch) % len(data)]
+    cost: dict[str, tuple[float, float, float]] = {}
+    for setting in settings:
+        model = Model(setting, data, train_size=1, seed=0)
+        sample = model.encode(batch_walls)
+        flops = flops_per_prediction(model, sample)
+        model_rate = throughput(lambda: model.surrogate.predict(sample), args.batch)
+        full_rate = throughput(lambda: model.surrogate.predict(model.encode(batch_walls)), args.batch)
+        cost[setting.name] = (flops, model_rate, full_rate)
 
-    # 2. Learning curve of the surrogate setting, trained from scratch on growing subsets.
-    def encode(solutions):
-        return pad_to_power_of_two(domain.encode(solutions), pad_channel=domain.encoding_pad_channel)
+    # rho[name][n] = per-split means; the baselines keyed alike.
+    rho: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
+    mae: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
+    held_rho: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
+    train_s: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
+    gbm_rho: dict[int, list[float]] = {n: [] for n in sizes}
+    gbm_held: dict[int, list[float]] = {n: [] for n in sizes}
+    optimal_rho: list[float] = []
+    retest_rho: list[tuple[float, int]] = []
+    gbm_rate = 0.0
+    for split in range(args.splits):
+        order = np.random.default_rng([args.seed, split]).permutation(len(data))
+        test, pool = order[:args.test], order[args.test:]
+        optimal_rho.append(spearman(optimal[test], values[test]))
+        if data.retest is not None:
+            twice = test[np.isfinite(data.retest[test, column])]
+            if len(twice) >= 3:
+                retest_rho.append((spearman(data.retest[twice, column], values[twice]), len(twice)))
+        for n in sizes:
+            train = np.sort(pool[:n])
+            gbm = make_gbm(args.seed).fit(features[train], values[train])
+            gbm_rho[n].append(spearman(gbm.predict(features[test]), values[test]))
+            if held is not None:
+                gbm_held[n].append(spearman(gbm.predict(held_features), held_values))
+            if not gbm_rate:
+                gbm_rate = throughput(lambda: gbm.predict(bfs_features(batch_walls)), args.batch, repeats=3)
+            for setting in settings:
+                per_init, per_init_mae, per_init_held, seconds = [], [], [], []
+                for init in range(args.inits):
+                    model = Model(setting, data, train_size=n, seed=1000 * split + init)
+                    seconds.append(model.train(train, encoded[setting.name]))
+                    predicted = model.predict(encoded[setting.name][test], column)
+                    per_init.append(spearman(predicted, values[test]))
+                    per_init_mae.append(float(np.abs(predicted - values[test]).mean()))
+                    if held is not None:
+                        per_init_held.append(spearman(model.predict(held_encoded[setting.name], column), held_values))
+                rho[setting.name][n].append(float(np.mean(per_init)))
+                mae[setting.name][n].append(float(np.mean(per_init_mae)))
+                train_s[setting.name][n].append(float(np.mean(seconds)))
+                if held is not None:
+                    held_rho[setting.name][n].append(float(np.mean(per_init_held)))
+                print(f"  split {split} N={n:>5} {setting.name}: surrogate ρ {np.mean(per_init):.3f} "
+                      f"(inits {', '.join(f'{r:.3f}' for r in per_init)}), MAE {np.mean(per_init_mae):.1f}, "
+                      f"train {np.mean(seconds):.1f} s | optimal path ρ {optimal_rho[-1]:.3f} | "
+                      f"GBM ρ {gbm_rho[n][-1]:.3f}", flush=True)
 
-    levels, held_levels = encode(run_solutions), encode(held_solutions)
-    order = rng.permutation(len(levels))
-    test, pool = order[:args.test], order[args.test:]
-    sizes = sorted({n for n in (200, 400, 800, 1600) if n < len(pool)} | {len(pool)})
-    print(f"2. learning curve: {setting.surrogate.kind}, {setting.surrogate.epochs} epochs, batch "
-          f"{setting.surrogate.batch_size}, path channels {setting.maze.path_channels}; "
-          f"{len(test)} in-distribution test levels")
+    # The search's own next levels: the last --test levels in evaluation order, trained on the N before them.
+    future: dict[str, dict[int, list[float]]] = {s.name: {} for s in settings}
+    if data.iteration is not None and not args.no_future and len(np.unique(data.iteration)) > 1:
+        test = np.arange(len(data) - args.test, len(data))
+        print(f"search's next levels: the last {args.test} levels evaluated (iterations "
+              f"{int(data.iteration[test].min())}-{int(data.iteration[test].max())}), each N trained on the N before "
+              f"them; ρ mean ± s.e. over {args.inits} initialisations")
+        for n in sizes:
+            train = np.arange(len(data) - args.test - n, len(data) - args.test)
+            gbm = make_gbm(args.seed).fit(features[train], values[train])
+            parts = [f"optimal path ρ {spearman(optimal[test], values[test]):.3f}",
+                     f"GBM ρ {spearman(gbm.predict(features[test]), values[test]):.3f}"]
+            for setting in settings:
+                per_init = []
+                for init in range(args.inits):
+                    model = Model(setting, data, train_size=n, seed=7919 + init)
+                    model.train(train, encoded[setting.name])
+                    per_init.append(spearman(model.predict(encoded[setting.name][test], column), values[test]))
+                future[setting.name][n] = per_init
+                parts.insert(0, f"{setting.name} ρ {summary(per_init)}")
+            print(f"  N={n:>5}: " + " | ".join(parts), flush=True)
+
+    print(f"\ncosts (torch threads {args.threads}, batch {args.batch}, best of 5): "
+          + "; ".join(f"{name} {flops / 1e6:.1f} MFLOP/prediction, {full:,.0f} predictions/s with encoding "
+                      f"({model_rate:,.0f}/s model only)" for name, (flops, model_rate, full) in cost.items())
+          + f"; GBM {gbm_rate:,.0f} predictions/s with its BFS features")
+    print(f"Spearman ρ with the agent's {PATH_LENGTH} on the test levels, mean ± s.e. over {args.splits} splits "
+          f"(each the mean of {args.inits} initialisations):")
+    print(f"  optimal path length alone: ρ {summary(optimal_rho)}")
+    if retest_rho:
+        print(f"  the agent against itself (measures_retest): ρ {summary([r for r, _ in retest_rho])} "
+              f"({', '.join(str(k) for _, k in retest_rho)} test levels evaluated twice)")
+    else:
+        print("  the agent against itself: not in this data (no measures_retest; `maze_dataset.py from-run "
+              "--retest K` or `build --retest-share` add one)")
+    header = ["setting", "N", "test ρ", "Δρ vs optimal path", "Δρ vs GBM", "test MAE", "train s"]
+    if held is not None:
+        header.append(f"held-out ρ ({len(held)} levels)")
+    rows = []
+    for setting in settings:
+        for n in sizes:
+            r = rho[setting.name][n]
+            row = [setting.name, str(n), summary(r), summary(np.subtract(r, optimal_rho)),
+                   summary(np.subtract(r, gbm_rho[n])), summary(mae[setting.name][n], ".1f"),
+                   f"{np.mean(train_s[setting.name][n]):.1f}"]
+            if held is not None:
+                row.append(summary(held_rho[setting.name][n]))
+            rows.append(row)
     for n in sizes:
-        train = np.sort(pool[:n])
-        surrogate = Surrogate(kind=setting.surrogate.kind, input_channels=levels.shape[1],
-                              input_shape=tuple(levels.shape[2:]), occupancy_shape=domain.occupancy_shape,
-                              num_measures=len(names), config=setting.surrogate, seed=args.seed,
-                              measure_ranges=domain.measure_ranges, measure_names=names)
-        dataset = surrogate.make_dataset()
-        dataset.load_state_dict({"levels": np.packbits(levels[train].reshape(n, -1).astype(bool), axis=1),
-                                 "objective": stored.objective[train], "measures": stored.measures[train],
-                                 "occupancy": stored.occupancy[train], "level_shape": levels.shape[1:]})
-        surrogate.train(dataset)
-        fit = surrogate.predict(levels[train]).measures[:, m]
-        print(f"   N={n:>5}  " + line("training levels", fit, run_values[train]) + " | "
-              + line("test levels", surrogate.predict(levels[test]).measures[:, m], run_values[test]) + " | "
-              + line("held-out", surrogate.predict(held_levels).measures[:, m], held_values), flush=True)
+        row = ["GBM", str(n), summary(gbm_rho[n]), summary(np.subtract(gbm_rho[n], optimal_rho)), "", "", ""]
+        if held is not None:
+            row.append(summary(gbm_held[n]))
+        rows.append(row)
+    if held is not None:
+        rows.append(["optimal path", "", summary(optimal_rho), "", "", "", "",
+                     f"{spearman(held_features[:, FEATURE_NAMES.index('optimal_path')], held_values):.3f}"])
+    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
+    for row in [header, *rows]:
+        print("  " + " | ".join(cell.ljust(width) for cell, width in zip(row, widths)))
 
-    # 3. One feature, and the two distributions.
-    def optimal(solutions):
-        return np.array([domain.level(s).optimal_path_length for s in solutions])
-
-    def walls(solutions):
-        return np.asarray(solutions).reshape(len(solutions), -1).sum(axis=1)
-
-    print("3. optimal path length as the predictor (rank only):")
-    print(f"   run levels: Spearman ρ {rho(optimal(run_solutions), run_values):.3f}; "
-          f"held-out levels: Spearman ρ {rho(optimal(held_solutions), held_values):.3f}")
-    for label, solutions in (("run levels", run_solutions), ("held-out levels", held_solutions)):
-        low, mid, high = np.percentile(walls(solutions), [5, 50, 95])
-        print(f"   walls of the {label}: 5th/50th/95th percentile {low:.0f}/{mid:.0f}/{high:.0f}")
+    primary = settings[0].name
+    for n in sizes:
+        print(f"N={n}: surrogate ρ {summary(rho[primary][n])} | optimal path ρ {summary(optimal_rho)} | "
+              f"GBM ρ {summary(gbm_rho[n])}")
+    return {"rho": rho, "optimal": optimal_rho, "gbm": gbm_rho, "cost": cost, "future": future}
 
 
 if __name__ == "__main__":

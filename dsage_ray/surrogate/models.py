@@ -220,3 +220,81 @@ class OneStageModel(nn.Module):
         """``bf16_blocks`` is accepted for a uniform interface; this model has no residual blocks."""
         objective, measures = self.measure_predictor(levels)
         return ModelOutput(objective, measures, None)
+
+
+class DistanceFields(nn.Module):
+    """Parameter-free input channels: shortest-path distances on the level's grid, computed from its one-hot cells.
+
+    Not in the paper, and not used by any run unless a caller wraps a model with it (off by default;
+    ``benchmarks/bench_surrogate_ceiling.py`` judges it). For each level it runs a 4-neighbour BFS
+    from the start cell and from the goal cell over the free cells, then appends three channels, each
+    divided by ``norm`` and 0 where a cell is not reachable: the distance from the start, the distance
+    to the goal, and the detour of a path through the cell, ``d_start + d_goal - d_start(goal)`` (0 on
+    every shortest start-goal path). A 3×3 convolution stack sees 11×11 cells; these fields carry the
+    whole maze's connectivity to every cell in one input.
+
+    Args:
+        free_channels: One-hot channels of the cells an agent can stand on (floor, start, goal).
+        start_channel: The channel marking the start cell.
+        goal_channel: The channel marking the goal cell.
+        norm: Divisor of the distances (e.g. ``H·W / 2``, so most values lie in [0, 1]).
+    """
+
+    fields = 3
+
+    def __init__(self, *, free_channels: tuple[int, ...], start_channel: int, goal_channel: int,
+                 norm: float) -> None:
+        super().__init__()
+        self.free_channels = tuple(free_channels)
+        self.start_channel = start_channel
+        self.goal_channel = goal_channel
+        self.norm = float(norm)
+
+    @staticmethod
+    def bfs(free: torch.Tensor, source: torch.Tensor) -> torch.Tensor:
+        """Distances ``(n, S, S)`` from the ``source`` cells over ``free`` (both bool ``(n, S, S)``); -1 unreached."""
+        distance = torch.full(free.shape, -1.0, device=free.device)
+        reached = source & free
+        distance[reached] = 0.0
+        frontier = reached
+        step = 0
+        while True:
+            step += 1
+            grown = frontier.clone()
+            grown[:, 1:] |= frontier[:, :-1]
+            grown[:, :-1] |= frontier[:, 1:]
+            grown[:, :, 1:] |= frontier[:, :, :-1]
+            grown[:, :, :-1] |= frontier[:, :, 1:]
+            frontier = grown & free & ~reached
+            if not bool(frontier.any()):
+                return distance
+            distance[frontier] = float(step)
+            reached = reached | frontier
+
+    def forward(self, levels: torch.Tensor) -> torch.Tensor:
+        """``(n, C, S, S)`` one-hot levels → ``(n, C + 3, S, S)``: the levels, then the three fields."""
+        with torch.no_grad():
+            cells = levels > 0.5
+            free = cells[:, list(self.free_channels)].any(dim=1)
+            # Both searches in one batch: half the steps of the loop.
+            from_start, to_goal = self.bfs(torch.cat([free, free]),
+                                           torch.cat([cells[:, self.start_channel], cells[:, self.goal_channel]])
+                                           ).chunk(2)
+            reachable = (from_start >= 0) & (to_goal >= 0)
+            length = (from_start * cells[:, self.goal_channel]).sum(dim=(1, 2), keepdim=True)
+            detour = from_start + to_goal - length
+            stacked = torch.stack([from_start, to_goal, detour], dim=1) * reachable[:, None] / self.norm
+        return torch.cat([levels, stacked.to(levels.dtype)], dim=1)
+
+
+class WithDistanceFields(nn.Module):
+    """A surrogate network that reads its level plus :class:`DistanceFields` (build ``model`` with 3 more
+    input channels). Same outputs and ``bf16_blocks`` argument as the wrapped model."""
+
+    def __init__(self, fields: DistanceFields, model: nn.Module) -> None:
+        super().__init__()
+        self.fields = fields
+        self.model = model
+
+    def forward(self, levels: torch.Tensor, *, bf16_blocks: bool = False) -> ModelOutput:
+        return self.model(self.fields(levels), bf16_blocks=bf16_blocks)

@@ -160,7 +160,11 @@ class Surrogate:
     def head_names(self) -> tuple[str, ...]:
         """Names of the predicted quantities, as used in :meth:`train` and :meth:`mae` results."""
         names = ("objective", *(f"measure_{i}" for i in range(self.num_measures)))
-        return (*names, "occupancy") if isinstance(self.model, TwoStageModel) else names
+        model = self.model
+        # A wrapper (models.WithDistanceFields) predicts what the network it wraps predicts.
+        while not isinstance(model, TwoStageModel) and hasattr(model, "model"):
+            model = model.model
+        return (*names, "occupancy") if isinstance(model, TwoStageModel) else names
 
     def make_dataset(self, **kwargs: Any) -> SurrogateDataset:
         """An empty dataset whose shapes match this model; ``kwargs`` go to :class:`SurrogateDataset`."""

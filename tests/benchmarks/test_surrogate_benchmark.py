@@ -1,0 +1,173 @@
+"""benchmarks/maze_dataset.py and benchmarks/bench_surrogate_ceiling.py: the .npz format's checks, a run folder's
+round trip through it, and the benchmark's last lines."""
+
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
+sys.path.insert(0, str(BENCHMARKS))
+
+import maze_dataset  # noqa: E402
+from maze_dataset import MazeData, MazeDatasetError  # noqa: E402
+
+from dsage_ray.domains.maze.generator import random_valid_levels  # noqa: E402
+from dsage_ray.domains.maze.paths import furthest_pairs  # noqa: E402
+
+LAST_LINE = re.compile(r"N=(\d+): surrogate ρ (-?\d\.\d{3}) ± (\d\.\d{3}) \| optimal path ρ (-?\d\.\d{3}) ± "
+                       r"(\d\.\d{3}) \| GBM ρ (-?\d\.\d{3}) ± (\d\.\d{3})")
+
+
+def synthetic(n: int = 48, *, seed: int = 0) -> MazeData:
+    """Random valid 16×16 levels whose "path length" is twice the optimal one (so its optimal-path ρ is 1)."""
+    walls = np.stack([level.walls for level in random_valid_levels(n, seed=seed, density_range=(0.0, 0.6))])
+    length = furthest_pairs(walls)[:, 2].astype(np.float32)
+    rng = np.random.default_rng(seed)
+    measures = np.stack([walls.reshape(n, -1).sum(axis=1).astype(np.float32), 2 * length], axis=1)
+    occupancy = rng.random((n, 16, 16), dtype=np.float32) * ~walls
+    return MazeData(walls=walls, measures=measures, measure_names=("num_walls", "mean_path_length"),
+                    occupancy=occupancy)
+
+
+def write(path: Path, arrays: dict) -> Path:
+    np.savez(path, **arrays)
+    return path
+
+
+def test_a_saved_dataset_loads_back_unchanged(tmp_path):
+    data = synthetic(12)
+    data.retest = np.full_like(data.measures, np.nan)
+    data.retest[3] = data.measures[3] + 1
+    data.iteration = np.arange(12) // 4
+    loaded = maze_dataset.load(maze_dataset.save(data, tmp_path / "d.npz"))
+    np.testing.assert_array_equal(loaded.walls, data.walls)
+    np.testing.assert_array_equal(loaded.measures, data.measures)
+    np.testing.assert_array_equal(loaded.occupancy, data.occupancy)
+    np.testing.assert_array_equal(loaded.retest, data.retest)
+    np.testing.assert_array_equal(loaded.iteration, data.iteration)
+    assert loaded.measure_names == data.measure_names
+    # The walls are numpy.packbits of the row-major interior, as the format says.
+    with np.load(tmp_path / "d.npz") as raw:
+        assert raw["walls"].dtype == np.uint8 and raw["walls"].shape == (12, 32)
+        np.testing.assert_array_equal(raw["walls"][5], np.packbits(data.walls[5].reshape(-1)))
+
+
+def test_only_the_required_keys_are_needed_and_16x16_is_assumed(tmp_path):
+    data = synthetic(5)
+    arrays = data.arrays()
+    path = write(tmp_path / "min.npz", {key: arrays[key] for key in ("walls", "measures", "measure_names")})
+    loaded = maze_dataset.load(path)
+    assert loaded.shape == (16, 16) and loaded.occupancy is None and loaded.retest is None
+    np.testing.assert_array_equal(loaded.walls, data.walls)
+
+
+BROKEN = {
+    "missing walls": (lambda a: a.pop("walls"), "missing key 'walls'"),
+    "missing measure_names": (lambda a: a.pop("measure_names"), "missing key 'measure_names'"),
+    "walls not uint8": (lambda a: a.update(walls=a["walls"].astype(np.int16)), "'walls' must be uint8"),
+    "walls of wrong width": (lambda a: a.update(walls=a["walls"][:, :30]), "30 bytes per level"),
+    "measures float64": (lambda a: a.update(measures=a["measures"].astype(np.float64)), "'measures' must be float32"),
+    "measures of another N": (lambda a: a.update(measures=a["measures"][:-1]), "4 rows but 'walls' has 5 levels"),
+    "measures with NaN": (lambda a: a["measures"].__setitem__((0, 0), np.nan), "NaN or infinite"),
+    "names count": (lambda a: a.update(measure_names=np.array(["mean_path_length"])), "1 names but 'measures' has 2"),
+    "no path length": (lambda a: a.update(measure_names=np.array(["walls", "path"])), "must name the path length"),
+    "occupancy of another N": (lambda a: a.update(occupancy=a["occupancy"][:3]), "'occupancy' must be float of shape"),
+    "retest of wrong shape": (lambda a: a.update(measures_retest=a["measures"][:, :1].copy()), "'measures_retest'"),
+    "iteration of another N": (lambda a: a.update(iteration=np.zeros(4, np.int64)), "'iteration' must be integers"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BROKEN))
+def test_a_broken_file_fails_naming_the_file_and_the_problem(tmp_path, case):
+    data = synthetic(5)
+    data.retest = data.measures.copy()
+    data.iteration = np.zeros(5, np.int64)
+    arrays = data.arrays()
+    change, message = BROKEN[case]
+    change(arrays)
+    path = write(tmp_path / "broken.npz", arrays)
+    with pytest.raises(MazeDatasetError, match=re.escape(message)) as raised:
+        maze_dataset.load(path)
+    assert str(path) in str(raised.value)
+
+
+def test_not_an_npz_and_no_file_fail_clearly(tmp_path):
+    (tmp_path / "x.npz").write_text("not a zip")
+    with pytest.raises(MazeDatasetError, match="not a readable .npz"):
+        maze_dataset.load(tmp_path / "x.npz")
+    with pytest.raises(MazeDatasetError, match="no such file"):
+        maze_dataset.load(tmp_path / "missing.npz")
+
+
+def test_a_run_folder_round_trips_through_the_file_into_the_benchmark_data(tmp_path):
+    from dsage_ray.config import RunConfig
+    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint
+    from dsage_ray.core.loop import run_locally
+    from dsage_ray.domains.maze.encoding import WALL
+    from dsage_ray.surrogate.dataset import _unpack
+
+    config = RunConfig.build({"domain": "maze", "preset": "tiny", "maze.agent": "builtin:wall_follower",
+                              "maze.episodes": 1, "budget": 40, "n_rand": 20, "surrogate.epochs": 1,
+                              "qd.exploit_iterations": 2, "selection.count": 10, "surrogate.holdout_levels": 4,
+                              "image_every": 1000})
+    run = run_locally(config, out_dir=tmp_path / "run", console=False)
+    maze_dataset.main(["from-run", str(run), "--out", str(tmp_path / "run.npz"),
+                       "--holdout-out", str(tmp_path / "held.npz")])
+    data, held = maze_dataset.load(tmp_path / "run.npz"), maze_dataset.load(tmp_path / "held.npz")
+
+    state = load_checkpoint(Path(run) / CHECKPOINT_NAME)
+    stored = state["dataset"]
+    levels = _unpack(stored["levels"], tuple(stored["level_shape"]))
+    assert len(data) == len(stored["objective"]) == 40
+    np.testing.assert_array_equal(data.walls, levels[:, WALL, :16, :16] > 0.5)
+    np.testing.assert_array_equal(data.measures, stored["measures"].astype(np.float32))
+    np.testing.assert_array_equal(data.occupancy, stored["occupancy"])
+    assert data.measure_names == ("num_walls", "mean_path_length")
+    # Each level's wall count is its num_walls measure: walls and measures stayed aligned.
+    np.testing.assert_array_equal(data.walls.reshape(40, -1).sum(axis=1), data.measures[:, 0])
+    assert data.iteration[0] == 0 and data.iteration[-1] == len(state["history"]) - 1
+    assert np.all(np.diff(data.iteration) >= 0)
+    np.testing.assert_array_equal(held.walls.reshape(len(held), -1), np.asarray(state["holdout"]["solutions"]) > 0)
+
+
+def test_the_benchmark_ends_with_one_line_per_n_in_the_required_format(tmp_path, capsys):
+    import bench_surrogate_ceiling
+
+    path = maze_dataset.save(synthetic(48), tmp_path / "d.npz")
+    bench_surrogate_ceiling.main(["--data", str(path), "--sizes", "16,24", "--test", "20", "--splits", "3",
+                                  "--inits", "1", "--epochs", "1", "--batch", "8"])
+    lines = capsys.readouterr().out.strip().splitlines()
+    matches = [LAST_LINE.fullmatch(line) for line in lines[-2:]]
+    assert all(matches), lines[-2:]
+    assert [int(m.group(1)) for m in matches] == [16, 24]
+    # The path length here is exactly twice the optimal path: that baseline ranks it perfectly.
+    assert all(m.group(4) == "1.000" and m.group(5) == "0.000" for m in matches)
+    assert not any(LAST_LINE.fullmatch(line) for line in lines[:-2])
+
+
+def test_the_benchmark_refuses_data_too_small_for_the_test_set(tmp_path):
+    import bench_surrogate_ceiling
+
+    path = maze_dataset.save(synthetic(12), tmp_path / "d.npz")
+    with pytest.raises(SystemExit, match="cannot hold 20 test levels"):
+        bench_surrogate_ceiling.main(["--data", str(path), "--sizes", "16", "--test", "20"])
+
+
+def test_bfs_features_match_the_domain(tmp_path):
+    import bench_surrogate_ceiling
+
+    from dsage_ray.domains.maze.level import MazeLevel
+
+    data = synthetic(6, seed=3)
+    features = bench_surrogate_ceiling.bfs_features(data.walls)
+    names = bench_surrogate_ceiling.FEATURE_NAMES
+    for walls, row in zip(data.walls, features):
+        level = MazeLevel.from_bitmap(walls)
+        assert row[names.index("optimal_path")] == level.optimal_path_length
+        assert row[names.index("reachable")] == level.reachable_cells.sum()
+        assert (row[names.index("start_row")], row[names.index("start_col")]) == level.start
