@@ -189,7 +189,7 @@ def build_collection(
         archive: The search's ground-truth archive.
         config: The audit's run config (agent, objective, measures, episodes per re-evaluation).
         out_dir: The collection folder; written whole, then swapped in. The ``reproduce`` commands name
-            the level files through this path as given.
+            the level files by absolute path, so they run from any directory (and not after a move).
         evaluator: Evaluates ``(solutions, seeds)`` with a domain built from ``config``; default in-process
             (the Ray simulator pool fits here too).
         workers: Simulators behind ``evaluator`` (sizes the progress chunks).
@@ -248,7 +248,8 @@ def build_collection(
             "measures": dict(zip(domain.measure_names, map(float, result.measures))),
             "seed": int(seed),
             "episodes": int(domain.episodes),
-            "reproduce": domain.reproduce_command(out_dir / level_file, seed=seed),
+            # Absolute, so the command runs from any directory (not only where the audit was started).
+            "reproduce": domain.reproduce_command(out_dir.resolve() / level_file, seed=seed),
             "search_objective": entry["search_objective"],
             "search_measures": dict(zip(domain.measure_names, entry["search_measures"])),
         }

@@ -49,4 +49,5 @@ def _upgrade_v1(collection: dict[str, Any], *, folder: Path) -> None:
         "maze.see_through_walls": collection.get("see_through_walls", True)}))
     for level in collection["levels"]:
         level.setdefault("level_file", level["layout_file"])
-        level.setdefault("reproduce", domain.reproduce_command(folder / level["layout_file"], seed=level["seed"]))
+        level.setdefault("reproduce", domain.reproduce_command(folder.resolve() / level["layout_file"],
+                                                               seed=level["seed"]))

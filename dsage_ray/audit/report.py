@@ -3,10 +3,13 @@
 One file that opens anywhere, with no network: inline CSS, a small inline script (sortable tables, a text
 filter, "never solved" and per-measure range filters), base64-embedded heatmaps and worst-level pictures.
 The full table links to the collection's own level files and pictures by relative path, which keeps the page
-small for a thousand levels and working wherever the collection folder is moved.
+small for a thousand levels and its links working wherever the collection folder is moved. The reproduce
+commands are the collection's own (``reproduce`` of each level), which name the level file by the absolute
+path the audit wrote it to: they run from any directory, and point at the old place after a move.
 
-Reads both collection formats through :func:`~dsage_ray.audit.collection.load_collection`, which gives a v1
-collection (Maze only) the v2 keys (``domain``, ``reference``, each level's ``reproduce``): only v2 here.
+Reads both collection formats through :func:`~dsage_ray.audit.collection_file.load_collection`, which gives a
+v1 collection (Maze only) the v2 keys (``domain``, ``reference``, each level's ``reproduce``): only v2 here.
+The page fits a phone's width: wide tables scroll inside their own box, pictures shrink, commands wrap.
 """
 
 from __future__ import annotations
@@ -39,24 +42,25 @@ _GENERIC_KEYS = {"id", "objective", "success_rate", "seed", "episodes", "search_
 
 _STYLE = """
 :root { --line: #d8dbe0; --head: #eef1f5; --muted: #5b6470; --accent: #b03a2e; }
-body { font: 15px/1.45 system-ui, -apple-system, "Segoe UI", sans-serif; margin: 0 auto; padding: 1.5rem 2rem;
-       max-width: 1600px; color: #1d232a; }
+body { font: 15px/1.45 system-ui, -apple-system, "Segoe UI", sans-serif; margin: 0 auto;
+       padding: 1.5rem clamp(.75rem, 3vw, 2rem); max-width: 1600px; color: #1d232a; }
+img { max-width: 100%; height: auto; }
 h1 { font-size: 1.6rem; margin: 0 0 .3rem; } h2 { font-size: 1.25rem; margin: 2rem 0 .6rem; }
 p.lead { color: var(--muted); margin-top: 0; }
 code { font: 0.86em/1.3 ui-monospace, "DejaVu Sans Mono", monospace; background: #f3f4f6; padding: 1px 4px;
-       border-radius: 3px; }
+       border-radius: 3px; overflow-wrap: anywhere; }
 code.cmd { user-select: all; } code.cmd span { display: inline-block; max-width: 100%; overflow-wrap: anywhere; }
-dl.meta { display: grid; grid-template-columns: max-content 1fr; gap: .2rem 1.2rem; margin: 0; }
+dl.meta { display: grid; grid-template-columns: max-content minmax(0, 1fr); gap: .2rem 1.2rem; margin: 0; }
 dl.meta dt { color: var(--muted); } dl.meta dd { margin: 0; }
 .stats { display: flex; flex-wrap: wrap; gap: .8rem; }
 .stat { border: 1px solid var(--line); border-radius: 6px; padding: .5rem .9rem; min-width: 9rem; }
 .stat b { display: block; font-size: 1.6rem; } .stat span { color: var(--muted); font-size: .85rem; }
-.figs { display: grid; grid-template-columns: repeat(auto-fit, minmax(480px, 1fr)); gap: 1rem; }
-.figs img { width: 100%; max-width: 760px; height: auto; }
-.cards { display: grid; grid-template-columns: repeat(auto-fill, minmax(330px, 1fr)); gap: 1rem; }
-.cards.wide { grid-template-columns: repeat(auto-fill, minmax(520px, 1fr)); }
+.figs { display: grid; grid-template-columns: repeat(auto-fit, minmax(min(480px, 100%), 1fr)); gap: 1rem; }
+.figs img { width: 100%; max-width: 760px; }
+.cards { display: grid; grid-template-columns: repeat(auto-fill, minmax(min(330px, 100%), 1fr)); gap: 1rem; }
+.cards.wide { grid-template-columns: repeat(auto-fill, minmax(min(520px, 100%), 1fr)); }
 .card { border: 1px solid var(--line); border-radius: 6px; padding: .7rem; display: flex; flex-direction: column;
-        gap: .4rem; font-size: .9rem; }
+        gap: .4rem; font-size: .9rem; min-width: 0; }
 .card img { width: 100%; height: auto; } .card .pics { display: flex; gap: .5rem; }
 .card .pics figure { flex: 1; margin: 0; } .card figcaption { text-align: center; color: var(--muted); }
 .card h3 { margin: 0; font-size: 1.05rem; }
@@ -68,31 +72,36 @@ table { border-collapse: collapse; margin: .5rem 0; font-size: .88rem; }
 th, td { border: 1px solid var(--line); padding: 3px 8px; text-align: right; white-space: nowrap; }
 th { background: var(--head); } td.l, th.l { text-align: left; }
 tbody tr:nth-child(even) { background: #fafbfc; } tbody tr:hover { background: #fff6d6; }
-table.sortable th { cursor: pointer; user-select: none; position: sticky; top: 0; z-index: 1; }
+table.sortable th { user-select: none; position: sticky; top: 0; z-index: 1; }
+th button.sort { font: inherit; color: inherit; background: none; border: 0; padding: 0; cursor: pointer; }
+th button.sort:focus-visible { outline: 2px solid #1f6feb; outline-offset: 2px; }
 table.sortable th[aria-sort=ascending]::after { content: " \\25B2"; }
 table.sortable th[aria-sort=descending]::after { content: " \\25BC"; }
 .scroll { max-height: 80vh; overflow: auto; border: 1px solid var(--line); }
-.scroll table { margin: 0; } .scroll td code.cmd { font-size: .8em; white-space: nowrap; }
+.hscroll { overflow-x: auto; } .hscroll table { margin: 0; }
+.scroll table { margin: 0; }
+#levels tr { scroll-margin-top: 2.5rem; } #levels tr:target { outline: 2px solid #e0a800; outline-offset: -2px; } .scroll td code.cmd { font-size: .8em; white-space: nowrap; }
 .filters { display: flex; flex-wrap: wrap; gap: .6rem 1.4rem; align-items: center; margin: .4rem 0 .6rem; }
-.filters input[type=number] { width: 5.5rem; } .filters input[type=search] { width: 16rem; }
+.filters input[type=number] { width: 5.5rem; } .filters input[type=search] { width: 16rem; max-width: 100%; }
 .worse { background: #fde0dc !important; } .better { background: #e0f5e0 !important; }
 .bad { color: var(--accent); font-weight: 600; }
 """
 
-# Sorting for every table.sortable; filters for the table with id "levels" when the page has one.
+# Sorting for every table.sortable (its headers are buttons, so the keyboard reaches them; a cell's data-sort,
+# where it has one, is its sort key); filters for the table with id "levels" when the page has one.
 _SCRIPT = """
 (function () {
   document.querySelectorAll('table.sortable').forEach(function (table) {
     var body = table.tBodies[0];
     table.tHead.addEventListener('click', function (event) {
-      var th = event.target.closest('th');
-      if (!th) return;
-      var col = th.cellIndex, numeric = th.classList.contains('num');
+      var button = event.target.closest('button.sort');
+      if (!button) return;
+      var th = button.closest('th'), col = th.cellIndex, numeric = th.classList.contains('num');
       var dir = th.getAttribute('aria-sort') === 'ascending' ? -1 : 1;
       table.tHead.querySelectorAll('th').forEach(function (h) { h.removeAttribute('aria-sort'); });
       th.setAttribute('aria-sort', dir === 1 ? 'ascending' : 'descending');
       var keyed = Array.from(body.rows, function (row) {
-        var text = row.cells[col].textContent.trim(), value = parseFloat(text);
+        var cell = row.cells[col], text = (cell.dataset.sort || cell.textContent).trim(), value = parseFloat(text);
         return [numeric ? (isNaN(value) ? -Infinity : value) : text.toLowerCase(), row];
       });
       keyed.sort(function (a, b) { return a[0] < b[0] ? -dir : a[0] > b[0] ? dir : 0; });
@@ -137,11 +146,18 @@ _SCRIPT = """
     shown.textContent = count + ' of ' + rows.length + ' levels shown';
   }
   document.querySelectorAll('.filters input').forEach(function (input) { input.addEventListener('input', apply); });
-  document.getElementById('reset').addEventListener('click', function () {
+  function reset() {
     document.querySelectorAll('.filters input').forEach(function (i) {
       if (i.type === 'checkbox') i.checked = false; else i.value = '';
     });
     apply();
+  }
+  document.getElementById('reset').addEventListener('click', reset);
+  // A link to a level's row ("worst level") shows the row even when the filters hide it.
+  document.addEventListener('click', function (event) {
+    var link = event.target.closest('a[href^="#level-"]');
+    var row = link && document.getElementById(link.getAttribute('href').slice(1));
+    if (row && row.hidden) reset();
   });
   document.querySelectorAll('button.region').forEach(function (button) {
     button.addEventListener('click', function () {
@@ -188,17 +204,46 @@ def _formatter(values: Sequence[Any]) -> Callable[[Any], str]:
 
 
 def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]], *, left: int = 0, numeric: Sequence[bool] = (),
-           row_attrs: Sequence[str] | None = None, table_attrs: str = "class='sortable'") -> str:
-    """A table with a ``thead`` (clickable when sortable); cells are HTML, headers plain text."""
+           row_attrs: Sequence[str] | None = None, table_attrs: str = "class='sortable'",
+           sorted_by: tuple[int, str] | None = None, titles: dict[str, str] | None = None) -> str:
+    """A table with a ``thead``; cells are HTML, headers plain text.
+
+    Args:
+        headers: Column names; in a sortable table each non-empty one is a button that sorts by its column.
+        rows: Cells: HTML, or ``(html, sort_key)`` for a cell that sorts by another value than its text.
+        left: Left-aligned leading columns.
+        numeric: Per column, whether it sorts as numbers.
+        row_attrs: Per row, attributes of its ``tr``.
+        table_attrs: Attributes of the ``table``.
+        sorted_by: ``(column, "ascending" | "descending")``: the order ``rows`` come in, shown by the header's
+            arrow (``aria-sort``).
+        titles: Tooltips of the headers, by header.
+    """
+    sortable = "sortable" in table_attrs
+
     def cls(i: int, is_head: bool) -> str:
         names = (["l"] if i < left else []) + (["num"] if is_head and i < len(numeric) and numeric[i] else [])
         return f" class='{' '.join(names)}'" if names else ""
 
-    head = "".join(f"<th{cls(i, True)}>{_esc(h)}</th>" for i, h in enumerate(headers))
+    def th(i: int, header: str) -> str:
+        attrs = cls(i, True)
+        if sorted_by and sorted_by[0] == i:
+            attrs += f" aria-sort='{sorted_by[1]}'"
+        if titles and header in titles:
+            attrs += f" title='{_esc(titles[header])}'"
+        label = f"<button type='button' class='sort'>{_esc(header)}</button>" if sortable and header else _esc(header)
+        return f"<th{attrs}>{label}</th>"
+
+    def td(i: int, cell: Any) -> str:
+        text, key = cell if isinstance(cell, tuple) else (cell, None)
+        sort = "" if key is None else f" data-sort='{_esc(key)}'"
+        return f"<td{cls(i, False)}{sort}>{text}</td>"
+
+    head = "".join(th(i, h) for i, h in enumerate(headers))
     body = []
     for r, row in enumerate(rows):
         attrs = f" {row_attrs[r]}" if row_attrs and row_attrs[r] else ""
-        body.append(f"<tr{attrs}>" + "".join(f"<td{cls(i, False)}>{c}</td>" for i, c in enumerate(row)) + "</tr>")
+        body.append(f"<tr{attrs}>" + "".join(td(i, c) for i, c in enumerate(row)) + "</tr>")
     return f"<table {table_attrs}><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
 
 
@@ -212,15 +257,19 @@ def region_statistics(levels: Sequence[dict[str, Any]], measures: Sequence[str],
                       *, bins: int = REGIONS_PER_MEASURE) -> list[dict[str, Any]]:
     """Levels grouped by measure region (equal-width bins over the observed range of each measure).
 
+    A region is half-open, ``[low, high)`` per measure (the last one closed), so a level on an edge belongs to
+    the upper region only.
+
     Returns:
-        One record per non-empty region: ``ranges`` per measure, ``levels``, mean ``objective``, mean and
-        min ``success_rate``, mean ``mean_path_length`` (Maze collections only) and the ``worst`` level id;
-        worst regions first.
+        One record per non-empty region: ``ranges`` per measure (the region's edges), ``extent`` per measure
+        (its levels' lowest and highest value), ``levels``, mean ``objective``, mean and min ``success_rate``,
+        mean ``mean_path_length`` (Maze collections only) and the ``worst`` level id; worst regions first.
     """
     if not levels:
         return []
     values = np.array([[lv["measures"][m] for m in measures] for lv in levels], dtype=float)
-    edges = [np.linspace(values[:, j].min(), values[:, j].max() + 1e-9, bins + 1) for j in range(len(measures))]
+    edges = [np.linspace(values[:, j].min(), values[:, j].max(), bins + 1) for j in range(len(measures))]
+    # side="right": a value on an edge opens the upper region; the clip closes the last region at the maximum.
     keys = np.stack([np.clip(np.searchsorted(e, values[:, j], side="right") - 1, 0, bins - 1)
                      for j, e in enumerate(edges)], axis=1)
     with_paths = all("mean_path_length" in lv for lv in levels)
@@ -230,6 +279,8 @@ def region_statistics(levels: Sequence[dict[str, Any]], measures: Sequence[str],
         worst = max(members, key=lambda lv: (lv["objective"], -lv["success_rate"]))
         region = {
             "ranges": {m: (float(edges[j][key[j]]), float(edges[j][key[j] + 1])) for j, m in enumerate(measures)},
+            "extent": {m: (min(float(lv["measures"][m]) for lv in members),
+                           max(float(lv["measures"][m]) for lv in members)) for m in measures},
             "levels": len(members),
             "objective": float(np.mean([lv["objective"] for lv in members])),
             "success_rate": float(np.mean([lv["success_rate"] for lv in members])),
@@ -352,6 +403,9 @@ def _metadata(c: dict[str, Any]) -> str:
                           f"elites"),
         ("created", _esc(c.get("created", "?"))),
     ]
+    limit = step_limit(c)
+    if limit is not None:
+        items.append(("step limit", f"{limit} steps per episode"))
     if c.get("notes"):
         items.append(("notes", _esc(c["notes"])))
     return "<dl class='meta'>" + "".join(f"<dt>{k}</dt><dd>{v}</dd>" for k, v in items) + "</dl>"
@@ -382,7 +436,7 @@ def _command(text: str) -> str:
 
 
 def _card(c: dict[str, Any], lv: dict[str, Any], collection_dir: Path, numbers: list[str],
-          formats: dict[str, Callable[[Any], str]]) -> str:
+          formats: dict[str, Callable[[Any], str]], notes: dict[str, str]) -> str:
     """One worst-level card: picture(s), the level's numbers (next to the reference's), its command(s)."""
     reference = lv.get("reference") if c.get("reference") else None
     pictures = [(c["agent"], collection_dir / lv["image_file"])]
@@ -397,14 +451,16 @@ def _card(c: dict[str, Any], lv: dict[str, Any], collection_dir: Path, numbers: 
     if reference:
         rows += [(k, k, None) for k in _reference_numbers(c) if k not in lv and k != "success_rate"]
     cell = lambda key, v: "" if v is None else formats.get(key, _formatter([v]))(v)  # noqa: E731
+    label = lambda name, key: (f"<td class='l' title='{_esc(notes[key])}'>{_esc(name)}</td>"  # noqa: E731
+                               if key in notes else f"<td class='l'>{_esc(name)}</td>")
     if reference:
-        body = "".join(f"<tr><td class='l'>{_esc(name)}</td><td>{cell(key, v)}</td>"
+        body = "".join(f"<tr>{label(name, key)}<td>{cell(key, v)}</td>"
                        f"<td>{cell(key, reference.get(key))}</td></tr>" for name, key, v in rows)
         # Role names keep the card narrow; the specs are in the page header and the tooltips.
         head = (f"<tr><th class='l'></th><th title='{_esc(c['agent'])}'>agent</th>"
                 f"<th title='{_esc(c['reference'])}'>reference</th></tr>")
     else:
-        body = "".join(f"<tr><td class='l'>{_esc(name)}</td><td>{cell(key, v)}</td></tr>" for name, key, v in rows)
+        body = "".join(f"<tr>{label(name, key)}<td>{cell(key, v)}</td></tr>" for name, key, v in rows)
         head = ""
     if reference and "regression" in lv:
         mark = " class='bad'" if lv["regression"] > 0 else ""
@@ -422,7 +478,7 @@ def _card(c: dict[str, Any], lv: dict[str, Any], collection_dir: Path, numbers: 
     return "".join(parts) + "</div>"
 
 
-def _levels_table(c: dict[str, Any], collection_dir: Path, numbers: list[str]) -> str:
+def _levels_table(c: dict[str, Any], numbers: list[str], notes: dict[str, str]) -> str:
     levels, measures = c["levels"], c["measures"]
     reference_keys = _reference_numbers(c)
     columns: list[tuple[str, Callable[[dict[str, Any]], Any]]] = [
@@ -447,13 +503,14 @@ def _levels_table(c: dict[str, Any], collection_dir: Path, numbers: list[str]) -
         cells.append(f"<code class='cmd'>{_esc(lv['reproduce'])}</code>")
         rows.append(cells)
         regression = f" data-r='{lv['regression']}'" if "regression" in lv else ""
-        attrs.append(f"data-s='{lv['success_rate']}' data-m='{' '.join(str(lv['measures'][m]) for m in measures)}'"
-                     f"{regression}")
+        # The row's id is the target of the region table's "worst level" links.
+        attrs.append(f"id='level-{lv['id']}' data-s='{lv['success_rate']}' "
+                     f"data-m='{' '.join(repr(float(lv['measures'][m])) for m in measures)}'{regression}")
     headers = ["id", "files", *(name for name, _ in columns[1:]), "reproduce"]
     numeric = [True, False] + [True] * (len(columns) - 1) + [False]
     return ("<div class='scroll'>"
             + _table(headers, rows, left=0, numeric=numeric, row_attrs=attrs,
-                     table_attrs="class='sortable' id='levels'")
+                     table_attrs="class='sortable' id='levels'", sorted_by=(0, "ascending"), titles=notes)
             + "</div>")
 
 
@@ -473,7 +530,7 @@ def _filters(c: dict[str, Any]) -> str:
     return "".join(parts)
 
 
-def _regions(c: dict[str, Any]) -> str:
+def _regions(c: dict[str, Any], notes: dict[str, str]) -> str:
     measures = c["measures"]
     regions = region_statistics(c["levels"], measures)
     with_paths = bool(regions) and "mean_path_length" in regions[0]
@@ -481,15 +538,54 @@ def _regions(c: dict[str, Any]) -> str:
                *(["mean path length"] if with_paths else []), "worst level", ""]
     rows = []
     for r in regions:
-        # Filter bounds: the region's edges, rounded outward so the range inputs keep every member.
-        lo = " ".join(f"{math.floor(a * 1000) / 1000:g}" for a, _ in r["ranges"].values())
-        hi = " ".join(f"{math.ceil(b * 1000) / 1000:g}" for _, b in r["ranges"].values())
-        rows.append([*(f"{a:.1f} – {b:.1f}" for a, b in r["ranges"].values()), r["levels"], f"{r['objective']:.3f}",
-                     f"{r['success_rate']:.3f}", f"{r['min_success_rate']:.3f}",
-                     *([f"{r['mean_path_length']:.1f}"] if with_paths else []), f"#{r['worst']}",
+        # The range filter keeps the levels within [lo, hi] on every measure (both ends included, as a person
+        # reads "from 16 to 22"). The region's edges would also take in the levels on its upper edge, which
+        # belong to the next region; its own levels' lowest and highest values, written exactly, select
+        # precisely them, since regions do not overlap.
+        lo = " ".join(repr(a) for a, _ in r["extent"].values())
+        hi = " ".join(repr(b) for _, b in r["extent"].values())
+        rows.append([*((f"{a:.1f} – {b:.1f}", a) for a, b in r["ranges"].values()), r["levels"],
+                     f"{r['objective']:.3f}", f"{r['success_rate']:.3f}", f"{r['min_success_rate']:.3f}",
+                     *([f"{r['mean_path_length']:.1f}"] if with_paths else []),
+                     (f"<a href='#level-{r['worst']}'>#{r['worst']}</a>", r["worst"]),
                      f"<button type='button' class='region' data-lo='{lo}' data-hi='{hi}'>show these</button>"])
-    numeric = [False] * len(measures) + [True] * (len(headers) - len(measures) - 2) + [False, False]
-    return _table(headers, rows, left=len(measures), numeric=numeric)
+    numeric = [True] * (len(headers) - 1) + [False]
+    table = _table(headers, rows, left=len(measures), numeric=numeric, sorted_by=(len(measures) + 1, "descending"),
+                   titles={**{f"{m} range": f"{m} from the first value (included) to the second (excluded, but "
+                                            "included in the last region)" for m in measures},
+                           "worst level": "the region's worst level: opens its row in the table of all levels",
+                           **({"mean path length": notes["mean_path_length"]} if "mean_path_length" in notes else {})})
+    return f"<div class='hscroll'>{table}</div>"
+
+
+def step_limit(collection: dict[str, Any]) -> int | None:
+    """The episode step limit, which a failed episode counts in ``mean_path_length``; None where unknown.
+
+    The collection's ``max_steps`` where its domain records one; else, for Maze, the limit of the level size
+    in the recorded config (``2·(H+2)·(W+2)``, 648 for 16 × 16).
+    """
+    if collection.get("max_steps"):
+        return int(collection["max_steps"])
+    size = (collection.get("config") or {}).get("maze") or {}
+    if collection.get("domain") == "maze" and "height" in size and "width" in size:
+        from dsage_ray.domains.maze.level import max_steps_for
+
+        return max_steps_for(int(size["height"]), int(size["width"]))
+    return None
+
+
+def _notes(c: dict[str, Any]) -> dict[str, str]:
+    """Explanations of the domain's numbers, by key (tooltips of their headers and labels)."""
+    if not c["levels"] or "mean_path_length" not in c["levels"][0]:
+        return {}
+    limit = step_limit(c)
+    if limit is None:
+        text = ("steps per episode; a failed episode counts the step limit, so the limit means the agent never "
+                "reached the goal")
+    else:
+        text = (f"steps per episode; a failed episode counts the step limit, {limit}: {limit} means the agent "
+                f"never reached the goal")
+    return {"mean_path_length": text}
 
 
 def write_report(collection_dir: str | Path) -> Path:
@@ -498,6 +594,7 @@ def write_report(collection_dir: str | Path) -> Path:
     c = load_collection(collection_dir)
     levels = c["levels"]
     numbers = _domain_numbers(c)
+    notes = _notes(c)
     summary = failure_summary(c)
     if c.get("reference"):
         title = f"Regression audit of {c['agent']} against {c['reference']}"
@@ -522,15 +619,19 @@ def write_report(collection_dir: str | Path) -> Path:
     formats.update({m: _formatter([lv["measures"][m] for lv in levels]) for m in c["measures"]})
     # Two pictures per card (the reference's too) need wider cards.
     wide = " wide" if any((lv.get("reference") or {}).get("image_file") for lv in shown) else ""
-    parts += [f"<h2>Worst {len(shown)} levels</h2><div class='cards{wide}'>",
-              *(_card(c, lv, collection_dir, numbers, formats) for lv in shown), "</div>",
+    # Where a number needs a sentence (Maze's 648 = a failed episode's step limit), it comes before the cards
+    # and tables that show it, and again as their headers' tooltips.
+    explained = "".join(f"<p class='lead note'><b>{_esc(key)}</b>: {_esc(text)}.</p>" for key, text in notes.items())
+    parts += [f"<h2>Worst {len(shown)} levels</h2>", explained, f"<div class='cards{wide}'>",
+              *(_card(c, lv, collection_dir, numbers, formats, notes) for lv in shown), "</div>",
               "<h2>Per-region statistics</h2>",
               "<p class='lead'>Levels grouped by equal-width ranges of each measure; "
-              "<i>show these</i> filters the table below to the region.</p>", _regions(c),
+              "<i>show these</i> filters the table below to the region's levels; the worst level's link opens "
+              "its row.</p>", _regions(c, notes),
               f"<h2>All {len(levels)} levels</h2>",
-              "<p class='lead'>Click a column header to sort; <i>copy</i> copies the level's reproduce command "
-              "(the last column).</p>",
-              _filters(c), _levels_table(c, collection_dir, numbers)]
+              "<p class='lead'>Click a column header (or Tab to it and press Enter) to sort; <i>copy</i> copies the "
+              "level's reproduce command (the last column).</p>",
+              _filters(c), _levels_table(c, numbers, notes)]
     path = collection_dir / "report.html"
     atomic_write_text(path, _page(title, "".join(parts)))
     return path
@@ -574,6 +675,6 @@ def write_compare_report(path: str | Path, comparison: dict[str, Any], *, collec
           f"{r['success_a']:.2f}", f"{r['success_b']:.2f}", f"{r['success_b'] - r['success_a']:+.2f}",
           f"{r['path_a']:.1f}", f"{r['path_b']:.1f}", f"{r['path_b'] - r['path_a']:+.1f}", r["verdict"]]
          for r in rows], left=0, numeric=[True, False, True, True, True, True, True, True, False],
-        row_attrs=classes))
+        row_attrs=classes, sorted_by=(4, "ascending")))
     atomic_write_text(path, _page(title, "".join(parts)))
     return path

@@ -82,8 +82,10 @@ def test_report_is_self_contained(tmp_path):
     page = write_report(folder).read_text()
     links = _links(page)
     assert not [link for link in links if re.match(r"(?i)(https?:)?//", link)], "no network"
-    files = [link for link in links if not link.startswith("data:")]
+    files = [link for link in links if not link.startswith(("data:", "#"))]
     assert files and all((folder / link).is_file() for link in files), "every link is the collection's own file"
+    anchors = [link[1:] for link in links if link.startswith("#")]
+    assert anchors and all(f"id='{a}'" in page for a in anchors), "every in-page link has its target"
     # Embedded: the two heatmaps and the worst levels' pictures; every other picture is a link.
     assert page.count("src='data:image/png;base64,") == 2 + min(WORST_SHOWN, 15)
     assert "<script>" in page and "<style>" in page
@@ -109,11 +111,12 @@ def test_table_has_every_level_worst_first_with_its_command(tmp_path):
     folder = make_collection(tmp_path / "c", levels=15)
     page = write_report(folder).read_text()
     body = page.split("id='levels'", 1)[1].split("<tbody>", 1)[1].split("</tbody>", 1)[0]
-    rows = re.findall(r"<tr data-s='([^']*)' data-m='([^']*)'>(.*?)</tr>", body)
+    rows = re.findall(r"<tr id='level-(\d+)' data-s='([^']*)' data-m='([^']*)'>(.*?)</tr>", body)
     assert len(rows) == 15
-    assert [re.search(r"<td>(\d+)</td>", r[2]).group(1) for r in rows] == [str(i) for i in range(15)]
-    assert rows[3][:2] == ("0.75", "109.0 23.0")
-    assert "--seed 1003</code>" in rows[3][2] and "href='levels/level_0003.png'" in rows[3][2]
+    assert [re.search(r"<td>(\d+)</td>", r[3]).group(1) for r in rows] == [r[0] for r in rows] == [
+        str(i) for i in range(15)]
+    assert rows[3][1:3] == ("0.75", "109.0 23.0")
+    assert "--seed 1003</code>" in rows[3][3] and "href='levels/level_0003.png'" in rows[3][3]
 
 
 def test_v1_collection_renders_with_rebuilt_commands(tmp_path):
@@ -144,7 +147,7 @@ def test_regression_collection_shows_both_agents(tmp_path):
         assert [c.replace(REFERENCE, AGENT) for c in commands[1:]] == commands[:1]
         assert f"--agent {REFERENCE} --layout" in commands[1]
     for header in ("reference success rate", "reference mean path length", "regression"):
-        assert f">{header}</th>" in page, header
+        assert f">{header}</button></th>" in page, header
     assert "id='regressed'" in page
     summary = failure_summary(load_collection(folder))
     assert f"<b>{summary['regressed']}</b><span>levels where the agent does worse" in page
@@ -162,8 +165,9 @@ def test_mario_collection_renders_its_own_numbers(tmp_path):
                      reproduce=f"dsage-ray mario eval --level {folder}/levels/level_{i:04d}.txt --runs 4")
     (folder / "collection.json").write_text(json.dumps(data))
     page = write_report(folder).read_text()
-    assert "<dt>domain</dt><dd>mario</dd>" in page and ">completion</th>" in page and ">sky_tiles</th>" in page
-    assert "mean path length" not in page and "maze eval" not in page
+    assert "<dt>domain</dt><dd>mario</dd>" in page
+    assert ">completion</button></th>" in page and ">sky_tiles</button></th>" in page
+    assert "mean path length" not in page and "maze eval" not in page and "step limit" not in page
     assert re.sub(r"</?span>", "", page).count("dsage-ray mario eval --level") == 5 + 5  # cards + table
 
 
@@ -226,3 +230,139 @@ def test_mario_picture_shared_scale_and_title():
     assert (render_level(level, scale=2, occupancy=occupancy, occupancy_max=4.0) == own).all()
     titled = Image.open(io.BytesIO(level_png(level, scale=2, title="#0: completion 0.40")))
     assert titled.size[0] > 20 and titled.size[1] > 32  # the figure around the 20 x 32 image
+
+
+def on_bin_edges(folder: Path) -> Path:
+    """Gives the levels of a made collection integer measures on a 9 × 9 grid: 0..8 splits into regions at 2, 4
+    and 6, so many levels lie on a region's edge, as Maze's integer measures do."""
+    data = json.loads((folder / "collection.json").read_text())
+    for entry in data["levels"]:
+        a, b = divmod(entry["id"], 9)
+        entry["measures"] = {"num_walls": float(a), "optimal_path_length": float(b)}
+    (folder / "collection.json").write_text(json.dumps(data))
+    return folder
+
+
+def _region_rows(page: str) -> list[tuple[int, list[float], list[float]]]:
+    """(levels, filter lows, filter highs) of each row of the region table."""
+    table = page.split("<h2>Per-region statistics</h2>", 1)[1].split("</table>", 1)[0]
+    rows = re.findall(r"<tr>(.*?)</tr>", table.split("<tbody>", 1)[1])
+    out = []
+    for row in rows:
+        cells = re.findall(r"<td[^>]*>(.*?)</td>", row)
+        lo, hi = re.search(r"data-lo='([^']*)' data-hi='([^']*)'", row).groups()
+        out.append((int(cells[2]), [float(v) for v in lo.split()], [float(v) for v in hi.split()]))
+    return out
+
+
+def _level_measures(page: str) -> list[list[float]]:
+    body = page.split("id='levels'", 1)[1].split("<tbody>", 1)[1]
+    return [[float(v) for v in m.split()] for m in re.findall(r"data-m='([^']*)'", body)]
+
+
+def test_region_count_equals_the_levels_its_filter_selects(tmp_path):
+    """What "show these" selects, by the page script's rule (lo <= value <= hi on every measure, both ends
+    included), is exactly what the region table counts, levels on a region's edge included."""
+    folder = on_bin_edges(make_collection(tmp_path / "c", levels=81))
+    page = write_report(folder).read_text()
+    measures = _level_measures(page)
+    regions = _region_rows(page)
+    assert len(measures) == 81 and len(regions) == 16 and sum(r[0] for r in regions) == 81
+    for count, lows, highs in regions:
+        selected = [m for m in measures if all(lo <= v <= hi for v, lo, hi in zip(m, lows, highs))]
+        assert len(selected) == count, (lows, highs)
+
+
+def test_tables_show_their_default_order_and_sort_from_the_keyboard(tmp_path):
+    folder = make_collection(tmp_path / "c", levels=15)
+    page = write_report(folder).read_text()
+    levels_head = page.split("id='levels'", 1)[1].split("</thead>", 1)[0]
+    # Worst first = ids ascending; the region table by mean objective, worst first.
+    assert re.search(r"<th class='num' aria-sort='ascending'><button type='button' class='sort'>id</button>",
+                     levels_head)
+    regions = page.split("<h2>Per-region statistics</h2>", 1)[1].split("</table>", 1)[0]
+    assert re.search(r"aria-sort='descending'><button type='button' class='sort'>mean failure_rate</button>",
+                     regions)
+    assert levels_head.count("aria-sort") == 1 and regions.count("aria-sort") == 1
+    # Every named header is a button (Tab reaches it, Enter and Space press it); the buttons' column has none.
+    headers = re.findall(r"<th(?: [^>]*)?>(.*?)</th>", regions.split("</thead>", 1)[0])
+    assert all(h.startswith("<button type='button' class='sort'>") for h in headers[:-1]) and headers[-1] == ""
+
+
+def test_worst_level_is_a_link_to_its_row_and_sorts_as_a_number(tmp_path):
+    folder = on_bin_edges(make_collection(tmp_path / "c", levels=81))
+    page = write_report(folder).read_text()
+    rows = set(re.findall(r"<tr id='level-(\d+)'", page))
+    regions = page.split("<h2>Per-region statistics</h2>", 1)[1].split("</table>", 1)[0]
+    head = re.findall(r"<th( [^>]*)?>(.*?)</th>", regions.split("</thead>", 1)[0])
+    column = next(i for i, (_, text) in enumerate(head) if "worst level" in text)
+    assert "class='num'" in head[column][0]
+    worst = [re.findall(r"<td[^>]*>.*?</td>", row)[column] for row in re.findall(r"<tr>(.*?)</tr>", regions)[1:]]
+    assert worst
+    for cell in worst:
+        key, target, text = re.fullmatch(r"<td data-sort='(\d+)'><a href='#level-(\d+)'>#(\d+)</a></td>", cell).groups()
+        assert key == target == text and target in rows
+
+
+def test_step_limit_is_explained_from_the_config(tmp_path):
+    folder = make_collection(tmp_path / "c", levels=5)
+    data = json.loads((folder / "collection.json").read_text())
+    data["config"]["maze"] = {"height": 10, "width": 12}  # 2·(10+2)·(12+2) = 336 steps
+    (folder / "collection.json").write_text(json.dumps(data))
+    page = write_report(folder).read_text()
+    assert "<dt>step limit</dt><dd>336 steps per episode</dd>" in page
+    note = "a failed episode counts the step limit, 336: 336 means the agent never reached the goal"
+    assert note in page and "648" not in page
+    # Where the numbers are: the header of the table of all levels, the region table, every card.
+    assert re.search(rf"<th class='num' title='steps per episode; {note}'><button[^>]*>mean_path_length<", page)
+    assert re.search(rf"title='steps per episode; {note}'><button[^>]*>mean path length<", page)
+    assert page.count(f"<td class='l' title='steps per episode; {note}'>mean_path_length</td>") == 5
+    # A collection that records its domain's limit uses it.
+    data["max_steps"] = 99
+    (folder / "collection.json").write_text(json.dumps(data))
+    assert "<dd>99 steps per episode</dd>" in write_report(folder).read_text()
+
+
+def test_a_narrow_screen_scrolls_wide_tables_in_their_own_box(tmp_path):
+    """The structure that keeps a 390 px page from scrolling sideways (test_report_browser.py measures it)."""
+    folder = make_collection(tmp_path / "c", levels=15)
+    page = write_report(folder).read_text()
+    assert re.search(r"<div class='hscroll'><table class='sortable'><thead><tr><th class='l num'", page)
+    assert "<div class='scroll'><table class='sortable' id='levels'>" in page
+    style = page.split("<style>", 1)[1].split("</style>", 1)[0]
+    assert re.search(r"(^|\n)img \{ max-width: 100%;", style)
+    # Grid columns never ask for more than the screen.
+    assert not re.search(r"minmax\(\d+px", style) and style.count("minmax(min(") == 3
+
+
+def test_reproduce_commands_run_from_any_directory(tmp_path, monkeypatch, capsys):
+    """A collection written to a relative folder names its level files by absolute path."""
+    import shlex
+
+    from dsage_ray.audit.collection import audit_config, build_collection
+    from dsage_ray.cli import main
+    from dsage_ray.domains import build_domain
+    from dsage_ray.domains.maze.generator import random_valid_levels
+    from dsage_ray.qd.archives import make_archive
+
+    config = audit_config(agent="builtin:random", preset="tiny", seed=1, overrides={"maze.episodes": 2})
+    domain = build_domain(config)
+    levels = random_valid_levels(2, seed=1)
+    archive = make_archive(solution_dim=domain.solution_dim, dims=domain.archive_dims, ranges=domain.measure_ranges,
+                           solution_dtype=domain.solution_dtype)
+    archive.add(np.array([level.walls.ravel() for level in levels], dtype=np.int8), np.full(len(levels), 0.5),
+                np.array([[level.num_walls, level.optimal_path_length] for level in levels], dtype=float))
+    (tmp_path / "project").mkdir()
+    monkeypatch.chdir(tmp_path / "project")
+    build_collection(archive, config=config, out_dir=Path("audits") / "collection")
+    monkeypatch.chdir(tmp_path)  # elsewhere
+    collection = load_collection(tmp_path / "project" / "audits" / "collection")
+    assert len(collection["levels"]) == 2
+    for lv in collection["levels"]:
+        command = shlex.split(lv["reproduce"])
+        layout = Path(command[command.index("--layout") + 1])
+        assert layout.is_absolute() and layout == (tmp_path / "project" / "audits" / "collection" /
+                                                   lv["level_file"]).resolve()
+        capsys.readouterr()
+        assert main(command[1:] + ["--json"]) == 0
+        assert json.loads(capsys.readouterr().out)["success_rate"] == lv["success_rate"]
