@@ -157,6 +157,12 @@ class RunConfig:
     seed: int = 0
     #: Total real evaluations.
     budget: int = 100_000
+    #: Seconds of wall time the run may spend stepping, cumulative across resumes; 0: no limit. Whichever
+    #: of ``budget`` and ``time_budget`` is reached first ends the run, after the outer iteration during
+    #: which it was reached (a clean checkpoint). Where a time budget ends a run depends on the machine
+    #: and its load, so such a run is not reproducible; an evaluation-budget run is. Raising it and
+    #: resuming continues the run (the only key a resume may change).
+    time_budget: float = 0.0
     #: Random solutions evaluated in outer iteration 1.
     n_rand: int = 100
     #: Outer iterations between checkpoints / TensorBoard images.
@@ -295,6 +301,7 @@ class RunConfig:
         for name, section in self.sections.items():
             _check_choices(section, f"{name}.")
         need(self.budget >= 1, "budget", "must be positive")
+        need(self.time_budget >= 0, "time_budget", "must be >= 0 seconds (0: no limit)")
         need(self.n_rand >= 1, "n_rand", "must be positive")
         need(self.budget >= self.n_rand or not self.uses_surrogate, "budget",
              f"must be at least n_rand={self.n_rand} (the first outer iteration evaluates n_rand solutions)")

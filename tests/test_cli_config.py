@@ -79,3 +79,48 @@ def test_a_reader_that_stops_early_is_not_an_error():
     proc.stdout.close()
     _, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 0 and b"error" not in stderr, stderr
+
+
+@pytest.mark.parametrize("text, seconds", [("90", 90.0), ("90s", 90.0), ("10m", 600.0), ("1.5h", 5400.0),
+                                           ("0", 0.0), (" 2M ", 120.0)])
+def test_time_budget_flag_takes_seconds_or_a_duration(capsys, text, seconds):
+    printed = config_output(capsys, MAZE_CONFIGS[0], "--preset", "tiny", f"--time-budget={text}")
+    assert printed["time_budget"] == seconds
+    assert printed["budget"] == RunConfig.build({"preset": "tiny"}).budget  # the evaluation budget still applies
+
+
+@pytest.mark.parametrize("text", ["ten minutes", "10min", "-5", "1h30m", ""])
+def test_a_bad_time_budget_names_the_flag(capsys, text):
+    with pytest.raises(SystemExit) as exit_:
+        main(["config", str(MAZE_CONFIGS[0]), f"--time-budget={text}"])
+    assert exit_.value.code == 2
+    assert (f"dsage-ray config: error: argument --time-budget: expected seconds or a duration such as 90s, 10m "
+            f"or 1.5h, got {text!r}") in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("command", [["run", "x.toml"], ["ablate", "x.toml"], ["audit"]])
+def test_run_ablate_and_audit_take_a_time_budget(command):
+    from dsage_ray.cli import build_parser
+
+    assert build_parser().parse_args([*command, "--time-budget", "10m"]).time_budget == 600.0
+
+
+def test_audit_hands_the_time_budget_to_its_search(monkeypatch):
+    import dsage_ray.audit.run as audit_run
+
+    class Stop(Exception):
+        """Raised instead of searching."""
+
+    seen = {}
+
+    def no_search(*args, **kwargs):
+        seen.update(kwargs, args=args)
+        raise Stop
+
+    monkeypatch.setattr(audit_run, "run_audit", no_search)
+    with pytest.raises(Stop):
+        main(["audit", "--agent", "builtin:random", "--preset", "tiny", "--local", "--time-budget", "2m",
+              "--set", "checkpoint_every=2"])
+    # The search gets either the built config or the keys it is built from.
+    keys = seen["args"][0].to_flat() if seen["args"] else seen["overrides"]
+    assert keys["time_budget"] == 120.0 and keys["checkpoint_every"] == 2

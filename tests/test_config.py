@@ -124,3 +124,16 @@ def test_occupancy_sum_measure_needs_a_model_that_predicts_occupancy():
         RunConfig.build({"variant": "dsage_basic", "surrogate.occupancy_sum_measure": "mean_path_length"})
     built = RunConfig.build({"variant": "dsage", "surrogate.occupancy_sum_measure": "mean_path_length"})
     assert built.surrogate.occupancy_sum_measure == "mean_path_length"
+
+
+def test_time_budget_is_a_validated_float_key_that_round_trips():
+    assert RunConfig.build({}).time_budget == 0.0  # no limit
+    config = RunConfig.build({"preset": "tiny", "time_budget": 600})
+    assert config.time_budget == 600.0 and isinstance(config.time_budget, float)
+    assert config.to_flat()["time_budget"] == 600.0 and RunConfig.build(config.to_flat()) == config
+    # A flat key like any other: a Tune grid axis.
+    assert config.replace(time_budget=90.0).time_budget == 90.0
+    with pytest.raises(ConfigError, match=r"^time_budget: must be >= 0 seconds \(0: no limit\) \(got -1.0\)$"):
+        RunConfig.build({"time_budget": -1})
+    with pytest.raises(ConfigError, match="time_budget: expected a number, got '10m'"):
+        RunConfig.build({"time_budget": "10m"})

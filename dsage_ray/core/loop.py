@@ -1,5 +1,10 @@
 """The one run loop: a runner stepped to its budget, with callbacks, checkpoints and the run folder's outputs.
 
+"Its budget" is :attr:`DSAGE.done <dsage_ray.core.runner.DSAGE.done>`: the evaluation budget, or the
+time budget (``time_budget``) once an outer iteration ends past it. Either way the run ends after a
+whole iteration, checkpointed and with its outputs written, so ``--resume`` (with a larger time
+budget) continues it.
+
 A ``--local`` run (:func:`run_locally`, also the audit's in-process search) drives a :class:`RunLoop`
 itself with :meth:`RunLoop.run`; a Tune trial (:class:`dsage_ray.ray.trainable.DSAGETrainable`)
 calls :meth:`RunLoop.step`, :meth:`RunLoop.save` and :meth:`RunLoop.restore` when Tune asks. Both
@@ -44,7 +49,7 @@ class RunLoop:
     Args:
         runner: The run.
         out_dir: The run folder: ``metrics.json``, ``archive.csv``, ``heatmap.png`` and the elites are
-            written there once the budget is spent.
+            written there once the evaluation or time budget is spent.
         callbacks: Called after every iteration in this order (TensorBoard, progress lines, ...) and
             closed by :meth:`close`.
     """
@@ -59,7 +64,7 @@ class RunLoop:
         return self.runner.done
 
     def step(self) -> dict[str, float]:
-        """One outer iteration, then the callbacks; the run folder's outputs once the budget is spent."""
+        """One outer iteration, then the callbacks; the run folder's outputs once a budget is spent."""
         metrics = self.runner.step()
         for callback in self.callbacks:
             callback.on_step(self.runner, metrics)
@@ -76,7 +81,8 @@ class RunLoop:
         self.runner.load_state_dict(load_checkpoint(path))
 
     def run(self, *, checkpoint: str | Path, checkpoint_every: int) -> None:
-        """Steps until the budget is spent, saving ``checkpoint`` every ``checkpoint_every`` outer iterations.
+        """Steps until the evaluation or time budget is spent, saving ``checkpoint`` every ``checkpoint_every``
+        outer iterations.
 
         The state is also saved after the last iteration, so a finished run's checkpoint holds its
         final archive.
@@ -145,6 +151,9 @@ def run_locally(
             if console:
                 print(f"resumed at {runner.evals} evaluations, outer iteration {runner.outer_iteration}")
         loop.run(checkpoint=checkpoint, checkpoint_every=config.checkpoint_every)
+        if console and runner.out_of_time and runner.evals < config.budget:
+            print(f"time budget reached: {runner.wall_time:.0f} s of {config.time_budget:g} s after "
+                  f"{runner.evals} of {config.budget} evaluations; a larger --time-budget with --resume continues")
     finally:
         loop.close()
     return out_dir

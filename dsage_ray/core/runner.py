@@ -20,9 +20,19 @@ many random valid levels are evaluated for real, once. They are extra evaluation
 dataset, the archive or the budget, so a run's search is the same with or without them. Every
 later iteration scores the freshly trained surrogate on them (``holdout_mae_*``,
 ``holdout_spearman_*``), next to its error on the batch it selected (``mae_*``). Without a
-surrogate nothing is held out. Without
+surrogate nothing is held out. Without a surrogate
 (``surrogate.kind = "none"``) a step is one ask/evaluate/tell of the QD optimizer on the
 ground-truth archive: MAP-Elites, CMA-ME or, with the random emitter, domain randomisation.
+
+*Budgets and cost*: a run ends when ``budget`` evaluations are spent or, with ``time_budget > 0``,
+after the outer iteration during which its wall time reached ``time_budget`` seconds, whichever
+comes first. Wall time is the time spent inside :meth:`DSAGE.step`, cumulative across resumes (it is
+part of the state dict), so a stopped and resumed run counts only the time it ran. Every metric row
+carries it (``wall_time``) and the CPU time of this process during the steps (``cpu_time``,
+:func:`time.process_time`: every thread of the process that runs the outer loop, so in-process
+evaluation is included, the CPU of Ray's simulator actors is not). Where a time budget stops a run
+depends on the machine and its load: a time-limited run is not reproducible across machines or runs,
+while an evaluation-budget run is (timings are its only numbers that differ).
 
 Nothing here imports Ray: the domain and the evaluator are injected.
 """
@@ -90,6 +100,10 @@ class DSAGE:
         self.archive = self._make_archive(with_occupancy=True, seed=self._next_qd_seed())
         self.evals = 0
         self.outer_iteration = 0
+        #: Seconds spent in :meth:`step` (wall clock) and CPU seconds of this process during it, over the
+        #: whole run including the parts before a resume.
+        self.wall_time = 0.0
+        self.cpu_time = 0.0
         self.history: list[dict[str, float]] = []
         self.failures: list[dict[str, Any]] = []
         #: ``(predicted_measures, true_measures)`` for the batch evaluated last (Fig. 9 scatter).
@@ -132,14 +146,20 @@ class DSAGE:
 
     @property
     def done(self) -> bool:
-        return self.evals >= self.config.budget
+        """The evaluation budget is spent, or the time budget (if any) was reached in the last step."""
+        return self.evals >= self.config.budget or self.out_of_time
+
+    @property
+    def out_of_time(self) -> bool:
+        """``time_budget`` is set and the run's wall time has reached it."""
+        return 0 < self.config.time_budget <= self.wall_time
 
     @property
     def ground_truth_archive(self):
         return self.archive
 
     def run(self) -> list[dict[str, float]]:
-        """Steps until the budget is spent; returns the per-iteration metrics."""
+        """Steps until the evaluation or time budget is spent; returns the per-iteration metrics."""
         while not self.done:
             self.step()
         return self.history
@@ -149,11 +169,20 @@ class DSAGE:
 
         Torch runs on ``config.torch_threads`` threads during the step, whoever calls it (the
         caller's setting is restored afterwards): the surrogate's numbers depend on the count.
+        The step's wall and CPU time are added to the run's (``wall_time``, ``cpu_time`` in the metrics).
         """
+        if self.out_of_time:
+            raise RuntimeError(f"the time budget ({self.config.time_budget:g} s) is spent")
         if self.done:
             raise RuntimeError(f"the evaluation budget ({self.config.budget}) is spent")
+        wall, cpu = time.perf_counter(), time.process_time()
         with torch_threads(self.config.torch_threads):
-            return self._step()
+            metrics = self._step()
+        self.wall_time += time.perf_counter() - wall
+        self.cpu_time += time.process_time() - cpu
+        metrics.update(wall_time=self.wall_time, cpu_time=self.cpu_time)
+        self.history.append(metrics)
+        return metrics
 
     def _step(self) -> dict[str, float]:
         times: dict[str, float] = {}
@@ -253,7 +282,6 @@ class DSAGE:
             holdout_evals=float(self.holdout_evals),
         )
         metrics.update({f"time_{k}": v for k, v in times.items()})
-        self.history.append(metrics)
         return metrics
 
     # -------------------------------------------------------------------------------- phases
@@ -386,6 +414,8 @@ class DSAGE:
             "config": self.config.to_dict(),
             "evals": self.evals,
             "outer_iteration": self.outer_iteration,
+            "wall_time": self.wall_time,
+            "cpu_time": self.cpu_time,
             "history": self.history,
             "failures": self.failures,
             "rng": self.rng.bit_generator.state,
@@ -400,12 +430,20 @@ class DSAGE:
         })
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        saved = RunConfig.build(state["config"])
+        """Continues from ``state``; its config must be this run's, but for ``time_budget``.
+
+        The time budget only decides when the run stops, never what it computes, so a resume may raise
+        it (or lower it) to continue a run its time budget ended.
+        """
+        saved = RunConfig.build(state["config"]).replace(time_budget=self.config.time_budget)
         if saved.to_dict() != self.config.to_dict():
             raise ValueError("checkpoint was written by a run with a different config")
         state = copy.deepcopy(state)
         self.evals = state["evals"]
         self.outer_iteration = state["outer_iteration"]
+        # Checkpoints written before timings were saved start the count at the resume.
+        self.wall_time = state.get("wall_time", 0.0)
+        self.cpu_time = state.get("cpu_time", 0.0)
         self.history = state["history"]
         self.failures = state["failures"]
         self.rng.bit_generator.state = state["rng"]

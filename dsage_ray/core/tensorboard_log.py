@@ -4,6 +4,12 @@ Scalars go under ``dsage/`` with the number of real evaluations as the step, so 
 different batch sizes (DSAGE, MAP-Elites, a resumed run) line up on the same axis; images
 (``archive/heatmap``, ``levels/elite_K``, ``surrogate/predicted_vs_true_measures``) use the same
 step. Under Tune these events sit next to Tune's own ``ray/tune/*`` scalars in the trial folder.
+
+One scalar has another axis: ``dsage/qd_score_vs_wall_time`` is the QD-score with the run's wall time
+in whole seconds as the step (``wall_time``, cumulative across resumes), to compare searches at equal
+time. It is a step, not the events' own wall-clock time, because TensorBoard's default x-axis is the
+step and the events' times would count the pauses between a run and its resume; iterations ending in
+the same second share a step.
 """
 
 from __future__ import annotations
@@ -24,6 +30,8 @@ if TYPE_CHECKING:
 
 #: Group of our scalars in TensorBoard (``dsage/qd_score``, ``dsage/coverage``, ...).
 SCALAR_GROUP = "dsage"
+#: The QD-score against whole seconds of wall time (the other scalars are against evaluations).
+QD_SCORE_VS_WALL_TIME = f"{SCALAR_GROUP}/qd_score_vs_wall_time"
 
 
 class RunTensorBoard:
@@ -54,6 +62,8 @@ class RunTensorBoard:
         for key, value in metrics.items():
             if isinstance(value, numbers.Real) and not isinstance(value, bool):
                 self._writer.add_scalar(f"{SCALAR_GROUP}/{key}", float(value), step)
+        if "wall_time" in metrics:
+            self._writer.add_scalar(QD_SCORE_VS_WALL_TIME, float(metrics["qd_score"]), int(metrics["wall_time"]))
         iteration = int(metrics["outer_iteration"])
         if iteration % self.image_every == 0 or runner.done:
             self._log_images(runner, iteration=iteration, step=step)

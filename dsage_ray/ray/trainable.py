@@ -42,7 +42,9 @@ class DSAGETrainable(tune.Trainable):
     Its Tune config is a flat :meth:`RunConfig.to_flat` dict, so every config key can be a
     ``tune.grid_search`` axis. Extra constructor arguments go through ``tune.with_parameters``.
 
-    Results: the runner's metrics, ``done`` once the evaluation budget is spent, ``budget``, and
+    Results: the runner's metrics (``wall_time`` and ``cpu_time`` among them: the trial process's, not
+    the simulator actors' CPU), ``done`` once the evaluation or the time budget is spent
+    (:attr:`DSAGE.done <dsage_ray.core.runner.DSAGE.done>`), ``budget``, and
     the pool's fault counters (``pool_actor_deaths``, ``pool_resubmitted_chunks``). The trial also
     writes its own TensorBoard events (``dsage/*`` scalars against evaluations, and images) into
     its folder; see :class:`~dsage_ray.core.tensorboard_log.RunTensorBoard`.
