@@ -79,8 +79,8 @@ table.sortable th[aria-sort=ascending]::after { content: " \\25B2"; }
 table.sortable th[aria-sort=descending]::after { content: " \\25BC"; }
 .scroll { max-height: 80vh; overflow: auto; border: 1px solid var(--line); }
 .hscroll { overflow-x: auto; } .hscroll table { margin: 0; }
-.scroll table { margin: 0; }
-#levels tr { scroll-margin-top: 2.5rem; } #levels tr:target { outline: 2px solid #e0a800; outline-offset: -2px; } .scroll td code.cmd { font-size: .8em; white-space: nowrap; }
+.scroll table { margin: 0; } .scroll td code.cmd { font-size: .8em; white-space: nowrap; }
+#levels tr { scroll-margin-top: 2.5rem; } #levels tr:target { outline: 2px solid #e0a800; outline-offset: -2px; }
 .filters { display: flex; flex-wrap: wrap; gap: .6rem 1.4rem; align-items: center; margin: .4rem 0 .6rem; }
 .filters input[type=number] { width: 5.5rem; } .filters input[type=search] { width: 16rem; max-width: 100%; }
 .worse { background: #fde0dc !important; } .better { background: #e0f5e0 !important; }
@@ -580,11 +580,11 @@ def _notes(c: dict[str, Any]) -> dict[str, str]:
         return {}
     limit = step_limit(c)
     if limit is None:
-        text = ("steps per episode; a failed episode counts the step limit, so the limit means the agent never "
-                "reached the goal")
+        text = ("mean steps per episode; a failed episode counts as the whole step limit, so the limit means the "
+                "agent never reached the goal")
     else:
-        text = (f"steps per episode; a failed episode counts the step limit, {limit}: {limit} means the agent "
-                f"never reached the goal")
+        text = (f"mean steps per episode; a failed episode counts as the whole step limit, {limit} steps, so "
+                f"{limit} means the agent never reached the goal")
     return {"mean_path_length": text}
 
 
@@ -669,12 +669,12 @@ def write_compare_report(path: str | Path, comparison: dict[str, Any], *, collec
                          f"{row['path_a']:.0f} → {row['path_b']:.0f}</div></div>")
     parts.append("</div><h2>All levels (B − A)</h2><p class='lead'>Click a column header to sort.</p>")
     classes = [f"class='{r['verdict']}'" if r["verdict"] in ("worse", "better") else "" for r in rows]
-    parts.append(_table(
+    parts.append("<div class='hscroll'>" + _table(
         ["id", "layout", "success A", "success B", "Δ success", "path A", "path B", "Δ path", "verdict"],
         [[r["id"], f"<a href='{link(r['layout_file'])}'>{_esc(r['layout_file'])}</a>",
           f"{r['success_a']:.2f}", f"{r['success_b']:.2f}", f"{r['success_b'] - r['success_a']:+.2f}",
           f"{r['path_a']:.1f}", f"{r['path_b']:.1f}", f"{r['path_b'] - r['path_a']:+.1f}", r["verdict"]]
          for r in rows], left=0, numeric=[True, False, True, True, True, True, True, True, False],
-        row_attrs=classes, sorted_by=(4, "ascending")))
+        row_attrs=classes, sorted_by=(4, "ascending")) + "</div>")
     atomic_write_text(path, _page(title, "".join(parts)))
     return path

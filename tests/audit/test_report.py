@@ -311,12 +311,13 @@ def test_step_limit_is_explained_from_the_config(tmp_path):
     (folder / "collection.json").write_text(json.dumps(data))
     page = write_report(folder).read_text()
     assert "<dt>step limit</dt><dd>336 steps per episode</dd>" in page
-    note = "a failed episode counts the step limit, 336: 336 means the agent never reached the goal"
-    assert note in page and "648" not in page
+    note = ("mean steps per episode; a failed episode counts as the whole step limit, 336 steps, so 336 means "
+            "the agent never reached the goal")
+    assert f"<b>mean_path_length</b>: {note}.</p>" in page and "648" not in page
     # Where the numbers are: the header of the table of all levels, the region table, every card.
-    assert re.search(rf"<th class='num' title='steps per episode; {note}'><button[^>]*>mean_path_length<", page)
-    assert re.search(rf"title='steps per episode; {note}'><button[^>]*>mean path length<", page)
-    assert page.count(f"<td class='l' title='steps per episode; {note}'>mean_path_length</td>") == 5
+    assert re.search(rf"<th class='num' title='{note}'><button[^>]*>mean_path_length<", page)
+    assert re.search(rf"title='{note}'><button[^>]*>mean path length<", page)
+    assert page.count(f"<td class='l' title='{note}'>mean_path_length</td>") == 5
     # A collection that records its domain's limit uses it.
     data["max_steps"] = 99
     (folder / "collection.json").write_text(json.dumps(data))

@@ -6,6 +6,7 @@ Skips where Chromium, its driver or the ``selenium`` package (the ``dev`` extra)
 
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
@@ -124,3 +125,83 @@ def test_regression_report_filters_regressed_levels(browser, tmp_path):
     expected = {i for i in range(9) if i % 3 and (i % 5) / 4 < 1}
     assert set(_visible_ids(browser)) == expected
     assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
+
+
+def test_every_region_shows_as_many_levels_as_it_counts(browser, tmp_path):
+    from selenium.webdriver.common.by import By
+
+    from dsage_ray.audit.report import write_report
+
+    from .test_report import on_bin_edges
+
+    folder = on_bin_edges(make_collection(tmp_path / "c", levels=81))
+    browser.get(write_report(folder).resolve().as_uri())
+    buttons = browser.find_elements(By.CSS_SELECTOR, "button.region")
+    assert len(buttons) == 16
+    for button in buttons:
+        count = int(button.find_element(By.XPATH, "./ancestor::tr/td[3]").text)
+        button.click()
+        assert len(_visible_ids(browser)) == count, button.get_attribute("data-lo")
+    assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
+
+
+def test_headers_sort_from_the_keyboard_and_worst_level_opens_its_row(browser, tmp_path):
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.common.keys import Keys
+
+    from dsage_ray.audit.report import write_report
+
+    folder = make_collection(tmp_path / "c", levels=15)
+    browser.get(write_report(folder).resolve().as_uri())
+    assert _header(browser, "id").get_attribute("aria-sort") == "ascending"  # the order it opens in
+    # Tab reaches the headers (the first one right after the filters' reset button); Enter sorts, Space sorts back.
+    browser.find_element(By.ID, "reset").send_keys(Keys.TAB)
+    assert browser.switch_to.active_element == _header(browser, "id").find_element(By.CSS_SELECTOR, "button")
+    button = _header(browser, "mean_path_length").find_element(By.CSS_SELECTOR, "button")
+    browser.execute_script("arguments[0].focus();", button)
+    button.send_keys(Keys.ENTER)
+    assert _header(browser, "mean_path_length").get_attribute("aria-sort") == "ascending"
+    assert _header(browser, "id").get_attribute("aria-sort") is None
+    button.send_keys(Keys.SPACE)
+    assert _visible_ids(browser) == list(range(14, -1, -1))
+
+    # "worst level" sorts as a number (#10 after #9) and its link opens the row, even when a filter hid it.
+    regions = browser.find_element(By.XPATH, "//h2[text()='Per-region statistics']/following::table[1]")
+    worst = next(th for th in regions.find_elements(By.CSS_SELECTOR, "th") if th.text.startswith("worst level"))
+    worst.click()
+    column = worst.get_property("cellIndex")
+    ids = [int(row.find_elements(By.CSS_SELECTOR, "td")[column].text.lstrip("#"))
+           for row in regions.find_elements(By.CSS_SELECTOR, "tbody tr")]
+    assert min(ids) < 10 <= max(ids) and ids == sorted(ids)
+    link = regions.find_elements(By.CSS_SELECTOR, "tbody tr")[-1].find_element(By.TAG_NAME, "a")
+    target = link.get_attribute("href").split("#")[1]
+    browser.find_element(By.ID, "query").send_keys("no such level")
+    assert _visible_ids(browser) == []
+    link.click()
+    row = browser.find_element(By.ID, target)
+    assert row.is_displayed() and browser.execute_script("return location.hash") == f"#{target}"
+
+
+def test_page_fits_a_phone(browser, tmp_path):
+    """At 390 px wide nothing scrolls the page sideways; the wide tables scroll inside their own box."""
+    from dsage_ray.audit.report import write_report
+
+    folder = make_collection(tmp_path / "c", levels=15)
+    data = json.loads((folder / "collection.json").read_text())
+    data["search_dir"] = "/a/rather/long/path/" + "deep_folder_name_" * 6 + "search"
+    (folder / "collection.json").write_text(json.dumps(data))
+    page = write_report(folder)
+    # The report's heatmaps are real 700 px figures (matplotlib); the level pictures in the cards are tiny here.
+    browser.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
+                            {"width": 390, "height": 844, "deviceScaleFactor": 1, "mobile": True})
+    try:
+        browser.get(page.resolve().as_uri())
+        assert browser.execute_script("return document.documentElement.scrollWidth") <= 390
+        assert browser.execute_script("return window.innerWidth") == 390
+        # The tables are wider than the screen: they scroll inside their box, which holds them.
+        for box in ("div.hscroll", "div.scroll"):
+            inner, outer = browser.execute_script(
+                f"var b = document.querySelector('{box}'); return [b.scrollWidth, b.clientWidth];")
+            assert inner > outer and outer <= 390, box
+    finally:
+        browser.execute_cdp_cmd("Emulation.clearDeviceMetricsOverride", {})
