@@ -51,12 +51,17 @@ from dsage_ray.config import RunConfig
 from dsage_ray.core.evaluation import InProcessEvaluator, evaluate_with_retry
 from dsage_ray.core.outputs import write_outputs
 from dsage_ray.domains import build_domain
+from dsage_ray.errors import DsageError
 from dsage_ray.qd.archives import archive_stats, make_archive
 from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
 from dsage_ray.qd.selection import gather_elites, select_solutions, skip_filled
 from dsage_ray.surrogate.dataset import Targets
 from dsage_ray.surrogate.models import pad_to_power_of_two
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
+
+class EvaluationsFailed(DsageError, RuntimeError):
+    """Every real evaluation of an outer iteration failed: the run stops with the evaluations' own error."""
+
 
 #: Called with (phase, done, total) while a step runs; the CLI turns it into progress bars.
 ProgressCallback = Callable[[str, int, int], None]
@@ -242,6 +247,10 @@ class DSAGE:
         times["evaluate"] = time.perf_counter() - tic
 
         ok = [i for i, r in enumerate(results) if not r.failed]
+        if results and not ok:
+            # Nothing was learned and nothing would be: a broken agent or simulator fails every batch.
+            raise EvaluationsFailed(f"every evaluation of outer iteration {self.outer_iteration} failed "
+                                    f"({len(results)} of {len(results)}, after retries); the first: {results[0].error}")
         objective = np.array([results[i].objective for i in ok], dtype=np.float64)
         measures = np.array([results[i].measures for i in ok], dtype=np.float64).reshape(len(ok), len(self.domain.measure_names))
         occupancy = np.array([results[i].occupancy for i in ok], dtype=np.float32).reshape(

@@ -164,3 +164,9 @@ def test_a_cpu_audit_predicts_the_path_length_as_the_occupancy_sum_only_when_it_
     with_path = audit_config(agent=AUDITED, preset="cpu", measures=("num_walls", "mean_path_length"))
     assert with_path.surrogate.occupancy_sum_measure == "mean_path_length"
     assert audit_config(agent=AUDITED, preset="cpu", variant="map_elites").surrogate.kind == "none"
+
+
+def test_audits_hold_no_levels_out_unless_asked():
+    assert audit_config(agent=AUDITED, preset="cpu").surrogate.holdout_levels == 0
+    asked = audit_config(agent=AUDITED, preset="cpu", overrides={"surrogate.holdout_levels": 30})
+    assert asked.surrogate.holdout_levels == 30

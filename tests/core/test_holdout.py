@@ -129,3 +129,14 @@ def test_bad_holdout_count_is_one_config_error():
 
     with pytest.raises(ConfigError, match="surrogate.holdout_levels"):
         RunConfig.build({**SMALL_RUN, "surrogate.holdout_levels": -1})
+
+
+def test_a_batch_whose_every_evaluation_fails_stops_the_run_with_the_evaluations_error():
+    from dsage_ray.core.runner import EvaluationsFailed
+
+    broken = BitmapDomain(fail_on=tuple(range(0, 65)), fail_once=False)  # every evaluation fails
+    runner = DSAGE(config=RunConfig.build(SMALL_RUN), domain=broken)
+    with pytest.raises(EvaluationsFailed, match="every evaluation of outer iteration 0 failed") as failure:
+        runner.step()
+    assert "injected failure for a level with" in str(failure.value)  # the evaluations' own error
+    assert runner.evals == 0 and len(runner.failures) == RunConfig.build(SMALL_RUN).n_rand
