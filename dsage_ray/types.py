@@ -28,7 +28,8 @@ class EvaluationResult:
         objective: The quantity the QD search maximises.
         measures: Behaviour descriptors, shape ``(num_measures,)``.
         occupancy: Ancillary agent-behaviour data (expected visits per cell), float32.
-        info: Domain-specific extras (success rate, episode lengths, ...), JSON-serialisable.
+        info: Domain-specific extras (success rate, episode lengths, ...), JSON-serialisable. Only the
+            domain reads them: the audit asks an :class:`AuditableDomain` for the numbers it needs.
         failed: True when the evaluation raised; ``error`` then holds the message.
         error: The error message of a failed evaluation.
     """
@@ -96,8 +97,11 @@ class Domain(Protocol):
 
 @runtime_checkable
 class AuditableDomain(Domain, Protocol):
-    """A domain ``dsage-ray audit`` can search and collect levels of (its registration's ``audit`` says
-    which objectives, measures and agent by default).
+    """A domain ``dsage-ray audit`` can search and collect levels of, and ``dsage-ray compare`` can re-run
+    two agents on (its registration's ``audit`` says which objectives, measures and agent by default, and
+    which of the entries' numbers the report shows; its ``agents`` which agent specs it plays).
+
+    The audit reads an evaluation only through these members, never its ``info``.
 
     Raising :class:`ValueError` (an :class:`~dsage_ray.errors.InputError`) from a hook ends the command
     with its message in one line.
@@ -129,11 +133,20 @@ class AuditableDomain(Domain, Protocol):
     def level_text(self, solution: Solution) -> str:
         """The level file of a solution, as the domain's own ``eval`` command reads it."""
 
-    def read_level(self, path: str | Path) -> Solution:
-        """The solution a level file written by :meth:`level_text` holds (``dsage-ray compare`` re-runs them).
+    def success_rate(self, result: EvaluationResult) -> float:
+        """The share of the evaluation's episodes (or runs) the agent solved, in ``[0, 1]``."""
+
+    def reference_numbers(self, result: EvaluationResult) -> dict[str, float] | None:
+        """In a regression audit, the reference agent's ``success_rate`` (and any of the registration's
+        columns) from the same evaluation; None otherwise."""
+
+    def entry_solution(self, entry: dict[str, Any], folder: Path) -> Solution:
+        """The solution of a collection entry (``dsage-ray compare`` re-runs them), from its level file in
+        ``folder`` or its own keys.
 
         Raises:
-            ValueError: A file that is not such a level, or a domain whose level files cannot be read back.
+            ValueError: An entry whose level cannot be read back (a file that is not such a level, an
+                entry written before the domain recorded what it needs).
         """
 
     def reproduce_command(self, level_file: str | Path, *, seed: int) -> str:
@@ -147,7 +160,7 @@ class AuditableDomain(Domain, Protocol):
         """The domain's settings at the top level of a collection."""
 
     def entry_fields(self, solution: Solution, result: EvaluationResult, *, level_file: str) -> dict[str, Any]:
-        """The domain's own numbers of one collection entry."""
+        """The domain's own numbers of one collection entry: every key its registration's ``columns`` name."""
 
 
 #: Evaluates a batch of solutions, one seed each, returning results in submission order.

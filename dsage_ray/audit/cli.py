@@ -13,6 +13,8 @@ examples:
   dsage-ray audit --agent builtin:random --preset tiny --local               # a smoke test, no Ray
   dsage-ray audit --agent rllib:path/to/new --reference rllib:path/to/old    # where new is worse than old
   dsage-ray audit --domain mario --agent astar --preset tiny
+  dsage-ray compare --agent rllib:ppo_maze --agent builtin:wall_follower --collection tb_logs/audit_mine/collection
+  dsage-ray compare --agent astar --agent astar:200 --collection tb_logs/audit_mario/collection
   dsage-ray audit --agent dcd:accel --out tb_logs/audit_accel --resume        # after Ctrl+C
 
 Without --agent the audit is a short demo on the domain's shipped agent (Maze: rllib:ppo_maze) with the
@@ -36,9 +38,8 @@ def add_subparser(subparsers) -> None:
     what.add_argument("--domain", default="maze",
                       help="maze (default), mario, or a plug-in domain that declares audits")
     what.add_argument("--agent", metavar="SPEC",
-                      help="agent spec. maze: rllib:PATH, dcd:PATH, torchscript:PATH, builtin:random, "
-                           "builtin:wall_follower; mario: astar or astar:ITERATIONS. Without it: a demo audit of "
-                           "the domain's shipped agent (maze: rllib:ppo_maze) with the demo preset")
+                      help=f"agent spec, of a kind the domain plays ({agent_help()}). Without it: a demo audit "
+                           f"of the domain's shipped agent (maze: rllib:ppo_maze) with the demo preset")
     what.add_argument("--reference", metavar="SPEC",
                       help="maze: search where --agent does worse than this agent, on the same seeds "
                            "(objective regression)")
@@ -67,10 +68,11 @@ def add_subparser(subparsers) -> None:
 
     compare = subparsers.add_parser(
         "compare", help="re-evaluate two agents on a saved collection with the same seeds",
-        description="Evaluates agents A and B on every level of a Maze collection with its recorded seed and "
-                    "reports where B is worse (and better) than A, as a table and an HTML page.")
+        description="Evaluates agents A and B on every level of a collection (of any domain that declares audits) "
+                    "with its recorded seed and reports where B is worse (and better) than A, as a table and an "
+                    "HTML page.")
     compare.add_argument("--agent", action="append", required=True, metavar="SPEC",
-                         help="give twice: --agent A --agent B")
+                         help=f"give twice: --agent A --agent B; kinds the collection's domain plays ({agent_help()})")
     compare.add_argument("--collection", required=True, metavar="DIR", help="a collection folder from dsage-ray audit")
     compare.add_argument("--threshold", type=float, default=0.1,
                          help="success-rate difference that counts as worse/better (default 0.1)")
@@ -79,6 +81,13 @@ def add_subparser(subparsers) -> None:
                          help="evaluate on N Ray simulator actors (default: in this process)")
     compare.add_argument("--html", help="HTML page to write (default DIR/compare-<A>-vs-<B>.html)")
     compare.set_defaults(handler=run_compare_command)
+
+
+def agent_help() -> str:
+    """The agent spec forms of each domain, for help texts: ``maze: builtin:NAME, ...; mario: astar[:ITERATIONS]``."""
+    from dsage_ray.domains import agent_forms
+
+    return "; ".join(f"{domain}: {', '.join(forms)}" for domain, forms in agent_forms().items())
 
 
 def run_audit_command(args: argparse.Namespace) -> int:

@@ -4,9 +4,9 @@ An audit is an ordinary DSAGE run (the runner, the Ray layer, the domain: nothin
 objective rewards the agent doing badly on a valid level and whose measures describe the level. The
 domain decides what "badly" means (the ``audit`` objectives of its registration: Maze ``failure_rate``,
 ``regret`` or ``regression`` against a reference agent; Mario ``incompletion``) and supplies the few hooks
-the collection needs (:class:`~dsage_ray.types.AuditableDomain`: ``is_valid``, ``level_text``,
-``render_evaluation``, ``reproduce_command``, ``entry_fields``, ``collection_fields``); everything else
-here is domain-generic.
+the collection needs (:class:`~dsage_ray.types.AuditableDomain`: ``is_valid``, ``success_rate``,
+``reference_numbers``, ``level_text``, ``render_evaluation``, ``reproduce_command``, ``entry_fields``,
+``collection_fields``); everything else here is domain-generic.
 
 **Seeds and reproducibility.** The search archive keeps each elite's solution and the numbers of the
 evaluation that placed it, but not that evaluation's seed (the runner derives it from the run seed and the
@@ -18,7 +18,8 @@ entry's ``reproduce`` command prints it again. A side effect is honest numbers: 
 *luckiest* evaluations, and a fresh evaluation removes that selection bias (the search's own value is kept
 as ``search_objective``).
 
-Collection folder (format ``dsage_ray.collection.v2``; v1 folders still load)::
+Collection folder (format ``dsage_ray.collection.v2``; v1 folders still load, and a domain's registration
+fills in what its older collections lack)::
 
     collection.json        one entry per valid elite, worst first (see :func:`build_collection`)
     levels/level_0000.txt  level files (``dsage-ray maze eval --layout`` / ``dsage-ray mario eval --level``)
@@ -76,8 +77,8 @@ def audit_config(
     Args:
         domain: A registered domain with an ``audit`` declaration (``maze``, ``mario``).
         agent: The agent spec to audit (default: the registration's ``audit.default_agent``).
-        reference: Maze only: a reference agent spec; the audit then searches for levels where ``agent``
-            does worse than it (objective ``regression``).
+        reference: A reference agent spec, for a domain with a ``regression`` audit objective (Maze); the
+            audit then searches for levels where ``agent`` does worse than it.
         preset: The domain's preset (``cpu``, ``tiny``, ...).
         variant: The search: ``dsage`` (default), or any variant of the domain (``map_elites``, ``dr``, ...),
             e.g. to compare how many failures each finds at the same budget.
@@ -91,11 +92,14 @@ def audit_config(
             (``surrogate.holdout_levels = 0``) unless these say otherwise.
 
     Raises:
-        ValueError: An unknown domain, or an agent, objective or measure the domain cannot audit with.
+        ValueError: An unknown domain, an agent of a kind the domain does not play, or an objective or
+            measure it cannot audit with.
     """
     spec = audit_spec(domain)
     cls = spec.domain_class()
     agent = agent or spec.audit.default_agent
+    for role in filter(None, (agent, reference)):
+        spec.check_agent(role)
     values: dict[str, Any] = {"name": name or f"audit_{agent_slug(agent)}", "domain": domain, "variant": variant,
                               "preset": preset, "seed": seed}
     values.update(cls.audit_values(agent=agent, reference=reference, objective=objective, measures=measures))
@@ -186,8 +190,8 @@ def build_collection(
     regression first), ties in the search's order. Each holds the generic keys of the collection format
     (``id``, ``level_file``, ``image_file``, ``objective``, ``success_rate``, ``measures``, ``seed``,
     ``episodes``, ``reproduce``, ``search_objective``, ``search_measures``), the domain's own numbers
-    (``entry_fields``) and, in a regression audit, ``reference`` (the reference agent's ``success_rate`` and
-    ``mean_path_length`` with the same ``seed``) and ``regression`` (reference − audited success rate).
+    (``entry_fields``) and, in a regression audit, ``reference`` (the reference agent's numbers,
+    ``reference_numbers``, with the same ``seed``) and ``regression`` (reference − audited success rate).
 
     Args:
         archive: The search's ground-truth archive.
@@ -228,7 +232,7 @@ def build_collection(
          "search_measures": np.asarray(data["measures"][index], dtype=float).tolist()}
         for index, seed, result in zip(order, seeds, results) if not result.failed
     ]
-    entries.sort(key=lambda e: (-e["result"].objective, e["result"].info["success_rate"]))
+    entries.sort(key=lambda e: (-e["result"].objective, domain.success_rate(e["result"])))
     # One colour scale for every picture of the collection, so a dark cell means the same on each.
     peak = max((float(np.max(e["result"].occupancy)) for e in entries), default=0.0)
     occupancy_max = peak if peak > 0 else None
@@ -242,7 +246,7 @@ def build_collection(
         stem = f"levels/level_{rank:04d}"
         level_file, image_file = f"{stem}.txt", f"{stem}.png"
         (staging / level_file).write_text(domain.level_text(solution))
-        success = float(result.info["success_rate"])
+        success = domain.success_rate(result)
         record: dict[str, Any] = {
             "id": rank,
             "level_file": level_file,
@@ -258,9 +262,9 @@ def build_collection(
             "search_measures": dict(zip(domain.measure_names, entry["search_measures"])),
         }
         title = f"#{rank}: {objective_name} {result.objective:.2f}, success {success:.2f}"
-        reference = result.info.get("reference")
+        reference = domain.reference_numbers(result)
         if reference is not None:
-            record["reference"] = {**{key: float(value) for key, value in reference.items()}, "seed": int(seed)}
+            record["reference"] = {**reference, "seed": int(seed)}
             record["regression"] = float(reference["success_rate"]) - success
             # The regression itself, not its [0, 1] score, which would read like a second, different number.
             title = (f"#{rank}: success {success:.2f}, reference {reference['success_rate']:.2f} "

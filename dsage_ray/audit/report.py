@@ -9,6 +9,10 @@ path the audit wrote it to: they run from any directory, and point at the old pl
 
 Reads both collection formats through :func:`~dsage_ray.audit.collection_file.load_collection`, which gives a
 v1 collection (Maze only) the v2 keys (``domain``, ``reference``, each level's ``reproduce``): only v2 here.
+Nothing here knows a domain: which of an entry's numbers are shown, under which label, in which format and
+with which explanation, and which of the collection's settings, is the domain's registration's
+(:class:`~dsage_ray.domains.AuditSpec` ``columns`` and ``settings``); a collection of a domain that is not
+installed shows every numeric key of its entries.
 The page fits a phone's width: wide tables scroll inside their own box, pictures shrink, commands wrap.
 """
 
@@ -25,8 +29,9 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from dsage_ray.audit.collection_file import load_collection
+from dsage_ray.audit.collection_file import audit_declaration, load_collection
 from dsage_ray.audit.summary import FAILURE_CELL_RATE, failure_summary, grid_indices
+from dsage_ray.domains import ReportField
 from dsage_ray.io import atomic_write_text
 
 #: Levels shown with their picture at the top of a report.
@@ -253,8 +258,8 @@ def _page(title: str, body: str) -> str:
             f"<style>{_STYLE}</style></head><body>{body}<script>{_SCRIPT}</script></body></html>\n")
 
 
-def region_statistics(levels: Sequence[dict[str, Any]], measures: Sequence[str],
-                      *, bins: int = REGIONS_PER_MEASURE) -> list[dict[str, Any]]:
+def region_statistics(levels: Sequence[dict[str, Any]], measures: Sequence[str], *, means: Sequence[str] = (),
+                      bins: int = REGIONS_PER_MEASURE) -> list[dict[str, Any]]:
     """Levels grouped by measure region (equal-width bins over the observed range of each measure).
 
     A region is half-open, ``[low, high)`` per measure (the last one closed), so a level on an edge belongs to
@@ -263,7 +268,8 @@ def region_statistics(levels: Sequence[dict[str, Any]], measures: Sequence[str],
     Returns:
         One record per non-empty region: ``ranges`` per measure (the region's edges), ``extent`` per measure
         (its levels' lowest and highest value), ``levels``, mean ``objective``, mean and min ``success_rate``,
-        mean ``mean_path_length`` (Maze collections only) and the ``worst`` level id; worst regions first.
+        the mean of each of the entry keys ``means`` that every level has (Maze: ``mean_path_length``) and the
+        ``worst`` level id; worst regions first.
     """
     if not levels:
         return []
@@ -272,7 +278,7 @@ def region_statistics(levels: Sequence[dict[str, Any]], measures: Sequence[str],
     # side="right": a value on an edge opens the upper region; the clip closes the last region at the maximum.
     keys = np.stack([np.clip(np.searchsorted(e, values[:, j], side="right") - 1, 0, bins - 1)
                      for j, e in enumerate(edges)], axis=1)
-    with_paths = all("mean_path_length" in lv for lv in levels)
+    means = [key for key in means if all(key in lv for lv in levels)]
     regions = []
     for key in sorted({tuple(k) for k in keys.tolist()}):
         members = [lv for lv, k in zip(levels, keys.tolist()) if tuple(k) == key]
@@ -287,8 +293,7 @@ def region_statistics(levels: Sequence[dict[str, Any]], measures: Sequence[str],
             "min_success_rate": float(min(lv["success_rate"] for lv in members)),
             "worst": worst["id"],
         }
-        if with_paths:
-            region["mean_path_length"] = float(np.mean([lv["mean_path_length"] for lv in members]))
+        region.update({key: float(np.mean([lv[key] for lv in members])) for key in means})
         regions.append(region)
     regions.sort(key=lambda r: -r["objective"])
     return regions
@@ -303,6 +308,16 @@ def _reference_command(collection: dict[str, Any], entry: dict[str, Any], comman
     if collection.get("reference") and command.count(flag) == 1:
         return command.replace(flag, f"--agent {shlex.quote(collection['reference'])}")
     return None
+
+
+def report_columns(collection: dict[str, Any]) -> list[ReportField]:
+    """The domain's own numbers of the entries the report shows: its registration's ``columns`` that every entry
+    has as a number, measures excluded; for a domain that declares none (or is not installed), every such key."""
+    numbers = _domain_numbers(collection)
+    audit = audit_declaration(collection["domain"])
+    if audit is not None and audit.columns:
+        return [column for column in audit.columns if column.key in numbers]
+    return [ReportField(key=key) for key in numbers]
 
 
 def _domain_numbers(collection: dict[str, Any]) -> list[str]:
@@ -403,9 +418,9 @@ def _metadata(c: dict[str, Any]) -> str:
                           f"elites"),
         ("created", _esc(c.get("created", "?"))),
     ]
-    limit = step_limit(c)
-    if limit is not None:
-        items.append(("step limit", f"{limit} steps per episode"))
+    audit = audit_declaration(c["domain"])
+    items += [(_esc(setting.name), _esc(setting.text(c[setting.key]))) for setting in (audit.settings if audit else ())
+              if c.get(setting.key) is not None]
     if c.get("notes"):
         items.append(("notes", _esc(c["notes"])))
     return "<dl class='meta'>" + "".join(f"<dt>{k}</dt><dd>{v}</dd>" for k, v in items) + "</dl>"
@@ -435,7 +450,7 @@ def _command(text: str) -> str:
     return f"<div><code class='cmd'>{words}</code> <button class='copy' type='button'>copy</button></div>"
 
 
-def _card(c: dict[str, Any], lv: dict[str, Any], collection_dir: Path, numbers: list[str],
+def _card(c: dict[str, Any], lv: dict[str, Any], collection_dir: Path, columns: Sequence[ReportField],
           formats: dict[str, Callable[[Any], str]], notes: dict[str, str]) -> str:
     """One worst-level card: picture(s), the level's numbers (next to the reference's), its command(s)."""
     reference = lv.get("reference") if c.get("reference") else None
@@ -447,7 +462,7 @@ def _card(c: dict[str, Any], lv: dict[str, Any], collection_dir: Path, numbers: 
         f"{f'<figcaption>{_esc(name)}</figcaption>' if len(pictures) > 1 else ''}</figure>" for name, p in pictures)
     rows = [("success rate", "success_rate", lv["success_rate"])]
     rows += [(m, m, v) for m, v in lv["measures"].items()]
-    rows += [(k, k, lv[k]) for k in numbers]
+    rows += [(column.name, column.key, lv[column.key]) for column in columns]
     if reference:
         rows += [(k, k, None) for k in _reference_numbers(c) if k not in lv and k != "success_rate"]
     cell = lambda key, v: "" if v is None else formats.get(key, _formatter([v]))(v)  # noqa: E731
@@ -478,7 +493,8 @@ def _card(c: dict[str, Any], lv: dict[str, Any], collection_dir: Path, numbers: 
     return "".join(parts) + "</div>"
 
 
-def _levels_table(c: dict[str, Any], numbers: list[str], notes: dict[str, str]) -> str:
+def _levels_table(c: dict[str, Any], columns_shown: Sequence[ReportField], formats: dict[str, Callable[[Any], str]],
+                  notes: dict[str, str]) -> str:
     levels, measures = c["levels"], c["measures"]
     reference_keys = _reference_numbers(c)
     columns: list[tuple[str, Callable[[dict[str, Any]], Any]]] = [
@@ -491,9 +507,12 @@ def _levels_table(c: dict[str, Any], numbers: list[str], notes: dict[str, str]) 
                     for k in reference_keys]
         columns.append(("regression", lambda lv: lv.get("regression")))
     columns += [(m, lambda lv, m=m: lv["measures"][m]) for m in measures]
-    columns += [(k, lambda lv, k=k: lv[k]) for k in numbers]
+    columns += [(column.name, lambda lv, k=column.key: lv[k]) for column in columns_shown]
     columns += [("seed", lambda lv: lv["seed"]), ("search objective", lambda lv: lv.get("search_objective"))]
-    formats = [_formatter([get(lv) for lv in levels]) for _, get in columns]
+    # The domain's columns as on the cards (their declared format, if any); the others suited to their values.
+    shown = {column.name: column.key for column in columns_shown}
+    formats = [formats[shown[name]] if name in shown else _formatter([get(lv) for lv in levels])
+               for name, get in columns]
     rows, attrs = [], []
     for lv in levels:
         level_file = lv.get("level_file", lv.get("layout_file"))
@@ -510,7 +529,8 @@ def _levels_table(c: dict[str, Any], numbers: list[str], notes: dict[str, str]) 
     numeric = [True, False] + [True] * (len(columns) - 1) + [False]
     return ("<div class='scroll'>"
             + _table(headers, rows, left=0, numeric=numeric, row_attrs=attrs,
-                     table_attrs="class='sortable' id='levels'", sorted_by=(0, "ascending"), titles=notes)
+                     table_attrs="class='sortable' id='levels'", sorted_by=(0, "ascending"),
+                     titles={f.name: notes[f.key] for f in columns_shown if f.key in notes})
             + "</div>")
 
 
@@ -530,12 +550,13 @@ def _filters(c: dict[str, Any]) -> str:
     return "".join(parts)
 
 
-def _regions(c: dict[str, Any], notes: dict[str, str]) -> str:
+def _regions(c: dict[str, Any], columns: Sequence[ReportField], formats: dict[str, Callable[[Any], str]],
+             notes: dict[str, str]) -> str:
     measures = c["measures"]
-    regions = region_statistics(c["levels"], measures)
-    with_paths = bool(regions) and "mean_path_length" in regions[0]
+    averaged = [column for column in columns if column.mean]
+    regions = region_statistics(c["levels"], measures, means=[column.key for column in averaged])
     headers = [*(f"{m} range" for m in measures), "levels", f"mean {c['objective']}", "mean success", "min success",
-               *(["mean path length"] if with_paths else []), "worst level", ""]
+               *(column.mean for column in averaged), "worst level", ""]
     rows = []
     for r in regions:
         # The range filter keeps the levels within [lo, hi] on every measure (both ends included, as a person
@@ -546,7 +567,7 @@ def _regions(c: dict[str, Any], notes: dict[str, str]) -> str:
         hi = " ".join(repr(b) for _, b in r["extent"].values())
         rows.append([*((f"{a:.1f} – {b:.1f}", a) for a, b in r["ranges"].values()), r["levels"],
                      f"{r['objective']:.3f}", f"{r['success_rate']:.3f}", f"{r['min_success_rate']:.3f}",
-                     *([f"{r['mean_path_length']:.1f}"] if with_paths else []),
+                     *(formats[column.key](r[column.key]) for column in averaged),
                      (f"<a href='#level-{r['worst']}'>#{r['worst']}</a>", r["worst"]),
                      f"<button type='button' class='region' data-lo='{lo}' data-hi='{hi}'>show these</button>"])
     numeric = [True] * (len(headers) - 1) + [False]
@@ -554,38 +575,14 @@ def _regions(c: dict[str, Any], notes: dict[str, str]) -> str:
                    titles={**{f"{m} range": f"{m} from the first value (included) to the second (excluded, but "
                                             "included in the last region)" for m in measures},
                            "worst level": "the region's worst level: opens its row in the table of all levels",
-                           **({"mean path length": notes["mean_path_length"]} if "mean_path_length" in notes else {})})
+                           **{column.mean: notes[column.key] for column in averaged if column.key in notes}})
     return f"<div class='hscroll'>{table}</div>"
 
 
-def step_limit(collection: dict[str, Any]) -> int | None:
-    """The episode step limit, which a failed episode counts in ``mean_path_length``; None where unknown.
-
-    The collection's ``max_steps`` where its domain records one; else, for Maze, the limit of the level size
-    in the recorded config (``2·(H+2)·(W+2)``, 648 for 16 × 16).
-    """
-    if collection.get("max_steps"):
-        return int(collection["max_steps"])
-    size = (collection.get("config") or {}).get("maze") or {}
-    if collection.get("domain") == "maze" and "height" in size and "width" in size:
-        from dsage_ray.domains.maze.level import max_steps_for
-
-        return max_steps_for(int(size["height"]), int(size["width"]))
-    return None
-
-
-def _notes(c: dict[str, Any]) -> dict[str, str]:
-    """Explanations of the domain's numbers, by key (tooltips of their headers and labels)."""
-    if not c["levels"] or "mean_path_length" not in c["levels"][0]:
-        return {}
-    limit = step_limit(c)
-    if limit is None:
-        text = ("mean steps per episode; a failed episode counts as the whole step limit, so the limit means the "
-                "agent never reached the goal")
-    else:
-        text = (f"mean steps per episode; a failed episode counts as the whole step limit, {limit} steps, so "
-                f"{limit} means the agent never reached the goal")
-    return {"mean_path_length": text}
+def _notes(c: dict[str, Any], columns: Sequence[ReportField]) -> dict[str, str]:
+    """Explanations of the domain's numbers, by key (tooltips of their headers and labels): the columns' own,
+    with the collection's settings filled in (Maze: its step limit, which a failed episode counts)."""
+    return {column.key: text for column in columns if (text := column.explain(c))}
 
 
 def write_report(collection_dir: str | Path) -> Path:
@@ -593,8 +590,8 @@ def write_report(collection_dir: str | Path) -> Path:
     collection_dir = Path(collection_dir)
     c = load_collection(collection_dir)
     levels = c["levels"]
-    numbers = _domain_numbers(c)
-    notes = _notes(c)
+    columns = report_columns(c)
+    notes = _notes(c, columns)
     summary = failure_summary(c)
     if c.get("reference"):
         title = f"Regression audit of {c['agent']} against {c['reference']}"
@@ -615,23 +612,25 @@ def write_report(collection_dir: str | Path) -> Path:
     shown = levels[:WORST_SHOWN]
     # One number format per key across the collection, so the cards line up with each other and the table.
     formats = {key: _formatter([lv.get(key) for lv in levels] + [(lv.get("reference") or {}).get(key) for lv in levels])
-               for key in ["success_rate", *numbers, *_reference_numbers(c)]}
+               for key in ["success_rate", *(column.key for column in columns), *_reference_numbers(c)]}
+    formats.update({column.key: column.text for column in columns if column.format})
     formats.update({m: _formatter([lv["measures"][m] for lv in levels]) for m in c["measures"]})
     # Two pictures per card (the reference's too) need wider cards.
     wide = " wide" if any((lv.get("reference") or {}).get("image_file") for lv in shown) else ""
     # Where a number needs a sentence (Maze's 648 = a failed episode's step limit), it comes before the cards
     # and tables that show it, and again as their headers' tooltips.
-    explained = "".join(f"<p class='lead note'><b>{_esc(key)}</b>: {_esc(text)}.</p>" for key, text in notes.items())
+    explained = "".join(f"<p class='lead note'><b>{_esc(column.name)}</b>: {_esc(notes[column.key])}.</p>"
+                        for column in columns if column.key in notes)
     parts += [f"<h2>Worst {len(shown)} levels</h2>", explained, f"<div class='cards{wide}'>",
-              *(_card(c, lv, collection_dir, numbers, formats, notes) for lv in shown), "</div>",
+              *(_card(c, lv, collection_dir, columns, formats, notes) for lv in shown), "</div>",
               "<h2>Per-region statistics</h2>",
               "<p class='lead'>Levels grouped by equal-width ranges of each measure; "
               "<i>show these</i> filters the table below to the region's levels; the worst level's link opens "
-              "its row.</p>", _regions(c, notes),
+              "its row.</p>", _regions(c, columns, formats, notes),
               f"<h2>All {len(levels)} levels</h2>",
               "<p class='lead'>Click a column header (or Tab to it and press Enter) to sort; <i>copy</i> copies the "
               "level's reproduce command (the last column).</p>",
-              _filters(c), _levels_table(c, numbers, notes)]
+              _filters(c), _levels_table(c, columns, formats, notes)]
     path = collection_dir / "report.html"
     atomic_write_text(path, _page(title, "".join(parts)))
     return path
@@ -639,7 +638,9 @@ def write_report(collection_dir: str | Path) -> Path:
 
 def write_compare_report(path: str | Path, comparison: dict[str, Any], *, collection_dir: str | Path,
                          images: dict[int, bytes]) -> Path:
-    """Writes the comparison page; ``images`` maps level id → PNG of agent B's occupancy on it."""
+    """Writes the comparison page (:func:`~dsage_ray.audit.compare.compare_agents`'s result); ``images`` maps
+    level id → PNG of agent B's evaluation of it. Beside the success rates, the page shows the compared
+    columns of the domain (``comparison["columns"]``: Maze's mean path length, Mario's completion)."""
     collection_dir = Path(collection_dir)
     path = Path(path)
     # Links relative to the page, so they work wherever the collection and the page are moved together.
@@ -647,6 +648,8 @@ def write_compare_report(path: str | Path, comparison: dict[str, Any], *, collec
     a, b = comparison["agent_a"], comparison["agent_b"]
     rows = comparison["levels"]
     summary = comparison["summary"]
+    columns = comparison.get("columns", [])
+    number = {c["key"]: _formatter([r[f"{c['key']}_{role}"] for r in rows for role in "ab"]) for c in columns}
     title = f"Compare {a} vs {b}"
     parts = [
         f"<h1>{_esc(title)}</h1><p class='lead'>A = <code>{_esc(a)}</code>, B = <code>{_esc(b)}</code>, on the "
@@ -654,7 +657,8 @@ def write_compare_report(path: str | Path, comparison: dict[str, Any], *, collec
         f"{_esc(comparison['episodes_note'])}.</p>",
         _table(["", "A", "B"], [
             ["mean success rate", f"{summary['success_a']:.3f}", f"{summary['success_b']:.3f}"],
-            ["mean path length", f"{summary['path_a']:.1f}", f"{summary['path_b']:.1f}"],
+            *([c["mean"], number[c["key"]](summary[f"{c['key']}_a"]), number[c["key"]](summary[f"{c['key']}_b"])]
+              for c in columns),
             ["levels solved every episode", summary["solved_a"], summary["solved_b"]],
         ], left=1, table_attrs=""),
         f"<p>B is worse on <b>{summary['b_worse']}</b> levels and better on <b>{summary['b_better']}</b> "
@@ -664,17 +668,23 @@ def write_compare_report(path: str | Path, comparison: dict[str, Any], *, collec
     for row in rows:
         if row["id"] in images:
             alt = f"level {row['id']}"
+            changes = "".join(f"; {_esc(c['label'])} {number[c['key']](row[c['key'] + '_a'])} → "
+                              f"{number[c['key']](row[c['key'] + '_b'])}" for c in columns)
             parts.append(f"<div class='card'>{_img(images[row['id']], alt=alt)}"
-                         f"<div>#{row['id']}: success A {row['success_a']:.2f} → B {row['success_b']:.2f}; path "
-                         f"{row['path_a']:.0f} → {row['path_b']:.0f}</div></div>")
+                         f"<div>#{row['id']}: success A {row['success_a']:.2f} → B {row['success_b']:.2f}"
+                         f"{changes}</div></div>")
     parts.append("</div><h2>All levels (B − A)</h2><p class='lead'>Click a column header to sort.</p>")
     classes = [f"class='{r['verdict']}'" if r["verdict"] in ("worse", "better") else "" for r in rows]
+    headers = ["id", "level", "success A", "success B", "Δ success",
+               *(f"{c['label']} {x}" for c in columns for x in ("A", "B", "Δ")), "verdict"]
+    cells = [[r["id"], f"<a href='{link(r['level_file'])}'>{_esc(r['level_file'])}</a>",
+              f"{r['success_a']:.2f}", f"{r['success_b']:.2f}", f"{r['success_b'] - r['success_a']:+.2f}",
+              *(text for c in columns for text in (
+                  number[c["key"]](r[c["key"] + "_a"]), number[c["key"]](r[c["key"] + "_b"]),
+                  f"{r[c['key'] + '_b'] - r[c['key'] + '_a']:+.3g}")),
+              r["verdict"]] for r in rows]
     parts.append("<div class='hscroll'>" + _table(
-        ["id", "layout", "success A", "success B", "Δ success", "path A", "path B", "Δ path", "verdict"],
-        [[r["id"], f"<a href='{link(r['layout_file'])}'>{_esc(r['layout_file'])}</a>",
-          f"{r['success_a']:.2f}", f"{r['success_b']:.2f}", f"{r['success_b'] - r['success_a']:+.2f}",
-          f"{r['path_a']:.1f}", f"{r['path_b']:.1f}", f"{r['path_b'] - r['path_a']:+.1f}", r["verdict"]]
-         for r in rows], left=0, numeric=[True, False, True, True, True, True, True, True, False],
+        headers, cells, left=0, numeric=[True, False, *([True] * (len(headers) - 3)), False],
         row_attrs=classes, sorted_by=(4, "ascending")) + "</div>")
     atomic_write_text(path, _page(title, "".join(parts)))
     return path

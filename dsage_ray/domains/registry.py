@@ -30,21 +30,101 @@ ENTRY_POINT_GROUP = "dsage_ray.domains"
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
+class ReportField:
+    """A number the audit report shows: a column of the levels (``AuditSpec.columns``) or a setting of the
+    whole collection (``AuditSpec.settings``).
+
+    Attributes:
+        key: The key of the collection entry (a column) or of the collection (a setting).
+        label: What the report calls it (default: ``key``).
+        format: A :meth:`str.format` template of one value, e.g. ``"{:.1f}"`` or ``"{} steps per episode"``
+            (default: one format per column, suited to its magnitude).
+        tooltip: Explains the number; ``{name}`` is replaced by the collection's key ``name`` (e.g.
+            ``{max_steps}``). A tooltip naming a key the collection lacks is left out.
+        mean: The name of the column's mean where the report averages it (the region table, ``dsage-ray
+            compare``), e.g. ``"mean path length"``; None: not averaged.
+    """
+
+    key: str
+    label: str = ""
+    format: str | None = None
+    tooltip: str = ""
+    mean: str | None = None
+
+    @property
+    def name(self) -> str:
+        """The label, or the key when there is none."""
+        return self.label or self.key
+
+    def text(self, value: Any) -> str:
+        """``value`` in this field's format (empty for None)."""
+        return "" if value is None else (self.format or "{}").format(value)
+
+    def explain(self, collection: Mapping[str, Any]) -> str:
+        """The tooltip with the collection's keys filled in; empty when it names one the collection lacks."""
+        try:
+            return self.tooltip.format_map(collection)
+        except (KeyError, IndexError, ValueError):
+            return ""
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class AgentKinds:
+    """The agent specs a domain plays, by kind (a spec is ``KIND`` or ``KIND:TARGET``).
+
+    Attributes:
+        forms: Each kind the domain plays itself and the spec forms it takes, e.g.
+            ``{"astar": "astar[:ITERATIONS]"}``.
+        policies: Whether the domain also plays every kind of :mod:`dsage_ray.agents` (policies on
+            MiniGrid observations, built in or from the ``dsage_ray.agents`` entry-point group).
+    """
+
+    forms: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    policies: bool = False
+
+    def kinds(self) -> dict[str, str]:
+        """Every kind the domain plays and its spec form, the policy kinds' (imported: none) included."""
+        kinds = dict(self.forms)
+        if self.policies:
+            from dsage_ray.agents.loader import agent_kinds
+
+            kinds.update({kind: "builtin:NAME" if kind == "builtin" else f"{kind}:PATH" for kind in agent_kinds()})
+        return kinds
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
 class AuditSpec:
-    """What ``dsage-ray audit`` needs to know about a domain before building one.
+    """What ``dsage-ray audit`` and ``dsage-ray compare`` need to know about a domain before building one
+    (and the audit report, which reads a collection without building it).
 
     Attributes:
         objectives: Objectives an audit may maximise (the first is the default); ``"regression"``
-            among them means the domain compares two agents (``--reference``, ``dsage-ray compare``).
+            among them means the domain's audits can search where one agent does worse than another
+            (``--reference``).
         measures: Measures of the default audit.
         default_agent: The agent spec audited when none is named.
         episodes_key: The dotted config key of the episodes (or runs) per evaluation.
+        columns: The domain's own numbers of a collection entry the report shows, in order (default:
+            every numeric one, named by its key); measures are shown as measures.
+        settings: The domain's settings of the collection the report's run description shows (Maze:
+            its step limit).
+        upgrade: A function as ``"module:function"``, imported when a collection of the domain is read:
+            ``function(collection, folder=Path)`` fills in, in place, what a collection written by an older
+            version lacks.
     """
 
     objectives: tuple[str, ...]
     measures: tuple[str, ...]
     default_agent: str
     episodes_key: str
+    columns: tuple[ReportField, ...] = ()
+    settings: tuple[ReportField, ...] = ()
+    upgrade: str | None = None
+
+    def upgrade_collection(self, collection: dict[str, Any], *, folder: Any) -> None:
+        """Runs :attr:`upgrade` on a collection just read from ``folder`` (nothing when there is none)."""
+        if self.upgrade:
+            _import(self.upgrade)(collection, folder=folder)
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -65,6 +145,7 @@ class DomainSpec:
             (:data:`dsage_ray.config.COMMON_VARIANTS`): typically the domain's QD baselines.
         comparison: The variants ``dsage-ray ablate`` runs by default.
         audit: What an audit needs (``None``: the domain cannot be audited).
+        agents: The agent specs the domain plays (``None``: its agent is fixed, there is none to name).
         cli: A module with ``add_subparser(subparsers)`` adding ``dsage-ray NAME ...`` commands.
         actor_env: Extra environment variables of a Ray simulator actor (e.g. a preload library),
             computed in the driver when the actor starts.
@@ -77,6 +158,7 @@ class DomainSpec:
     variants: Mapping[str, Mapping[str, Any]] = dataclasses.field(default_factory=dict)
     comparison: tuple[str, ...] = ("dsage",)
     audit: AuditSpec | None = None
+    agents: AgentKinds | None = None
     cli: str | None = None
     actor_env: Callable[[], dict[str, str]] | None = None
 
@@ -93,10 +175,31 @@ class DomainSpec:
         if ":" not in self.domain:
             raise InputError(f"domain {self.name!r}: domain must read 'module:Class', got {self.domain!r}")
 
+    def check_agent(self, spec: str) -> None:
+        """Refuses an agent spec of a kind the domain does not play, naming the kinds it does.
+
+        Raises:
+            InputError: ``spec``'s kind is not among :attr:`agents` (the message also names the domains
+                that play it, if any).
+        """
+        kinds = self.agents.kinds() if self.agents else {}
+        kind = str(spec).strip().partition(":")[0]
+        if kind in kinds:
+            return
+        players = [name for name in domain_names() if name != self.name and kind in _played_kinds(name)]
+        elsewhere = f"; {kind!r} agents are played by: {', '.join(players)}" if players else ""
+        raise InputError(f"domain {self.name!r} does not play {kind!r} agents (agent spec {spec!r}); its agents: "
+                         f"{', '.join(kinds.values()) or 'none to choose'}{elsewhere}")
+
     def domain_class(self) -> type:
         """Imports and returns the domain class."""
-        module, _, attribute = self.domain.partition(":")
-        return getattr(importlib.import_module(module), attribute)
+        return _import(self.domain)
+
+
+def _import(path: str) -> Any:
+    """The object a ``"module:name"`` path names, its module imported now."""
+    module, _, attribute = path.partition(":")
+    return getattr(importlib.import_module(module), attribute)
 
 
 _registered: dict[str, DomainSpec] = {}
@@ -159,6 +262,19 @@ def get_domain(name: str) -> DomainSpec:
         raise InputError(f"domain {name!r}: entry point {point.value!r} must name a DomainSpec with "
                          f"name={name!r}, got {spec!r}")
     return register_domain(spec)
+
+
+def agent_forms() -> dict[str, list[str]]:
+    """The agent spec forms of every domain that plays named agents (a domain that does not load is left out)."""
+    return {name: list(kinds.values()) for name in domain_names() if (kinds := _played_kinds(name))}
+
+
+def _played_kinds(name: str) -> dict[str, str]:
+    try:
+        agents = get_domain(name).agents
+    except InputError:  # a plug-in that does not load plays nothing here
+        return {}
+    return agents.kinds() if agents else {}
 
 
 def unregister_domain(name: str) -> None:

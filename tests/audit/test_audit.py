@@ -102,7 +102,7 @@ def test_compare_uses_the_recorded_seeds(collection, tmp_path):
     assert len(comparison["levels"]) == len(recorded)
     for row in comparison["levels"]:
         assert row["success_a"] == recorded[row["id"]]["success_rate"]
-        assert row["path_a"] == recorded[row["id"]]["mean_path_length"]
+        assert row["mean_path_length_a"] == recorded[row["id"]]["mean_path_length"]
         delta = row["success_b"] - row["success_a"]
         assert row["verdict"] == ("worse" if delta < -0.1 else "better" if delta > 0.1 else "same")
     deltas = [r["success_b"] - r["success_a"] for r in comparison["levels"]]

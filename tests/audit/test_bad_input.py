@@ -56,9 +56,31 @@ def test_agent_that_fails_to_load(tmp_path):
 
 def test_mario_agent_that_does_not_exist(tmp_path):
     message = audit_error(["--domain", "mario", "--agent", "dijkstra", "--out", str(tmp_path / "a")])
-    assert "unknown Mario agent 'dijkstra' (known: astar, astar:ITERATIONS" in message
-    audit_error(["--domain", "mario", "--agent", "astar:fast", "--out", str(tmp_path / "a")])
+    assert message.endswith("domain 'mario' does not play 'dijkstra' agents (agent spec 'dijkstra'); its agents: "
+                            "astar[:ITERATIONS]")
+    assert "unknown Mario agent 'astar:fast' (known: astar, astar:ITERATIONS" in audit_error(
+        ["--domain", "mario", "--agent", "astar:fast", "--out", str(tmp_path / "a")])
     assert not (tmp_path / "a").exists()
+
+
+def test_an_agent_kind_of_another_domain_names_the_kinds_the_domain_plays(tmp_path):
+    """Agent kinds are registered per domain: the error says which kinds the domain plays, and who plays this one."""
+    message = audit_error(["--domain", "mario", "--agent", "dcd:accel", "--out", str(tmp_path / "a")])
+    assert message.endswith("domain 'mario' does not play 'dcd' agents (agent spec 'dcd:accel'); its agents: "
+                            "astar[:ITERATIONS]; 'dcd' agents are played by: maze")
+    message = audit_error(["--agent", "astar:200", "--out", str(tmp_path / "a")])
+    assert "domain 'maze' does not play 'astar' agents" in message and "dcd:PATH, rllib:PATH" in message
+    assert message.endswith("'astar' agents are played by: mario")
+    assert "does not play 'astar' agents" in audit_error(["--agent", "builtin:random", "--reference", "astar",
+                                                          "--out", str(tmp_path / "a")])
+    assert not (tmp_path / "a").exists()
+
+
+def test_help_lists_the_agent_kinds_of_each_domain(capsys):
+    with pytest.raises(SystemExit):
+        main(["audit", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "maze: builtin:NAME," in text and "rllib:PATH" in text and "mario: astar[:ITERATIONS]" in text
 
 
 def test_objectives_and_references_that_do_not_fit(tmp_path):

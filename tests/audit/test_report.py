@@ -185,16 +185,21 @@ def test_zoom_window_pads_the_occupied_cells():
 
 def test_compare_page_is_sortable(tmp_path):
     folder = make_collection(tmp_path / "c", levels=3)
-    rows = [{"id": i, "layout_file": f"levels/level_{i:04d}.txt", "seed": i, "episodes": 4, "success_a": 1.0,
-             "success_b": 0.5 * i, "path_a": 10.0, "path_b": 12.0, "verdict": "worse" if i < 2 else "same"}
-            for i in range(3)]
+    rows = [{"id": i, "level_file": f"levels/level_{i:04d}.txt", "seed": i, "episodes": 4, "success_a": 1.0,
+             "success_b": 0.5 * i, "mean_path_length_a": 10.0, "mean_path_length_b": 12.5,
+             "verdict": "worse" if i < 2 else "same"} for i in range(3)]
     comparison = {"agent_a": AGENT, "agent_b": REFERENCE, "levels": rows, "episodes_note": "4 episodes",
-                  "summary": {"levels": 3, "threshold": 0.1, "success_a": 1.0, "success_b": 0.5, "path_a": 10.0,
-                              "path_b": 12.0, "solved_a": 3, "solved_b": 1, "b_worse": 2, "b_better": 0}}
+                  "columns": [{"key": "mean_path_length", "label": "mean_path_length", "mean": "mean path length"}],
+                  "summary": {"levels": 3, "threshold": 0.1, "success_a": 1.0, "success_b": 0.5,
+                              "mean_path_length_a": 10.0, "mean_path_length_b": 12.5, "solved_a": 3, "solved_b": 1,
+                              "b_worse": 2, "b_better": 0}}
     path = write_compare_report(tmp_path / "page" / "compare.html", comparison, collection_dir=folder,
                                 images={0: _png((0, 0, 0))})
     page = path.read_text()
     assert "class='sortable'" in page and page.count("<tr class='worse'>") == 2
+    # The domain's compared column: its mean per agent, and per level A, B and the change.
+    assert "<td class='l'>mean path length</td><td>10.00</td><td>12.50</td>" in page
+    assert ">mean_path_length Δ</button></th>" in page and page.count("<td>+2.5</td>") == 3
     assert all((path.parent / link).is_file() for link in _links(page) if not link.startswith("data:"))
 
 

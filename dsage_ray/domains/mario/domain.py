@@ -256,13 +256,38 @@ class MarioDomain:
         """Every latent decodes to a playable 16 × 56 level."""
         return True
 
-    def read_level(self, path: str | Path) -> Solution:
-        """Not possible: a level file holds tiles, and the latent that decoded to them is not recoverable.
+    def success_rate(self, result: EvaluationResult) -> float:
+        """The share of the runs that reached the flag."""
+        return float(result.info["success_rate"])
+
+    def reference_numbers(self, result: EvaluationResult) -> None:
+        """None: Mario audits play one agent (``dsage-ray compare`` plays two, one evaluation each)."""
+        return None
+
+    def entry_solution(self, entry: dict[str, Any], folder: Path) -> Solution:
+        """The latent a collection entry records, checked to decode to the entry's level file.
+
+        A level file holds tiles, and the latent that decoded to them is not recoverable from it: the
+        entry keeps it (``latent``).
 
         Raises:
-            ValueError: Always.
+            ValueError: An entry without a latent (collections written before they were recorded: rebuild
+                the collection with ``dsage-ray audit --collect-only``), or a level file that is not what
+                the latent decodes to (edited by hand, or another generator).
         """
-        raise ValueError(f"{path}: a Mario level file cannot be turned back into the latent it came from")
+        if "latent" not in entry:
+            raise ValueError(f"collection level {entry.get('id')}: no recorded latent (collections written before "
+                             f"latents were recorded cannot be compared; rebuild it with dsage-ray audit "
+                             f"--collect-only)")
+        latent = np.asarray(entry["latent"], dtype=self.solution_dtype)
+        if latent.shape != (self.solution_dim,):
+            raise ValueError(f"collection level {entry.get('id')}: latent of shape {latent.shape}, the generator "
+                             f"takes ({self.solution_dim},)")
+        path = Path(folder) / entry["level_file"]
+        if path.read_text() != self.level_text(latent):
+            raise ValueError(f"{path}: not the level the recorded latent decodes to (edited by hand, or another "
+                             f"generator than mario.generator={self.config.generator!r})")
+        return latent
 
     def reproduce_command(self, level_file: str | Path, *, seed: int) -> str:
         """The ``dsage-ray mario eval`` command that replays this domain's evaluation of ``level_file``.
@@ -297,4 +322,6 @@ class MarioDomain:
             "sky_tiles": int(info["sky_tiles"]),
             "status": list(info["status"]),
             "ticks": [int(t) for t in info["ticks"]],
+            # The level file holds tiles only; compare re-runs the latent (entry_solution).
+            "latent": [float(x) for x in np.asarray(solution, dtype=np.float32)],
         }

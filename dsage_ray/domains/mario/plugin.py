@@ -9,7 +9,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Callable, Literal
 
-from dsage_ray.domains.registry import AuditSpec, DomainSpec
+from dsage_ray.domains.registry import AgentKinds, AuditSpec, DomainSpec, ReportField
 
 #: Mario's objectives: the A* agent's completion, or ``1 - completion`` (audits).
 MarioObjective = Literal["completion", "incompletion"]
@@ -121,7 +121,16 @@ DOMAIN = DomainSpec(
         measures=("sky_tiles", "mean_jumps"),
         default_agent="astar",
         episodes_key="mario.runs",
+        columns=(
+            ReportField(key="completion", mean="mean completion",
+                        tooltip="mean share of the level Mario covered over the runs (1: reached the flag)"),
+            ReportField(key="jumps", tooltip="mean jumps per run"),
+            ReportField(key="kills", tooltip="mean enemies killed per run"),
+            ReportField(key="sky_tiles", tooltip="non-empty tiles in the top 9 rows"),
+        ),
     ),
+    # Robin Baumgarten's A* agent, the only one the simulator plays; ITERATIONS per tick (0: the 40 ms timer).
+    agents=AgentKinds(forms={"astar": "astar[:ITERATIONS]"}),
     cli="dsage_ray.domains.mario.cli",
     actor_env=actor_env,
 )

@@ -11,7 +11,7 @@ import numpy as np
 from dsage_ray.domains.maze.encoding import CHANNELS, PATH_CHANNELS, SPARE, encode_levels
 from dsage_ray.domains.maze.evaluate import MazeEvaluation, evaluate
 from dsage_ray.domains.maze.layout import format_layout, load_layout
-from dsage_ray.domains.maze.level import MazeLevel
+from dsage_ray.domains.maze.level import MazeLevel, max_steps_for
 from dsage_ray.domains.maze.measures import NEEDS_REFERENCE, get_measure, get_objective
 from dsage_ray.domains.maze.plugin import DOMAIN, MazeConfig
 from dsage_ray.types import EncodedLevels, EvaluationResult, Solution, Solutions
@@ -234,6 +234,19 @@ class MazeDomain:
         """The layout file of a valid level (``dsage-ray maze eval --layout`` reads it)."""
         return format_layout(self.level(solution))
 
+    def success_rate(self, result: EvaluationResult) -> float:
+        """The share of the episodes that reached the goal."""
+        return float(result.info["success_rate"])
+
+    def reference_numbers(self, result: EvaluationResult) -> dict[str, float] | None:
+        """The reference agent's ``success_rate`` and ``mean_path_length`` of a ``regression`` evaluation."""
+        reference = result.info.get("reference")
+        return None if reference is None else {key: float(value) for key, value in reference.items()}
+
+    def entry_solution(self, entry: dict[str, Any], folder: Path) -> Solution:
+        """The bitmap of a collection entry's layout file (:meth:`read_level`)."""
+        return self.read_level(Path(folder) / entry["level_file"])
+
     def read_level(self, path: str | Path) -> Solution:
         """The bitmap of a layout file :meth:`level_text` wrote.
 
@@ -267,7 +280,9 @@ class MazeDomain:
 
     def collection_fields(self) -> dict[str, Any]:
         """Maze settings at the top level of a collection (beside the generic keys)."""
-        return {"see_through_walls": bool(self.config.see_through_walls)}
+        # The step limit a failed episode counts in mean_path_length (the report explains the number).
+        return {"see_through_walls": bool(self.config.see_through_walls),
+                "max_steps": max_steps_for(self.height, self.width)}
 
     def entry_fields(self, solution: Solution, result: EvaluationResult, *, level_file: str) -> dict[str, Any]:
         """The Maze numbers of a collection entry beside the generic ones (``layout_file`` and ``layout``
@@ -285,3 +300,22 @@ class MazeDomain:
             "explored_fraction": float(info["explored_fraction"]),
             "repeated_visits": float(info["repeated_visits"]),
         }
+
+
+def upgrade_collection(collection: dict[str, Any], *, folder: Path) -> None:
+    """Fills in what older Maze collections lack: the v2 keys of a v1 collection (``domain``, ``reference``,
+    each level's ``level_file`` and ``reproduce``) and ``max_steps``, the step limit of the recorded level size."""
+    if collection.get("max_steps") is None:
+        size = (collection.get("config") or {}).get("maze") or {}
+        if "height" in size and "width" in size:
+            collection["max_steps"] = max_steps_for(int(size["height"]), int(size["width"]))
+    if collection.get("format") != "dsage_ray.collection.v1":
+        return
+    collection.setdefault("reference", None)
+    # The agent's evaluation as v1 recorded it, for its reproduce commands.
+    domain = MazeDomain(config=MazeConfig(agent=collection["agent"], episodes=int(collection["episodes"]),
+                                          see_through_walls=bool(collection.get("see_through_walls", True))))
+    for level in collection["levels"]:
+        level.setdefault("level_file", level["layout_file"])
+        level.setdefault("reproduce", domain.reproduce_command(folder.resolve() / level["layout_file"],
+                                                               seed=level["seed"]))

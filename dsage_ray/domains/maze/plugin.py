@@ -9,7 +9,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Callable, Literal
 
-from dsage_ray.domains.registry import AuditSpec, DomainSpec
+from dsage_ray.domains.registry import AgentKinds, AuditSpec, DomainSpec, ReportField
 
 #: Keys of :data:`dsage_ray.domains.maze.measures.OBJECTIVES`.
 MazeObjective = Literal["validity", "failure_rate", "regret", "regression"]
@@ -104,6 +104,19 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "map_elites": {"surrogate.kind": "none", "qd.emitter": "map_elites", "qd.num_emitters": 5, "qd.batch_size": 30},
 }
 
+#: The Maze numbers of a collection entry the audit report shows (``MazeDomain.entry_fields``).
+COLUMNS = (
+    ReportField(key="num_walls"),
+    ReportField(key="optimal_path_length"),
+    ReportField(key="mean_path_length", mean="mean path length",
+                # A failed episode counts the whole step limit: the report says which number that is.
+                tooltip="mean steps per episode; a failed episode counts as the whole step limit, {max_steps} steps, "
+                        "so {max_steps} means the agent never reached the goal"),
+    ReportField(key="explored_fraction"),
+    ReportField(key="repeated_visits"),
+)
+
+
 DOMAIN = DomainSpec(
     name="maze",
     config=MazeConfig,
@@ -120,6 +133,11 @@ DOMAIN = DomainSpec(
         # The PPO agent shipped with the package.
         default_agent="rllib:ppo_maze",
         episodes_key="maze.episodes",
+        columns=COLUMNS,
+        settings=(ReportField(key="max_steps", label="step limit", format="{} steps per episode"),),
+        upgrade="dsage_ray.domains.maze.domain:upgrade_collection",
     ),
+    # The policies of dsage_ray.agents (MiniGrid observations): built in, shipped and plug-in kinds.
+    agents=AgentKinds(policies=True),
     cli="dsage_ray.domains.maze.cli",
 )
