@@ -47,3 +47,23 @@ def test_tiny_mario_audit(tmp_path, capsys):
     assert again["success_rate"] == worst["success_rate"]
     assert again["mean_jumps"] == worst["jumps"] == worst["measures"]["mean_jumps"]
     assert again["sky_tiles"] == worst["sky_tiles"] == worst["measures"]["sky_tiles"]
+
+    # compare: two A* budgets on the collection's levels (each entry's latent, checked against its level file).
+    from dsage_ray.audit.compare import compare_agents
+
+    html = tmp_path / "compare.html"
+    comparison = compare_agents("astar:400", "astar:40", collection_dir=collection, html_path=html)
+    assert [c["key"] for c in comparison["columns"]] == ["completion"]
+    recorded = {lv["id"]: lv for lv in levels}
+    assert sorted(row["id"] for row in comparison["levels"]) == sorted(recorded)
+    for row in comparison["levels"]:  # A is the audited agent: its numbers are the collection's
+        assert row["success_a"] == recorded[row["id"]]["success_rate"]
+        assert row["completion_a"] == pytest.approx(recorded[row["id"]]["completion"])
+    assert "completion A" in html.read_text()
+    # Refused before any level is played: an agent Mario does not play, a level file that is not its latent's.
+    assert main(["compare", "--agent", "astar", "--agent", "dcd:accel", "--collection", str(collection)]) == 2
+    assert "domain 'mario' does not play 'dcd' agents" in capsys.readouterr().err
+    edited = (collection / worst["level_file"]).read_text()
+    (collection / worst["level_file"]).write_text(("X" if edited[0] != "X" else "-") + edited[1:])
+    with pytest.raises(ValueError, match="not the level the recorded latent decodes to"):
+        compare_agents("astar:400", "astar:40", collection_dir=collection)

@@ -80,3 +80,51 @@ def test_ablate_grids_a_key_of_the_plugins_section_on_ray(gridpath, ray_session,
         last = json.loads((trial / "result.json").read_text().splitlines()[-1])
         # Evaluated by a simulator actor of the trial's pool, which loaded the plug-in itself.
         assert last["evals"] == 40 and last["qd_score"] > 0
+
+
+def test_audit_collects_reproducible_levels_and_compares_two_agents(gridpath, tmp_path, capsys):
+    """``dsage-ray audit --domain gridpath``: the plug-in's AuditSpec and hooks give a collection whose every
+    level replays to its numbers, a report with the domain's own column and setting, and ``compare``."""
+    import shlex
+
+    from dsage_ray.audit.collection_file import load_collection
+    from dsage_ray.audit.compare import compare_agents
+
+    out = tmp_path / "audit"
+    assert main(["audit", "--domain", "gridpath", "--agent", "bfs:16", "--preset", "tiny", "--seed", "1", "--local",
+                 "--out", str(out)]) == 0
+    collection = out / "collection"
+    c = load_collection(collection)
+    assert (c["domain"], c["agent"], c["objective"], c["size"]) == ("gridpath", "bfs:16", "failure", 8)
+    levels = c["levels"]
+    assert levels and any(lv["success_rate"] == 0 for lv in levels)  # the search found levels where it gives up
+    for lv in levels:
+        # A reachable goal: the agent fails exactly when the path needs more than 16 moves.
+        assert lv["success_rate"] == float(lv["path_length"] - 1 <= 16) and lv["objective"] == 1 - lv["success_rate"]
+        capsys.readouterr()
+        assert main(shlex.split(lv["reproduce"])[1:]) == 0
+        again = json.loads(capsys.readouterr().out)
+        assert (again["success_rate"], again["path_length"]) == (lv["success_rate"], lv["path_length"])
+
+    page = (collection / "report.html").read_text()
+    assert "<dt>grid</dt><dd>8x8 cells</dd>" in page and ">path length</button></th>" in page
+    assert "title='cells on the shortest path from the top-left corner to the bottom-right one of this 8x8 grid" in page
+    assert ">mean path length</button></th>" in page  # the region table averages the declared column
+
+    # B never gives up: better exactly where A failed; the path is the level's, whoever walks it.
+    comparison = compare_agents("bfs:16", "bfs", collection_dir=collection)
+    recorded = {lv["id"]: lv for lv in levels}
+    for row in comparison["levels"]:
+        assert row["success_a"] == recorded[row["id"]]["success_rate"] and row["success_b"] == 1.0
+        assert row["path_length_a"] == row["path_length_b"] == recorded[row["id"]]["path_length"]
+        assert row["verdict"] == ("better" if row["success_a"] == 0 else "same")
+    assert main(["compare", "--agent", "bfs:16", "--agent", "bfs", "--collection", str(collection)]) == 0
+    assert "mean path length A" in capsys.readouterr().out
+
+
+def test_audit_refuses_an_agent_kind_the_domain_does_not_play(gridpath, tmp_path, capsys):
+    assert main(["audit", "--domain", "gridpath", "--agent", "dcd:accel", "--local", "--out", str(tmp_path / "a")]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "dsage-ray audit: error: domain 'gridpath' does not play 'dcd' agents (agent spec 'dcd:accel'); its agents: "
+        "bfs[:MOVES]; 'dcd' agents are played by: maze")
+    assert not (tmp_path / "a").exists()
