@@ -6,5 +6,6 @@ save them reproducibly, compare agents.
   number reproducible;
 * :mod:`dsage_ray.audit.summary` — how diverse the failures of a collection are;
 * :mod:`dsage_ray.audit.report` — ``report.html`` and the comparison page;
-* :func:`dsage_ray.audit.compare.compare_agents` — two Maze agents on one collection with the same seeds.
+* :func:`dsage_ray.audit.compare.compare_agents` — two agents on one collection (any auditable domain) with the
+  same seeds.
 """
