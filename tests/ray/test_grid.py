@@ -11,6 +11,7 @@ from dsage_ray.cli import main
 from dsage_ray.config import ConfigError, RunConfig, paper_comparison
 from dsage_ray.ray import launch as ray_launch
 from dsage_ray.ray.experiment import ablation_axes, grid_configs, grid_param_space, parse_grid
+from dsage_ray.results import ExperimentResult
 
 CONFIG = "experiments/configs/maze_dsage.toml"
 
