@@ -101,7 +101,7 @@ def compare_agents(
     for i, entry in enumerate(entries):
         solutions[i] = domain.entry_solution(entry, collection_dir)
     seeds = [int(entry["seed"]) for entry in entries]
-    results_a, results_b = (_evaluate(config, own, solutions, seeds, workers=workers, desc=f"agent {role}")
+    results_a, results_b = (_evaluate(config, own, solutions, seeds, workers=workers, desc=f"comparing, agent {role}")
                             for role, config, own in zip("AB", configs, domains))
 
     columns = compared_columns(collection["domain"])

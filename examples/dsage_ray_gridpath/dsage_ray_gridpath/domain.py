@@ -191,7 +191,8 @@ class GridPathDomain:
         path = Path(folder) / entry["level_file"]
         walls = parse_level(path.read_text(), source=str(path))
         if walls.shape != (self.size, self.size):
-            raise ValueError(f"{path}: a {walls.shape[0]}x{walls.shape[1]} level, the domain's are {self.size}x{self.size}")
+            raise ValueError(f"{path}: a {walls.shape[0]}x{walls.shape[1]} level, the domain's are "
+                             f"{self.size}x{self.size}")
         return walls.ravel().astype(self.solution_dtype)
 
     def reproduce_command(self, level_file: str | Path, *, seed: int) -> str:
