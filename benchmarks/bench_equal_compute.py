@@ -64,8 +64,8 @@ def load_run(folder: Path) -> dict:
     for row, fallback in zip(history, summed):
         row.setdefault("wall_time", float(fallback))
         row.setdefault("cpu_time", float(fallback))
-    return {"folder": folder, "variant": config.get("variant", "?"), "seed": config.get("seed", 0),
-            "history": history}
+    return {"folder": folder, "variant": config.get("variant", "?"), "name": config.get("name", "?"),
+            "seed": config.get("seed", 0), "history": history}
 
 
 def qd_at_evals(history: list[dict], evals: float) -> tuple[float, bool]:
@@ -113,12 +113,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--at-evals", type=float, default=2000, help="evaluations of the equal-evaluation table")
     parser.add_argument("--at-time", type=float, help="seconds of the equal-time table (default: shortest run)")
     parser.add_argument("--clock", choices=["wall", "cpu"], default="wall")
+    parser.add_argument("--label", choices=["variant", "name"], default="variant",
+                        help="group runs by their config's variant, or by its name (settings of one variant)")
     args = parser.parse_args(argv)
 
     runs = [load_run(folder) for folder in args.runs if folder.is_dir()]
     by_variant: dict[str, list[dict]] = defaultdict(list)
     for run in runs:
-        by_variant[run["variant"]].append(run)
+        by_variant[run[args.label]].append(run)
     if args.baseline not in by_variant:
         print(f"no {args.baseline!r} run among the folders given (variants: {sorted(by_variant)})", file=sys.stderr)
         return 2
