@@ -21,7 +21,6 @@ from __future__ import annotations
 import base64
 import html
 import io
-import math
 import os
 import shlex
 from pathlib import Path
@@ -33,15 +32,12 @@ from dsage_ray.audit.collection_file import audit_declaration, load_collection
 from dsage_ray.audit.summary import FAILURE_CELL_RATE, failure_summary, grid_indices
 from dsage_ray.domains import ReportField
 from dsage_ray.io import atomic_write_text
+from dsage_ray.qd.archives import zoom_window
 
 #: Levels shown with their picture at the top of a report.
 WORST_SHOWN = 12
 #: Regions per measure in the per-region statistics.
 REGIONS_PER_MEASURE = 4
-#: Margin of the zoomed heatmap around the occupied cells: this fraction of their span, at least
-#: :data:`HEATMAP_MIN_MARGIN` cells.
-HEATMAP_MARGIN = 0.1
-HEATMAP_MIN_MARGIN = 2
 #: Entry keys every domain has; other numeric top-level keys are the domain's own numbers.
 _GENERIC_KEYS = {"id", "objective", "success_rate", "seed", "episodes", "search_objective", "regression"}
 
@@ -339,13 +335,6 @@ def _reference_numbers(collection: dict[str, Any]) -> list[str]:
     keys = [k for k, v in levels[0]["reference"].items()
             if k != "seed" and isinstance(v, (int, float)) and not isinstance(v, bool)]
     return sorted(keys, key=lambda k: k != "success_rate")
-
-
-def zoom_window(low: int, high: int, cells: int) -> tuple[int, int]:
-    """The cells ``low..high`` (inclusive) that levels occupy along one measure, padded by
-    :data:`HEATMAP_MARGIN` of their span (at least :data:`HEATMAP_MIN_MARGIN` cells) and clipped to the grid."""
-    pad = max(HEATMAP_MIN_MARGIN, math.ceil(HEATMAP_MARGIN * (high - low + 1)))
-    return max(0, low - pad), min(cells - 1, high + pad)
 
 
 def heatmap_pngs(collection: dict[str, Any]) -> dict[str, bytes]:

@@ -26,6 +26,7 @@ from dsage_ray.errors import InputError
 if TYPE_CHECKING:
     from dsage_ray.config import RunConfig
     from dsage_ray.core.runner import DSAGE
+    from dsage_ray.core.snapshot import RunSnapshot
     from dsage_ray.types import Domain, Evaluator
 
 
@@ -36,8 +37,8 @@ class LoopCallback(Protocol):
     resume, so it sees the restored runner).
     """
 
-    def on_step(self, runner: "DSAGE", metrics: Mapping[str, float]) -> None:
-        """The runner just finished an outer iteration with these metrics."""
+    def on_step(self, run: "RunSnapshot", metrics: Mapping[str, float]) -> None:
+        """The run just finished an outer iteration with these metrics (``run`` is read-only)."""
 
     def close(self) -> None:
         """The loop is done with the callback (flush files, close progress bars)."""
@@ -66,8 +67,9 @@ class RunLoop:
     def step(self) -> dict[str, float]:
         """One outer iteration, then the callbacks; the run folder's outputs once a budget is spent."""
         metrics = self.runner.step()
+        snapshot = self.runner.snapshot()
         for callback in self.callbacks:
-            callback.on_step(self.runner, metrics)
+            callback.on_step(snapshot, metrics)
         if self.runner.done:
             self.runner.write_outputs(self.out_dir)
         return metrics
@@ -87,10 +89,11 @@ class RunLoop:
         The state is also saved after the last iteration, so a finished run's checkpoint holds its
         final archive.
         """
+        snapshot = self.runner.snapshot()
         for callback in self.callbacks:
             on_start = getattr(callback, "on_start", None)
             if on_start is not None:
-                on_start(self.runner)
+                on_start(snapshot)
         while not self.runner.done:
             self.step()
             if self.runner.outer_iteration % checkpoint_every == 0 or self.runner.done:
@@ -129,6 +132,7 @@ def run_locally(
     """
     from dsage_ray.core.progress import ConsoleProgress
     from dsage_ray.core.runner import DSAGE
+    from dsage_ray.core.snapshot import RunSnapshot
     from dsage_ray.core.tensorboard_log import RunTensorBoard
 
     out_dir = Path(out_dir)

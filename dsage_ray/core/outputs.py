@@ -12,11 +12,15 @@ import numpy as np
 from dsage_ray.io import atomic_write_bytes, atomic_write_json, atomic_write_text, replace_dir, staging_dir
 
 if TYPE_CHECKING:
-    from dsage_ray.core.runner import DSAGE
+    from dsage_ray.core.snapshot import RunSnapshot
 
 
-def heatmap_png(archive, *, title: str = "", measure_names: tuple[str, ...] = ()) -> bytes:
-    """The ground-truth archive as a PNG heatmap of objective values."""
+def heatmap_png(archive, *, title: str = "", measure_names: tuple[str, ...] = (), zoom: bool = False) -> bytes:
+    """The ground-truth archive as a PNG heatmap of objective values.
+
+    ``zoom`` shows only the cells the elites occupy, plus a margin (:func:`~dsage_ray.qd.archives.zoom_window`):
+    a few hundred elites in a 256×162 grid are otherwise a few specks.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -25,6 +29,13 @@ def heatmap_png(archive, *, title: str = "", measure_names: tuple[str, ...] = ()
 
     fig, ax = plt.subplots(figsize=(6, 4.5), dpi=100)
     grid_archive_heatmap(archive, ax=ax, cmap="viridis")
+    if zoom and len(archive) > 0 and len(archive.dims) == 2:
+        from dsage_ray.qd.archives import zoom_window
+
+        cells = np.asarray(archive.int_to_grid_index(archive.data("index")))
+        for k, set_limits in enumerate((ax.set_xlim, ax.set_ylim)):
+            low, high = zoom_window(int(cells[:, k].min()), int(cells[:, k].max()), int(archive.dims[k]))
+            set_limits(archive.boundaries[k][low], archive.boundaries[k][high + 1])
     if len(measure_names) >= 2:
         ax.set_xlabel(measure_names[0])
         ax.set_ylabel(measure_names[1])
@@ -83,27 +94,27 @@ def render_elites(archive, domain, count: int) -> list[tuple[int, bytes]]:
             for index in spread_elites(archive, count)]
 
 
-def write_outputs(runner: "DSAGE", run_dir: str | Path, *, num_elites: int = 6) -> Path:
+def write_outputs(run: "RunSnapshot", run_dir: str | Path, *, num_elites: int = 6) -> Path:
     """Writes the run folder; every file is written atomically, the elites folder swapped in whole."""
     from dsage_ray.qd.archives import archive_to_dataframe
 
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
-    domain = runner.domain
-    atomic_write_json(run_dir / "config.json", runner.config.to_dict())
-    atomic_write_json(run_dir / "metrics.json", runner.history)
-    atomic_write_json(run_dir / "failures.json", runner.failures)
-    atomic_write_text(run_dir / "archive.csv", archive_to_dataframe(runner.archive).to_csv(index=False))
+    domain = run.domain
+    atomic_write_json(run_dir / "config.json", run.config.to_dict())
+    atomic_write_json(run_dir / "metrics.json", list(run.history))
+    atomic_write_json(run_dir / "failures.json", list(run.failures))
+    atomic_write_text(run_dir / "archive.csv", archive_to_dataframe(run.archive).to_csv(index=False))
     atomic_write_bytes(
         run_dir / "heatmap.png",
-        heatmap_png(runner.archive, title=f"{runner.config.name}: {runner.evals} evaluations",
-                    measure_names=domain.measure_names),
+        heatmap_png(run.archive, title=f"{run.config.name}: {run.evals} evaluations",
+                    measure_names=domain.measure_names, zoom=True),
     )
     if getattr(domain, "render", None) is not None:
         staging = staging_dir(run_dir / "elites")
-        data = runner.archive.data()
+        data = run.archive.data()
         summary = []
-        for rank, (index, png) in enumerate(render_elites(runner.archive, domain, num_elites)):
+        for rank, (index, png) in enumerate(render_elites(run.archive, domain, num_elites)):
             name = f"elite_{rank:02d}.png"
             (staging / name).write_bytes(png)
             summary.append({

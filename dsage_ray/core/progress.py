@@ -102,21 +102,21 @@ class ConsoleProgress:
             bar.close()
             del self._bars[phase]
 
-    def on_start(self, runner) -> None:
+    def on_start(self, run) -> None:
         """Starts the clock; a resumed run's ETA counts only the evaluations made since."""
         import time
 
-        self._started, self._evals_at_start = time.monotonic(), runner.evals
+        self._started, self._evals_at_start = time.monotonic(), run.evals
 
-    def on_step(self, runner, metrics: Mapping[str, float]) -> None:
+    def on_step(self, run, metrics: Mapping[str, float]) -> None:
         import time
 
         from tqdm import tqdm
 
         if self._started is None:
-            self.on_start(runner)
+            self.on_start(run)
         elapsed = time.monotonic() - self._started
-        evals_per_s = self._rate.update(evals=runner.evals - self._evals_at_start, running_s=elapsed)
+        evals_per_s = self._rate.update(evals=run.evals - self._evals_at_start, running_s=elapsed)
         tqdm.write(progress_line(metrics, budget=self.budget, elapsed_s=elapsed, evals_per_s=evals_per_s))
 
     def close(self) -> None:

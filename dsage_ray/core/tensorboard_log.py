@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Mapping
 import numpy as np
 
 if TYPE_CHECKING:
-    from dsage_ray.core.runner import DSAGE
+    from dsage_ray.core.snapshot import RunSnapshot
 
 #: Group of our scalars in TensorBoard (``dsage/qd_score``, ``dsage/coverage``, ...).
 SCALAR_GROUP = "dsage"
@@ -51,8 +51,8 @@ class RunTensorBoard:
         self.image_levels = image_levels
         self._writer = None
 
-    def log(self, runner: "DSAGE", metrics: Mapping[str, float]) -> None:
-        """Logs the metrics of the iteration ``runner`` just finished (and its images when due)."""
+    def log(self, run: "RunSnapshot", metrics: Mapping[str, float]) -> None:
+        """Logs the metrics of the iteration ``run`` just finished (and its images when due)."""
         if self._writer is None:
             from tensorboardX import SummaryWriter
 
@@ -65,34 +65,35 @@ class RunTensorBoard:
         if "wall_time" in metrics:
             self._writer.add_scalar(QD_SCORE_VS_WALL_TIME, float(metrics["qd_score"]), int(metrics["wall_time"]))
         iteration = int(metrics["outer_iteration"])
-        if iteration % self.image_every == 0 or runner.done:
-            self._log_images(runner, iteration=iteration, step=step)
+        if iteration % self.image_every == 0 or run.done:
+            self._log_images(run, iteration=iteration, step=step)
         self._writer.flush()
 
-    def on_step(self, runner: "DSAGE", metrics: Mapping[str, float]) -> None:
+    def on_step(self, run: "RunSnapshot", metrics: Mapping[str, float]) -> None:
         """:class:`~dsage_ray.core.loop.RunLoop` callback: :meth:`log`."""
-        self.log(runner, metrics)
+        self.log(run, metrics)
 
     def close(self) -> None:
         if self._writer is not None:
             self._writer.close()
             self._writer = None
 
-    def _log_images(self, runner: "DSAGE", *, iteration: int, step: int) -> None:
+    def _log_images(self, run: "RunSnapshot", *, iteration: int, step: int) -> None:
         """Archive heatmap, sample elite levels spread over the archive, and the surrogate's
         predicted-vs-true measures (paper Fig. 9)."""
         from dsage_ray.core.outputs import heatmap_image, render_elites, scatter_png
 
-        measure_names = tuple(runner.domain.measure_names)
-        archive = runner.ground_truth_archive
+        measure_names = tuple(run.domain.measure_names)
+        archive = run.archive
         if len(archive) > 0:
+            # Zoomed to the occupied cells: over the measures' full ranges the elites are a few specks.
             heatmap = heatmap_image(archive, title=f"{step} evaluations (iteration {iteration})",
-                                    measure_names=measure_names)
+                                    measure_names=measure_names, zoom=True)
             self._writer.add_image("archive/heatmap", heatmap, step, dataformats="HWC")
-            if getattr(runner.domain, "render", None) is not None:
-                for rank, (_, png) in enumerate(render_elites(archive, runner.domain, self.image_levels)):
+            if getattr(run.domain, "render", None) is not None:
+                for rank, (_, png) in enumerate(render_elites(archive, run.domain, self.image_levels)):
                     self._writer.add_image(f"levels/elite_{rank}", png_to_array(png), step, dataformats="HWC")
-        predictions = getattr(runner, "last_predictions", None)
+        predictions = run.last_predictions
         if predictions is not None:
             predicted, true = (np.asarray(a) for a in predictions)
             if len(true):

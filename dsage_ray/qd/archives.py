@@ -8,6 +8,8 @@ version check that keeps a checkpoint from another release from restoring silent
 
 from __future__ import annotations
 
+import math
+
 from typing import Collection
 
 import numpy as np
@@ -109,3 +111,16 @@ def archive_to_dataframe(archive: GridArchive, *, flatten: bool = False) -> Arch
     # Keep "index" last, as pyribs does.
     index = df.pop("index")
     return ArchiveDataFrame(pd.concat([df, pd.DataFrame(columns, index=df.index), index], axis=1))
+
+
+#: Margin of a zoomed heatmap around the occupied cells: this fraction of their span, at least
+#: :data:`HEATMAP_MIN_MARGIN` cells.
+HEATMAP_MARGIN = 0.1
+HEATMAP_MIN_MARGIN = 2
+
+
+def zoom_window(low: int, high: int, cells: int) -> tuple[int, int]:
+    """The cells ``low..high`` (inclusive) that elites occupy along one measure, padded by
+    :data:`HEATMAP_MARGIN` of their span (at least :data:`HEATMAP_MIN_MARGIN` cells) and clipped to the grid."""
+    pad = max(HEATMAP_MIN_MARGIN, math.ceil(HEATMAP_MARGIN * (high - low + 1)))
+    return max(0, low - pad), min(cells - 1, high + pad)

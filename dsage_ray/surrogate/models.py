@@ -8,12 +8,15 @@ level then sits in the top-left corner, which is where the occupancy grid is rea
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import torch
 from torch import nn
 from torch.nn import functional as F
+
+if TYPE_CHECKING:
+    from dsage_ray.types import Domain, Solutions
 
 #: Negative slope of every LeakyReLU in the surrogate (the paper's value).
 LEAKY_SLOPE = 0.2
@@ -65,6 +68,11 @@ def pad_to_power_of_two(encoded: np.ndarray, pad_channel: int = 0) -> np.ndarray
     padded[:, pad_channel] = 1.0
     padded[:, :, :height, :width] = encoded
     return padded
+
+
+def encode_solutions(domain: "Domain", solutions: "Solutions") -> np.ndarray:
+    """The surrogate's input for ``solutions``: the domain's one-hot levels, padded to a square power of two."""
+    return pad_to_power_of_two(domain.encode(solutions), pad_channel=domain.encoding_pad_channel)
 
 
 def _check_input_size(input_size: int) -> None:

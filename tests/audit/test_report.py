@@ -12,7 +12,8 @@ from PIL import Image
 
 from dsage_ray.audit import collection as collection_module
 from dsage_ray.audit.collection_file import load_collection
-from dsage_ray.audit.report import WORST_SHOWN, write_compare_report, write_report, zoom_window
+from dsage_ray.audit.report import WORST_SHOWN, write_compare_report, write_report
+from dsage_ray.qd.archives import zoom_window
 from dsage_ray.audit.summary import failure_summary
 
 AGENT, REFERENCE = "builtin:wall_follower", "builtin:random"

@@ -101,8 +101,7 @@ def test_domains_with_valid_levels_supply_the_held_out_set_and_failures_are_left
 
     broken = BitmapDomain(fail_on=tuple(range(0, 65)), fail_once=False)  # every evaluation fails
     runner = DSAGE(config=config, domain=broken)
-    runner.holdout_evals = 0
-    runner._evaluate_holdout()
+    runner.proposer.holdout.evaluate(runner.evaluator)
     assert runner.holdout["results"] == [] and runner.holdout_evals == HOLDOUT
     assert runner.failures == []  # held-out failures are not budget failures
 

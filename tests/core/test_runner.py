@@ -100,11 +100,15 @@ def test_failed_evaluation_is_retried_once_then_recorded():
     assert flaky.calls == 2 * batch  # each evaluation ran twice, none more
     assert len(runner.archive) > 0
 
+    # A batch that fails entirely stops the run with the evaluations' own error; each failure is recorded.
+    from dsage_ray.core.runner import EvaluationsFailed
+
     broken = BitmapDomain(fail_on=tuple(range(0, 65)), fail_once=False)
     runner = DSAGE(config=config, domain=broken)
-    metrics = runner.step()
+    with pytest.raises(EvaluationsFailed, match="injected failure"):
+        runner.step()
     assert len(runner.failures) == batch and "injected failure" in runner.failures[0]["error"]
-    assert metrics["evals"] == batch and metrics["failed_evals"] == batch and len(runner.archive) == 0
+    assert runner.evals == 0 and len(runner.archive) == 0
     assert [f["eval_index"] for f in runner.failures] == list(range(batch))
 
 
@@ -136,10 +140,10 @@ def test_baseline_survives_batches_with_failed_evaluations(variant):
 
 
 def test_novel_variant_evaluates_the_dsage_picks_minus_those_the_archive_already_beats(monkeypatch):
-    import dsage_ray.core.runner as runner_module
+    import dsage_ray.core.proposers as proposers_module
 
     calls = []
-    original = runner_module.skip_filled
+    original = proposers_module.skip_filled
 
     def spy(surrogate_archive, picks, ground_truth_archive):
         result = original(surrogate_archive, picks, ground_truth_archive)
@@ -150,7 +154,7 @@ def test_novel_variant_evaluates_the_dsage_picks_minus_those_the_archive_already
     dsage, novel = make_runner(variant="dsage"), make_runner(variant="dsage_novel")
     for runner in (dsage, novel):
         runner.step()
-    monkeypatch.setattr(runner_module, "skip_filled", spy)
+    monkeypatch.setattr(proposers_module, "skip_filled", spy)
     plain, skipping = dsage.step(), novel.step()
     assert len(calls) == 1  # only the novel run skips
     picks, result = calls[0]

@@ -1,0 +1,279 @@
+"""Where an outer iteration's levels come from: the strategies the DSAGE loop is written against.
+
+A :class:`Proposer` proposes the solutions to evaluate for real and learns from their results:
+
+* :class:`SurrogateAssisted` — DSAGE (the paper's Algorithm 1, lines 5-8): train the surrogate,
+  exploit it with a fresh inner QD loop, select from the surrogate archive. Its first iteration
+  proposes ``n_rand`` random solutions.
+* :class:`DirectQD` — a QD optimizer on the ground-truth archive: MAP-Elites, CMA-ME or, with the
+  random emitter, domain randomisation (DR).
+
+Both insert what was evaluated into the ground-truth archive, each in its own way (the direct
+optimizer's ``tell`` does it; DSAGE adds, then grows its dataset).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import TYPE_CHECKING, Any, Callable, Protocol
+
+import numpy as np
+
+from dsage_ray.config import RunConfig
+from dsage_ray.core.holdout import HeldOutLevels, head_label
+from dsage_ray.qd.archives import make_archive
+from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
+from dsage_ray.qd.selection import gather_elites, select_solutions, skip_filled
+from dsage_ray.surrogate.models import encode_solutions
+from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
+
+if TYPE_CHECKING:
+    from ribs.archives import GridArchive
+
+    from dsage_ray.core.seeds import RunSeeds
+
+#: Called with (phase, done, total) while a step runs; the CLI turns it into progress bars.
+ProgressCallback = Callable[[str, int, int], None]
+
+
+def domain_archive(domain: Domain, *, with_occupancy: bool, seed: int) -> "GridArchive":
+    """An empty archive over ``domain``'s measures (the ground truth keeps each elite's occupancy)."""
+    return make_archive(solution_dim=domain.solution_dim, dims=domain.archive_dims, ranges=domain.measure_ranges,
+                        occupancy_shape=domain.occupancy_shape if with_occupancy else None, seed=seed,
+                        solution_dtype=domain.solution_dtype)
+
+
+@dataclasses.dataclass
+class Proposal:
+    """An iteration's candidates, with what choosing them reported."""
+
+    solutions: Solutions
+    metrics: dict[str, float] = dataclasses.field(default_factory=dict)
+    #: Seconds per phase (``train``, ``exploit``, ``select``, ``holdout``).
+    times: dict[str, float] = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass(frozen=True)
+class EvaluatedBatch:
+    """What the real evaluation of a proposal returned, split into what succeeded.
+
+    Attributes:
+        solutions: The evaluated solutions (the proposal, cut to the remaining budget).
+        results: One result per solution, failures included.
+        ok: Indices of the successful results.
+        objective, measures, occupancy: Of the successful results, stacked.
+        complete: Every proposed solution was evaluated and succeeded (what a QD scheduler's ``tell`` needs).
+        outer_iteration: The iteration that proposed them (0 is the first).
+    """
+
+    solutions: Solutions
+    results: list[EvaluationResult]
+    ok: list[int]
+    objective: np.ndarray
+    measures: np.ndarray
+    occupancy: np.ndarray
+    complete: bool
+    outer_iteration: int
+
+    @classmethod
+    def collect(cls, solutions: Solutions, results: list[EvaluationResult], *, domain: Domain, proposed: int,
+                outer_iteration: int) -> "EvaluatedBatch":
+        ok = [i for i, r in enumerate(results) if not r.failed]
+        return cls(
+            solutions=solutions, results=results, ok=ok,
+            objective=np.array([results[i].objective for i in ok], dtype=np.float64),
+            measures=np.array([results[i].measures for i in ok], dtype=np.float64).reshape(
+                len(ok), len(domain.measure_names)),
+            occupancy=np.array([results[i].occupancy for i in ok], dtype=np.float32).reshape(
+                (len(ok),) + tuple(domain.occupancy_shape)),
+            complete=len(ok) == proposed, outer_iteration=outer_iteration)
+
+
+class Proposer(Protocol):
+    """A strategy of the outer loop: propose solutions, then learn from their real results."""
+
+    def propose(self, *, outer_iteration: int) -> Proposal:
+        """The solutions to evaluate this iteration."""
+
+    def learn(self, batch: EvaluatedBatch) -> dict[str, float]:
+        """Adds the batch to the ground-truth archive and to what the proposer learns from; returns metrics."""
+
+    def state_dict(self) -> dict[str, Any]:
+        """The proposer's part of the run's checkpoint."""
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restores :meth:`state_dict` (the whole checkpoint's dict is passed)."""
+
+
+class DirectQD:
+    """MAP-Elites, CMA-ME or DR: the configured QD optimizer asks for solutions and is told their real results.
+
+    Args:
+        config: The run's config (``qd``: emitter, batch sizes).
+        domain: The domain.
+        archive: The ground-truth archive the optimizer fills.
+        seeds: The run's seed streams.
+    """
+
+    def __init__(self, *, config: RunConfig, domain: Domain, archive: "GridArchive", seeds: "RunSeeds") -> None:
+        self.archive = archive
+        self.scheduler = make_scheduler(archive, config=config.qd, solution_dim=domain.solution_dim,
+                                        random_solutions=domain.random_solutions, seed=seeds.next_qd_seed())
+
+    def propose(self, *, outer_iteration: int) -> Proposal:
+        return Proposal(self.scheduler.ask())
+
+    def learn(self, batch: EvaluatedBatch) -> dict[str, float]:
+        if batch.complete:
+            # The emitters need the whole batch they asked for; tell() also adds to the archive.
+            self.scheduler.tell(batch.objective, batch.measures, occupancy=batch.occupancy)
+            return {}
+        if batch.ok:
+            self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures, occupancy=batch.occupancy)
+        # A batch with failed (or budget-truncated) evaluations cannot be told: pyribs needs the whole
+        # batch it asked for. A fresh scheduler over the same archive and emitters closes the ask/tell
+        # cycle; the emitters simply never learn from this one batch.
+        from ribs.schedulers import Scheduler
+
+        self.scheduler = Scheduler(self.archive, self.scheduler.emitters)
+        return {}
+
+    def state_dict(self) -> dict[str, Any]:
+        return {"scheduler": self.scheduler, "surrogate": None, "dataset": None, "holdout": None, "holdout_evals": 0}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.scheduler = state["scheduler"]
+        self.archive = state["archive"]
+
+
+class SurrogateAssisted:
+    """DSAGE's proposals: train the surrogate, exploit it with an inner QD loop, select from its archive.
+
+    Args:
+        config: The run's config (``surrogate``, ``qd``, ``selection``, ``n_rand``).
+        domain: The domain.
+        archive: The ground-truth archive (``selection.skip_filled`` reads it; :meth:`learn` fills it).
+        seeds: The run's seed streams.
+        evaluator: Evaluates the held-out levels, if any.
+        progress: Optional progress callback (``holdout``, ``exploit`` phases).
+
+    Attributes:
+        last_predictions: ``(predicted_measures, true_measures)`` of the batch learned last (Fig. 9 scatter).
+    """
+
+    def __init__(self, *, config: RunConfig, domain: Domain, archive: "GridArchive", seeds: "RunSeeds",
+                 evaluator: Evaluator, progress: ProgressCallback | None = None) -> None:
+        from dsage_ray.surrogate import Surrogate
+
+        self.config = config
+        self.domain = domain
+        self.archive = archive
+        self.seeds = seeds
+        self.evaluator = evaluator
+        self.progress = progress
+        sample = encode_solutions(domain, domain.random_solutions(1, np.random.default_rng(0)))
+        self.surrogate = Surrogate(
+            kind=config.surrogate.kind, input_channels=sample.shape[1], input_shape=tuple(sample.shape[2:]),
+            occupancy_shape=domain.occupancy_shape, num_measures=len(domain.measure_names), config=config.surrogate,
+            seed=seeds.next_qd_seed(), measure_ranges=domain.measure_ranges, measure_names=domain.measure_names)
+        self.dataset = self.surrogate.make_dataset()
+        self.holdout = HeldOutLevels(count=config.surrogate.holdout_levels, domain=domain, seeds=seeds)
+        self.last_predictions: tuple[np.ndarray, np.ndarray] | None = None
+
+    def propose(self, *, outer_iteration: int) -> Proposal:
+        if outer_iteration == 0:
+            proposal = Proposal(np.empty(0))
+            if self.holdout.pending:
+                tic = time.perf_counter()
+                self.holdout.evaluate(self.evaluator, progress=self.progress)
+                proposal.times["holdout"] = time.perf_counter() - tic
+            proposal.solutions = self.domain.random_solutions(self.config.n_rand, self.seeds.rng)
+            return proposal
+        proposal = Proposal(np.empty(0))
+        tic = time.perf_counter()
+        proposal.metrics.update(self._train())
+        proposal.times["train"] = time.perf_counter() - tic
+        if self.holdout.data is not None:
+            tic = time.perf_counter()
+            proposal.metrics.update(self.holdout.score(self.surrogate))
+            proposal.times["holdout"] = time.perf_counter() - tic
+        tic = time.perf_counter()
+        surrogate_archive = self._exploit()
+        proposal.times["exploit"] = time.perf_counter() - tic
+        tic = time.perf_counter()
+        proposal.solutions = self._select(surrogate_archive, proposal.metrics)
+        proposal.times["select"] = time.perf_counter() - tic
+        proposal.metrics["surrogate_archive_size"] = float(len(surrogate_archive))
+        return proposal
+
+    def learn(self, batch: EvaluatedBatch) -> dict[str, float]:
+        metrics: dict[str, float] = {}
+        encoded = encode_solutions(self.domain, batch.solutions)
+        if batch.ok:
+            self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures, occupancy=batch.occupancy)
+            self.dataset.append(encoded=encoded, results=batch.results)
+            if batch.outer_iteration > 0:  # the first batch is random: nothing was predicted for it
+                predicted = self.surrogate.predict(encoded)
+                errors = self.surrogate.mae(encoded, batch.results, prediction=predicted)
+                metrics.update({f"mae_{self._label(k)}": v for k, v in errors.items()})
+                self.last_predictions = (predicted.measures[batch.ok], batch.measures)
+        return metrics
+
+    # ---------------------------------------------------------------------------------- phases
+
+    def _train(self) -> dict[str, float]:
+        """Model improvement: trains on the most recent evaluations (weights and Adam state persist)."""
+        losses = self.surrogate.train(self.dataset)
+        metrics = {"surrogate_loss": losses.pop("total"), "surrogate_epochs": losses.pop("epochs")}
+        if "validation" in losses:
+            metrics["surrogate_validation_loss"] = losses.pop("validation")
+        metrics.update({f"surrogate_loss_{self._label(k)}": v for k, v in losses.items()})
+        return metrics
+
+    def _exploit(self) -> "GridArchive":
+        """Model exploitation: a fresh surrogate archive and fresh emitters, ``qd.exploit_iterations`` ask → predict → tell."""
+        archive = domain_archive(self.domain, with_occupancy=False, seed=self.seeds.next_qd_seed())
+        scheduler = make_scheduler(archive, config=self.config.qd, solution_dim=self.domain.solution_dim,
+                                   random_solutions=self.domain.random_solutions, seed=self.seeds.next_qd_seed())
+
+        def predict(solutions: Solutions):
+            prediction = self.surrogate.predict(encode_solutions(self.domain, solutions))
+            return prediction.objective, prediction.measures, {}
+
+        progress = None
+        if self.progress is not None:
+            total = self.config.qd.exploit_iterations
+            done = iter(range(1, total + 1))
+            # run_inner_loop reports one increment per iteration; our callback takes a running count.
+            progress = lambda _increment: self.progress("exploit", next(done), total)  # noqa: E731
+        run_inner_loop(scheduler, predict, self.config.qd.exploit_iterations, progress=progress)
+        return archive
+
+    def _select(self, surrogate_archive: "GridArchive", metrics: dict[str, float]) -> Solutions:
+        """Selection: downsample / random / full picks from the surrogate archive."""
+        selection = self.config.selection
+        picks = select_solutions(surrogate_archive, method=selection.method, block=selection.block,
+                                 count=selection.count, rng=self.seeds.rng)
+        if selection.skip_filled:
+            skipped = skip_filled(surrogate_archive, picks, self.archive)
+            picks = skipped.kept
+            metrics["selection_filled"] = float(skipped.filled)
+            metrics["selection_fallback"] = float(skipped.fallback)
+        return gather_elites(surrogate_archive, picks)["solution"]
+
+    def _label(self, head: str) -> str:
+        return head_label(head, self.domain.measure_names)
+
+    # ----------------------------------------------------------------------------------- state
+
+    def state_dict(self) -> dict[str, Any]:
+        return {"scheduler": None, "surrogate": self.surrogate.state_dict(), "dataset": self.dataset.state_dict(),
+                **self.holdout.state_dict()}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.archive = state["archive"]
+        self.surrogate.load_state_dict(state["surrogate"])
+        self.dataset.load_state_dict(state["dataset"])
+        self.holdout.load_state_dict(state)
+        self.last_predictions = state["last_predictions"]
