@@ -27,7 +27,7 @@ from typing import Any, Literal, Mapping
 import numpy as np
 
 from dsage_ray.domains.registry import domain_names, get_domain
-from dsage_ray.errors import InputError
+from dsage_ray.errors import InputError, did_you_mean
 
 
 class ConfigError(InputError):
@@ -440,12 +440,6 @@ def _subsection(target: Any, part: str, *, where: str) -> Any:
     sections = [*domains, *(name for name, kind in hints.items() if dataclasses.is_dataclass(kind))]
     raise ConfigError(f"{where}: unknown config section "
                       f"(known: {', '.join(sections) or 'none'}){did_you_mean(part, sections)}")
-
-
-def did_you_mean(name: Any, known: Any) -> str:
-    """``"; did you mean 'X'?"`` for the closest of ``known`` to ``name``, or ``""``."""
-    close = difflib.get_close_matches(str(name), [str(k) for k in known], n=1, cutoff=0.6)
-    return f"; did you mean {close[0]!r}?" if close else ""
 
 
 def key_hint(key: str, known: Mapping[str, Any]) -> str:

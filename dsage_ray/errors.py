@@ -19,8 +19,9 @@ The kinds also derive from the built-in exception their users already catch (an
 
 from __future__ import annotations
 
+import difflib
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 #: Exit code of a command stopped with Ctrl+C (128 + SIGINT, as shells report it).
 INTERRUPTED_BY_USER = 130
@@ -85,3 +86,10 @@ def describe(exc: BaseException) -> tuple[int, str]:
     else:
         message = str(exc) or type(exc).__name__
     return code, " ".join(message.split())
+
+
+def did_you_mean(name: Any, known: Any) -> str:
+    """``"; did you mean 'X'?"`` for the closest of ``known`` to ``name``, or ``""``: the hint every
+    "unknown ..." message ends with."""
+    close = difflib.get_close_matches(str(name), [str(k) for k in known], n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""

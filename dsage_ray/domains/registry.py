@@ -16,12 +16,11 @@ notebooks). See docs/EXTENDING.md.
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import importlib
 import importlib.metadata
 from typing import Any, Callable, Mapping
 
-from dsage_ray.errors import InputError
+from dsage_ray.errors import InputError, did_you_mean
 from dsage_ray.plugins import Plugins
 from dsage_ray.plugins import scan as scan_plugins
 
@@ -244,9 +243,7 @@ def get_domain(name: str) -> DomainSpec:
         points = _scan(refresh=True)
     if name not in points:
         known = domain_names()
-        close = difflib.get_close_matches(str(name), known, n=1, cutoff=0.6)
-        raise InputError(f"unknown domain {name!r} (known: {', '.join(known) or 'none'})"
-                         + (f"; did you mean {close[0]!r}?" if close else "")
+        raise InputError(f"unknown domain {name!r} (known: {', '.join(known) or 'none'})" + did_you_mean(name, known)
                          + ("" if known else f"; is dsage_ray installed (pip install -e .)? Domains are "
                                              f"entry points of the {ENTRY_POINT_GROUP!r} group"))
     if name in _plugins.clashes:

@@ -11,7 +11,8 @@ from ribs.archives import ArchiveBase
 from ribs.emitters import EmitterBase, EvolutionStrategyEmitter
 from ribs.schedulers import Scheduler
 
-from dsage_ray.config import ConfigError, EmitterName, QDConfig, did_you_mean
+from dsage_ray.config import ConfigError, EmitterName, QDConfig
+from dsage_ray.errors import did_you_mean
 from dsage_ray.qd.emitters import MapElitesBitmapEmitter, RandomEmitter, Sampler
 
 #: ``predict(solutions) -> (objective (n,), measures (n, m), extra fields {name: (n, ...)})``.

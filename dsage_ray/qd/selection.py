@@ -9,7 +9,8 @@ from typing import Callable, Sequence
 import numpy as np
 from ribs.archives import GridArchive
 
-from dsage_ray.config import ConfigError, SelectionMethod, did_you_mean
+from dsage_ray.config import ConfigError, SelectionMethod
+from dsage_ray.errors import did_you_mean
 
 def select_solutions(
     archive: GridArchive,

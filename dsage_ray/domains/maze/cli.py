@@ -14,7 +14,8 @@ def add_subparser(subparsers) -> None:
     ev = commands.add_parser("eval", help="evaluate an agent on a maze layout file",
                              description="Runs an agent on a layout for N episodes and prints the summary.")
     ev.add_argument("--agent", required=True, metavar="SPEC",
-                    help="agent spec: builtin:random, builtin:wall_follower, dcd:PATH, torchscript:PATH")
+                    help="agent spec: dcd:accel, dcd:PATH, rllib:PATH (a checkpoint or RLModule folder; rllib:ppo_maze is "
+                         "shipped), torchscript:PATH, builtin:random, builtin:wall_follower")
     ev.add_argument("--layout", required=True, metavar="FILE",
                     help="plain-text layout: '#' wall, '.' empty, optional S/G; interior only")
     ev.add_argument("--episodes", type=int, default=50, help="episodes to run (default 50)")
