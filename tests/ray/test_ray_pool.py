@@ -101,7 +101,7 @@ def test_killed_actor_during_a_run_leaves_the_archive_unchanged(pool):
     killer.join()
     assert pool.stats.actor_deaths - deaths == 1
     assert runner.evals == uninterrupted.evals == 160
-    assert archive_snapshot(runner.ground_truth_archive) == archive_snapshot(uninterrupted.ground_truth_archive)
+    assert archive_snapshot(runner.archive) == archive_snapshot(uninterrupted.archive)
 
 
 def test_more_simulators_than_the_cluster_has_fails_at_once(ray_session):

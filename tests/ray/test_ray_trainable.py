@@ -55,8 +55,8 @@ def test_step_save_restore_continues_exactly(tmp_path, uninterrupted):
         while not (result := second.train())["done"]:
             pass
         assert result["evals"] == config.budget
-        assert archive_snapshot(second.runner.ground_truth_archive) == archive_snapshot(
-            uninterrupted.ground_truth_archive)
+        assert archive_snapshot(second.runner.archive) == archive_snapshot(
+            uninterrupted.archive)
     finally:
         second.stop()
 
@@ -82,7 +82,7 @@ def test_a_trial_killed_mid_run_restores_and_ends_with_the_uninterrupted_archive
     assert result.metrics["training_iteration"] == len(uninterrupted.history)
     assert result.metrics["pool_in_trial_placement_group"] == 1.0
     state = load_checkpoint(Path(result.checkpoint.path) / CHECKPOINT_NAME)
-    assert archive_snapshot(state["archive"]) == archive_snapshot(uninterrupted.ground_truth_archive)
+    assert archive_snapshot(state["archive"]) == archive_snapshot(uninterrupted.archive)
     history = result.metrics_dataframe
     assert list(history["training_iteration"]) == sorted(set(history["training_iteration"]))
 
