@@ -9,14 +9,14 @@ STAMP := $(VENV)/.installed
 # Benchmarks that read a finished run (RUN=its folder, holding checkpoint.dsage) instead of making their own data.
 RUN_BENCHMARKS := benchmarks/bench_surrogate_training.py benchmarks/bench_surrogate_ceiling.py
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml Makefile
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/pip install --upgrade --quiet pip
 	# torch first: the pinned CPU build is on disk; an unpinned torch would pull a multi-GB CUDA build.
 	$(BIN)/pip install --quiet torch==2.13.0
 	# An old egg-info at the root would shadow the installed metadata, and with it the domain entry points.
 	rm -rf dsage_ray.egg-info
-	$(BIN)/pip install --quiet -e '.[mario,dev]'
+	$(BIN)/pip install --quiet -e '.[mario,dev,bench]'
 	# mario-gpt ships the Mario AI jar and the human levels; its own deps (transformers) are not needed.
 	$(BIN)/pip install --quiet --no-deps mario-gpt==0.1.3
 	touch $(STAMP)
