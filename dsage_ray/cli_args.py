@@ -22,6 +22,9 @@ def add_config_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGro
     parser.add_argument("--time-budget", type=parse_duration, metavar="DURATION",
                         help="also stop once the run has stepped this long (sets time_budget): 90, 90s, 10m or "
                              "1.5h; the evaluation budget still applies, whichever comes first ends the run")
+    parser.add_argument("--surrogate-init", metavar="PATH",
+                        help="warm-start the surrogate (sets surrogate.init): a file of `dsage-ray surrogate "
+                             "pretrain`, or an earlier run or audit folder of the same network and encoding")
 
 
 def parse_duration(text: str) -> float:
@@ -37,16 +40,26 @@ def parse_duration(text: str) -> float:
     return float(match[1]) * _DURATION_UNITS[match[2]]
 
 
-def load_run_config(args: argparse.Namespace, path: str | None):
-    """The :class:`~dsage_ray.config.RunConfig` of ``path`` (or the defaults) with ``--preset``, ``--set`` and
-    ``--time-budget`` applied."""
-    from dsage_ray.config import RunConfig, parse_override
+def config_overrides(args: argparse.Namespace) -> dict:
+    """The dotted config keys that ``--set``, ``--time-budget`` and ``--surrogate-init`` give (not ``--preset``)."""
+    from dsage_ray.config import parse_override
 
     overrides = dict(parse_override(item) for item in args.overrides)
-    if args.preset:
-        overrides["preset"] = args.preset
     if args.time_budget is not None:
         overrides["time_budget"] = args.time_budget
+    if args.surrogate_init is not None:
+        overrides["surrogate.init"] = args.surrogate_init
+    return overrides
+
+
+def load_run_config(args: argparse.Namespace, path: str | None):
+    """The :class:`~dsage_ray.config.RunConfig` of ``path`` (or the defaults) with ``--preset`` and
+    :func:`config_overrides` applied."""
+    from dsage_ray.config import RunConfig
+
+    overrides = config_overrides(args)
+    if args.preset:
+        overrides["preset"] = args.preset
     return RunConfig.from_file(path, overrides) if path else RunConfig.build(overrides)
 
 

@@ -94,6 +94,15 @@ class SurrogateConfig:
     #: Epochs of every training after the first, which trains ``epochs`` (the weights and Adam state
     #: persist, so later trainings start from a fitted model); 0 (the paper): always ``epochs``.
     incremental_epochs: int = 0
+    #: Warm start (beyond the paper): a file of ``dsage-ray surrogate pretrain``, or an earlier surrogate
+    #: run, audit or trial folder (or its ``checkpoint.dsage``). Its weights start this run's surrogate and
+    #: the first outer iteration exploits them instead of evaluating ``n_rand`` random levels
+    #: (:mod:`dsage_ray.core.warm_start`). Empty: a cold start (the paper). Made absolute when the
+    #: config is built (Tune trials run in their own folder).
+    init: str = ""
+    #: With ``init``: its dataset becomes the oldest part of this run's dataset, so it weighs in the first
+    #: trainings and leaves the ``train_window`` as this run's evaluations arrive. Off: weights only.
+    init_prior: bool = True
 
 
 @dataclasses.dataclass
@@ -234,6 +243,8 @@ class RunConfig:
         layered.update(explicit)
         config = cls(domain=base.domain)
         _assign(config, layered)
+        if config.surrogate.init:
+            config.surrogate.init = str(Path(config.surrogate.init).expanduser().resolve())
         config.validate()
         return config
 
@@ -318,6 +329,8 @@ class RunConfig:
         need(0.0 <= self.surrogate.validation_fraction < 1.0, "surrogate.validation_fraction",
              "must be in [0, 1) (0: no early stopping)")
         need(self.surrogate.patience >= 1, "surrogate.patience", "must be positive")
+        need(not self.surrogate.init or self.uses_surrogate, "surrogate.init",
+             "a warm start needs a surrogate (this variant runs without one)")
         need(not self.surrogate.occupancy_sum_measure or self.surrogate.kind != "one_stage",
              "surrogate.occupancy_sum_measure", "needs the two-stage surrogate (only it predicts occupancy)")
         measure_names = getattr(self.sections[self.domain], "measures", None)

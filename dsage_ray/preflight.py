@@ -21,13 +21,19 @@ def preflight(*configs: RunConfig) -> None:
     Domains without a ``preflight`` method (it is optional, :class:`~dsage_ray.types.AuditableDomain`)
     are only built.
 
+    A ``surrogate.init`` warm start is loaded and checked against its config too (so it must still be
+    there when a run resumes).
+
     Raises:
-        InputError: An agent that does not load (a missing file, a wrong checkpoint format); the
-            message names it.
+        InputError: An agent that does not load (a missing file, a wrong checkpoint format), or a
+            ``surrogate.init`` that does not fit its config; the message names it.
         ResourceError: A missing simulator (Java or the Mario AI jar).
     """
+    from dsage_ray.core.warm_start import check_warm_start
+
     seen = set()
     for config in configs:
+        check_warm_start(config)
         key = (config.domain, json.dumps(config.to_dict().get(config.domain), sort_keys=True))
         if key in seen:
             continue

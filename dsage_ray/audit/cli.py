@@ -96,7 +96,7 @@ def run_audit_command(args: argparse.Namespace) -> int:
     Errors end the command through :func:`dsage_ray.cli.main` (one line, the exit code of their kind).
     """
     from dsage_ray.audit.run import run_audit
-    from dsage_ray.config import parse_override
+    from dsage_ray.cli_args import config_overrides
 
     if args.agent is None:
         print(_demo_notice(args), flush=True)
@@ -104,8 +104,7 @@ def run_audit_command(args: argparse.Namespace) -> int:
     collection = run_audit(
         agent=args.agent, domain=args.domain, reference=args.reference, preset=args.preset, variant=args.variant,
         objective=args.objective, measures=measures, budget=args.budget, seed=args.seed,
-        overrides=dict(parse_override(item) for item in args.overrides)
-        | ({} if args.time_budget is None else {"time_budget": args.time_budget}), out=args.out, local=args.local,
+        overrides=config_overrides(args), out=args.out, local=args.local,
         workers=args.workers, address=args.address, resume=args.resume, episodes=args.episodes,
         max_levels=args.max_levels, collect_only=args.collect_only)
     print(f"collection: {collection.path}")

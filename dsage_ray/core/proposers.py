@@ -180,20 +180,26 @@ class SurrogateAssisted:
         self.dataset = self.surrogate.make_dataset()
         self.holdout = HeldOutLevels(count=config.surrogate.holdout_levels, domain=domain, seeds=seeds)
         self.last_predictions: tuple[np.ndarray, np.ndarray] | None = None
+        #: Samples of the dataset that came from ``surrogate.init`` (the oldest ones), not from this run.
+        self.prior_samples = 0
 
     def propose(self, *, outer_iteration: int) -> Proposal:
+        proposal = Proposal(np.empty(0))
         if outer_iteration == 0:
-            proposal = Proposal(np.empty(0))
             if self.holdout.pending:
                 tic = time.perf_counter()
                 self.holdout.evaluate(self.evaluator, progress=self.progress)
                 proposal.times["holdout"] = time.perf_counter() - tic
-            proposal.solutions = self.domain.random_solutions(self.config.n_rand, self.seeds.rng)
-            return proposal
-        proposal = Proposal(np.empty(0))
-        tic = time.perf_counter()
-        proposal.metrics.update(self._train())
-        proposal.times["train"] = time.perf_counter() - tic
+            if not self.config.surrogate.init:
+                proposal.solutions = self.domain.random_solutions(self.config.n_rand, self.seeds.rng)
+                return proposal
+            tic = time.perf_counter()
+            proposal.metrics.update(self._warm_start())
+            proposal.times["train"] = time.perf_counter() - tic
+        else:
+            tic = time.perf_counter()
+            proposal.metrics.update(self._train())
+            proposal.times["train"] = time.perf_counter() - tic
         if self.holdout.data is not None:
             tic = time.perf_counter()
             proposal.metrics.update(self.holdout.score(self.surrogate))
@@ -213,7 +219,8 @@ class SurrogateAssisted:
         if batch.ok:
             self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures, occupancy=batch.occupancy)
             self.dataset.append(encoded=encoded, results=batch.results)
-            if batch.outer_iteration > 0:  # the first batch is random: nothing was predicted for it
+            # A cold start's first batch is random: nothing was predicted for it.
+            if batch.outer_iteration > 0 or self.config.surrogate.init:
                 predicted = self.surrogate.predict(encoded)
                 errors = self.surrogate.mae(encoded, batch.results, prediction=predicted)
                 metrics.update({f"mae_{self._label(k)}": v for k, v in errors.items()})
@@ -230,6 +237,19 @@ class SurrogateAssisted:
             metrics["surrogate_validation_loss"] = losses.pop("validation")
         metrics.update({f"surrogate_loss_{self._label(k)}": v for k, v in losses.items()})
         return metrics
+
+    def _warm_start(self) -> dict[str, float]:
+        """Loads ``surrogate.init``'s weights (and, with ``init_prior``, its dataset) before the first exploit."""
+        from dsage_ray.core.warm_start import load_warm_start
+
+        source = load_warm_start(self.config.surrogate.init)
+        source.check_compatible(self.config, level_shape=self.dataset.level_shape)
+        self.surrogate.model.load_state_dict(source.surrogate["model"])
+        if self.config.surrogate.init_prior:
+            self.dataset.load_state_dict({key: source.dataset[key] for key in (
+                "levels", "objective", "measures", "occupancy")} | {"level_shape": self.dataset.level_shape})
+            self.prior_samples = len(self.dataset)
+        return {"prior_samples": float(self.prior_samples)}
 
     def _exploit(self) -> "GridArchive":
         """Model exploitation: a fresh surrogate archive and fresh emitters, ``qd.exploit_iterations`` ask → predict → tell."""
@@ -269,11 +289,12 @@ class SurrogateAssisted:
 
     def state_dict(self) -> dict[str, Any]:
         return {"scheduler": None, "surrogate": self.surrogate.state_dict(), "dataset": self.dataset.state_dict(),
-                **self.holdout.state_dict()}
+                "prior_samples": self.prior_samples, **self.holdout.state_dict()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.archive = state["archive"]
         self.surrogate.load_state_dict(state["surrogate"])
         self.dataset.load_state_dict(state["dataset"])
+        self.prior_samples = state.get("prior_samples", 0)
         self.holdout.load_state_dict(state)
         self.last_predictions = state["last_predictions"]
