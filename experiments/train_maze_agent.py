@@ -16,6 +16,21 @@ is switched off with ``--no-x``)::
     nice -n 10 python experiments/train_maze_agent.py --run-name ppo_maze --resume   # continue it
     tensorboard --logdir tb_logs
 
+Audits while training (``--audit-every N``, ``dsage_ray.integrations.rllib.AuditCallback``): every N
+iterations the current module is saved to ``tb_logs/<run_name>/audit_series/checkpoints/iter_<N>`` and audited
+(the regression suite of earlier audits' failures re-evaluated, then a short warm-started DSAGE search of
+``--audit-budget`` evaluations whose new failures join the suite); the series lives in
+``tb_logs/<run_name>/audit_series`` and its numbers go to the run's TensorBoard under ``audit/...`` with
+step = env steps. A failed audit logs one warning line; training goes on::
+
+    nice -n 10 python experiments/train_maze_agent.py --run-name ppo_audited --audit-every 25 --audit-budget 30
+
+Training on found failures (``--train-on-collection DIR``): a share (``--collection-share``, default 0.25) of
+the episodes replays a level of an audit collection (``DIR`` is the collection folder, or an audit folder
+holding ``collection/``) instead of a fresh random maze, drawn from the env's seeded rng::
+
+    nice -n 10 python experiments/train_maze_agent.py --run-name ppo_mixed --train-on-collection tb_logs/audit_mine
+
 The run folder holds ``checkpoint/`` (the latest full algorithm checkpoint, what ``--resume`` reads; also
 loadable as ``rllib:tb_logs/<run>/checkpoint``), ``progress.json`` and TensorBoard event files.
 ``--export DIR`` copies the module-only checkpoint (a few hundred KB) there, e.g. into the package assets.
@@ -33,6 +48,8 @@ import time
 from pathlib import Path
 
 import tyro
+
+from dsage_ray.integrations import DEFAULT_AUDIT_BUDGET, DEFAULT_EPISODES, DEFAULT_PRESET
 
 
 ENV_NAME = "dsage_ray/RandomMaze-v0"
@@ -106,14 +123,37 @@ class Args:
     torch_threads: int = 1
     """torch threads for the learner (the machine is shared)"""
 
+    # Audits while training (dsage_ray.integrations.rllib.AuditCallback)
+    audit_every: int = 0
+    """training iterations between audits of the current policy (0 = no audits)"""
+    audit_budget: int = DEFAULT_AUDIT_BUDGET
+    """real evaluations of each audit's DSAGE search"""
+    audit_preset: str = DEFAULT_PRESET
+    """the audits' preset (their search settings; --audit-budget replaces its budget)"""
+    audit_episodes: int = DEFAULT_EPISODES
+    """episodes per level when an audit re-evaluates the suite and its new failures"""
+    audit_local: bool = True
+    """run the audits in the training process (--no-audit-local: through Ray, on the training's cluster)"""
+
+    # Training on an audit's failures
+    train_on_collection: str = ""
+    """an audit collection folder (or an audit folder holding collection/) whose levels replace a share of the
+    random training mazes (empty = random mazes only)"""
+    collection_share: float = 0.25
+    """probability that an episode plays a level of --train-on-collection instead of a random maze"""
+
 
 def parse_args(argv: list[str] | None = None) -> Args:
     """``Args`` from the command line (``--help`` lists every flag; a boolean ``--x`` has ``--no-x``)."""
     return tyro.cli(Args, args=argv, description=__doc__.split("\n\n")[0])
 
 
-def build_config(args: Args):
-    """The PPOConfig: our env creator, our RLModule, one local env runner, one local learner."""
+def build_config(args: Args, levels: list[str] | None = None):
+    """The PPOConfig: our env creator, our RLModule, one local env runner, one local learner.
+
+    ``levels`` (layout texts, :func:`collection_levels`) are mixed into the training mazes with
+    probability ``args.collection_share``.
+    """
     from ray.rllib.algorithms.ppo import PPOConfig
     from ray.rllib.core.rl_module.rl_module import RLModuleSpec
     from ray.tune.registry import register_env
@@ -128,7 +168,9 @@ def build_config(args: Args):
         model_config["max_seq_len"] = args.max_seq_len
     return (
         PPOConfig()
-        .environment(ENV_NAME, env_config={"difficulty": 0.0, "see_through_walls": args.see_through_walls})
+        .environment(ENV_NAME, env_config={"difficulty": 0.0, "see_through_walls": args.see_through_walls,
+                                           **({"levels": list(levels), "level_share": args.collection_share}
+                                              if levels else {})})
         # Sampling in the driver process: on 2 shared cores a remote env runner only adds copies.
         .env_runners(num_env_runners=0, num_envs_per_env_runner=args.num_envs)
         .learners(num_learners=0)
@@ -146,6 +188,53 @@ def build_config(args: Args):
         )
         .debugging(seed=args.seed)
     )
+
+
+def collection_levels(folder: str | Path, *, height: int = 16, width: int = 16) -> list[str]:
+    """The layout texts of an audit collection's levels, for ``--train-on-collection``.
+
+    ``folder`` is a collection folder (``collection.json`` and ``levels/``) or an audit folder holding one
+    in ``collection/``. Raises InputError, naming the folder and the problem, when it is not a Maze
+    collection with at least one readable level of the training size.
+    """
+    from dsage_ray.audit.results import Collection
+    from dsage_ray.domains.maze.layout import format_layout, load_layout
+    from dsage_ray.errors import InputError
+
+    name = f"--train-on-collection {folder}"
+    path = Path(folder)
+    if not path.is_dir():
+        raise InputError(f"{name}: no such folder")
+    if not (path / "collection.json").is_file() and (path / "collection" / "collection.json").is_file():
+        path = path / "collection"  # an audit folder
+    if not (path / "collection.json").is_file():
+        raise InputError(f"{name}: no collection.json (expected an audit's collection folder, or an audit folder "
+                         f"holding collection/)")
+    try:
+        collection = Collection.load(path)
+    except (ValueError, KeyError, TypeError) as exc:
+        raise InputError(f"{name}: {exc}") from None
+    if collection.domain != "maze":
+        raise InputError(f"{name}: a {collection.domain} collection; the maze agent trains on maze levels")
+    if not collection.levels:
+        raise InputError(f"{name}: the collection holds no levels")
+    texts = []
+    for level in collection.levels:
+        maze = load_layout(level.level_path)  # LayoutError (an InputError) names the file and the line
+        if (maze.height, maze.width) != (height, width):
+            raise InputError(f"{name}: {level.level_path} is {maze.height}x{maze.width}; the training mazes are "
+                             f"{height}x{width}")
+        texts.append(format_layout(maze))
+    return texts
+
+
+def audit_callback(args: Args, run_dir: Path, writer):
+    """``--audit-every``: the RLlib callback factory (series in ``run_dir/audit_series``, scalars to ``writer``)."""
+    from dsage_ray.integrations.rllib import AuditCallback
+
+    return AuditCallback.configured(audit_every=args.audit_every, audit_budget=args.audit_budget,
+                                    out_dir=run_dir / "audit_series", writer=writer, preset=args.audit_preset,
+                                    episodes=args.audit_episodes, local=args.audit_local, seed=args.seed)
 
 
 def difficulty_at(env_steps: int, args: Args) -> float:
@@ -192,6 +281,19 @@ def module_dir(checkpoint: Path) -> Path:
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     os.environ.setdefault("RAY_AUTH_MODE", "disabled")
+    from dsage_ray.errors import InputError
+
+    levels = None
+    try:
+        if args.audit_every < 0 or args.audit_budget < 1:
+            raise InputError("--audit-every must be >= 0 and --audit-budget >= 1")
+        if not 0.0 <= args.collection_share <= 1.0:
+            raise InputError(f"--collection-share {args.collection_share} is not a probability in [0, 1]")
+        if args.train_on_collection:
+            levels = collection_levels(args.train_on_collection)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     import ray
     import torch
     from tensorboardX import SummaryWriter
@@ -205,14 +307,21 @@ def main(argv: list[str] | None = None) -> int:
     run_dir.mkdir(parents=True, exist_ok=True)
     (run_dir / "args.json").write_text(json.dumps(dataclasses.asdict(args), indent=2))
 
+    if levels:
+        print(f"training on {len(levels)} levels of {args.train_on_collection} in a share {args.collection_share} "
+              f"of the episodes", flush=True)
+
     ray.init(num_cpus=args.num_cpus, include_dashboard=False, log_to_driver=False)
-    algo = build_config(args).build_algo()
+    writer = SummaryWriter(str(run_dir))
+    config = build_config(args, levels)
+    if args.audit_every:
+        config.callbacks(audit_callback(args, run_dir, writer))
+    algo = config.build_algo()
     progress = {"iteration": 0, "env_steps": 0, "wall_s": 0.0}
     if args.resume:
         algo.restore_from_path(str((run_dir / "checkpoint").resolve()))
         progress = json.loads((run_dir / "progress.json").read_text())
         print(f"resumed at iteration {progress['iteration']}, {progress['env_steps']} env steps")
-    writer = SummaryWriter(str(run_dir))
 
     started = time.perf_counter() - progress["wall_s"]
     def finished() -> bool:
@@ -243,6 +352,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"iter {progress['iteration']:4d}  steps {step:8d}  return {scalars['train/episode_return_mean'] or 0:.3f}  "
               f"len {scalars['train/episode_len_mean'] or 0:6.1f}  difficulty {scalars['train/difficulty']:.2f}  "
               f"{scalars['train/env_steps_per_s']:.0f} steps/s", flush=True)
+        if "audit" in result:
+            audit = result["audit"]
+            print(f"  audit: suite success {audit.get('suite_success_rate', float('nan')):.3f}  "
+                  f"fixed {audit.get('fixed', 0):.0f}  regressed {audit.get('regressed', 0):.0f}  "
+                  f"new failures {audit.get('new_failures', 0):.0f}  {audit.get('wall_time', 0):.0f} s", flush=True)
 
         last = finished()
         if progress["iteration"] % args.checkpoint_every == 0 or last:
