@@ -1,4 +1,5 @@
-"""``dsage-ray audit`` and ``dsage-ray compare``: they parse, call the library and print."""
+"""``dsage-ray audit``, ``dsage-ray compare`` and ``dsage-ray audit-series``: they parse, call the library and
+print."""
 
 from __future__ import annotations
 
@@ -81,6 +82,7 @@ def add_subparser(subparsers) -> None:
                          help="evaluate on N Ray simulator actors (default: in this process)")
     compare.add_argument("--html", help="HTML page to write (default DIR/compare-<A>-vs-<B>.html)")
     compare.set_defaults(handler=run_compare_command)
+    add_series_subparser(subparsers)
 
 
 def agent_help() -> str:
@@ -159,3 +161,193 @@ def run_compare_command(args: argparse.Namespace) -> int:
     print(format_comparison(comparison))
     print(f"\nHTML: {html_path}")
     return 0
+
+
+SERIES_EXAMPLES = """\
+examples:
+  dsage-ray audit-series rllib:run/ckpt_1 rllib:run/ckpt_2 rllib:run/ckpt_3 --out tb_logs/series   # in this order
+  dsage-ray audit-series builtin:random builtin:wall_follower --preset tiny --local --out /tmp/series  # a smoke test
+  dsage-ray audit-series --watch tb_logs/ppo/checkpoints --pattern 'checkpoint_*' --out tb_logs/series_ppo
+  dsage-ray audit-series dcd:a.tar dcd:b.tar --out tb_logs/series      # again: continues, skips what is recorded
+
+Each checkpoint: its success on the regression suite (the failing levels earlier checkpoints' audits found,
+with their recorded seeds), the suite levels fixed and regressed since the previous checkpoint, then a short
+audit (default a quarter of the preset's budget) warm-started from the previous audit's surrogate, whose new
+failing levels join the suite. A level fails when its failure rate is >= 0.5.
+--watch DIR audits DIR's entries (files or folders matching --pattern) as KIND:PATH specs (--kind, default
+rllib) in modification-time order, each once it has not changed for --poll seconds, and waits for new ones
+until Ctrl+C (or --max-checkpoints). Python: dsage_ray.AuditSeries (docs/API.md).
+"""
+
+
+def add_series_subparser(subparsers) -> None:
+    """Registers ``audit-series``."""
+    from dsage_ray.cli_args import preset_help
+
+    series = subparsers.add_parser(
+        "audit-series", help="audit checkpoints in training order: a growing regression suite, a short search each",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Audits checkpoints of one agent in order (or as they appear with --watch) and writes "
+                    "series.json,\nseries.html (timeline, table per checkpoint, level x checkpoint matrix), each "
+                    "checkpoint's audit\nfolder and TensorBoard scalars audit/... into --out.",
+        epilog=SERIES_EXAMPLES)
+    series.add_argument("specs", nargs="*", metavar="SPEC",
+                        help=f"checkpoint agent specs, oldest first ({agent_help()})")
+    series.add_argument("--out", required=True, metavar="DIR",
+                        help="series folder; one that holds series.json is continued")
+    series.add_argument("--domain", default="maze", help="maze (default), mario, or a plug-in domain with audits")
+    search = series.add_argument_group("each checkpoint's audit")
+    search.add_argument("--preset", help=preset_help() + " (default cpu)")
+    search.add_argument("--budget", type=int,
+                        help="real evaluations per checkpoint (default: a quarter of the preset's, at least "
+                             "n_rand + selection.count)")
+    search.add_argument("--seed", type=int, default=0, help="run seed; checkpoint k's search uses SEED + k")
+    search.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a config key of every audit, e.g. --set maze.episodes=20")
+    search.add_argument("--episodes", type=int,
+                        help="episodes (mario: runs) per level, in the suite and the collections")
+    search.add_argument("--no-warm-start", dest="warm_start", action="store_false",
+                        help="start every search cold instead of from the previous audit's surrogate")
+    watch = series.add_argument_group("watching a folder")
+    watch.add_argument("--watch", metavar="DIR", help="audit new checkpoints of DIR as they appear (after the SPECs)")
+    watch.add_argument("--kind", default="rllib",
+                       help="agent kind of the watched checkpoints: each entry is audited as KIND:PATH (default rllib)")
+    watch.add_argument("--pattern", default="*",
+                       help="glob of the entries of DIR that are checkpoints (default *, hidden entries never), "
+                            "e.g. 'checkpoint_*' or '*.tar'")
+    watch.add_argument("--poll", type=float, default=30.0,
+                       help="seconds between looks at DIR; an entry is audited once it has not changed for this "
+                            "long (default 30)")
+    watch.add_argument("--max-checkpoints", type=int, metavar="N",
+                       help="stop after auditing N checkpoints (recorded ones skipped do not count)")
+    where = series.add_argument_group("where it runs")
+    where.add_argument("--local", action="store_true", help="run in this process, without Ray")
+    where.add_argument("--workers", type=int, help="simulator actors (sets ray.num_workers; 0: in the search process)")
+    where.add_argument("--address", help="join an existing Ray cluster (default: RAY_ADDRESS, else a new local one)")
+    series.set_defaults(handler=run_series_command)
+
+
+def watched_checkpoints(folder, *, pattern: str = "*", settle: float = 0.0, now: float | None = None) -> list:
+    """The checkpoints in ``folder`` to audit now, oldest first: its entries (files or folders) matching
+    ``pattern``, hidden and ``*.tmp`` ones left out, whose newest file was modified at least ``settle``
+    seconds before ``now`` (a checkpoint still being written waits); in order of that time, then name."""
+    import os
+    import time
+    from pathlib import Path
+
+    now = time.time() if now is None else now
+    found = []
+    for entry in Path(folder).glob(pattern):
+        if entry.name.startswith(".") or entry.name.endswith(".tmp"):
+            continue
+        try:
+            newest = entry.stat().st_mtime
+            if entry.is_dir():
+                for root, dirs, files in os.walk(entry):
+                    dirs[:] = [d for d in dirs if not d.startswith(".")]
+                    for name in files:
+                        newest = max(newest, os.stat(os.path.join(root, name)).st_mtime)
+        except OSError:  # removed while we looked: not a checkpoint to audit
+            continue
+        if now - newest >= settle:
+            found.append((newest, entry.name, entry))
+    return [entry for _, _, entry in sorted(found)]
+
+
+def run_series_command(args: argparse.Namespace) -> int:
+    """Handler of ``dsage-ray audit-series``: every SPEC, then (``--watch``) every new checkpoint, each through
+    :meth:`dsage_ray.AuditSeries.audit`; bad input fails in one line before anything is written."""
+    import sys
+    import time
+    from pathlib import Path
+
+    from dsage_ray.audit.series import AuditSeries
+    from dsage_ray.config import parse_override
+    from dsage_ray.preflight import preflight
+
+    if not args.specs and not args.watch:
+        raise InputError("give checkpoint SPECs to audit in order, or --watch DIR (or both)")
+    for flag, value in (("--poll", args.poll), ("--max-checkpoints", args.max_checkpoints)):
+        if value is not None and value <= 0:
+            raise InputError(f"{flag} must be positive, got {value}")
+    watch = Path(args.watch) if args.watch else None
+    if watch is not None and not watch.is_dir():
+        raise InputError(f"--watch {watch}: no such folder")
+    series = AuditSeries(out_dir=args.out, domain=args.domain, preset=args.preset, budget=args.budget, seed=args.seed,
+                         overrides=dict(parse_override(item) for item in args.overrides), local=args.local,
+                         workers=args.workers, address=args.address, episodes=args.episodes,
+                         warm_start=args.warm_start)
+    # Every agent loads (and a watched kind is one the domain plays) before anything is written.
+    for spec in args.specs:
+        if series.recorded(spec) is None:
+            preflight(series.config_for(spec))
+    if watch is not None:
+        series.config_for(f"{args.kind}:{watch}")
+
+    audited: list = []
+    busy = False
+
+    def audit(spec: str, label: str | None = None) -> bool:
+        """Audits one checkpoint (unless recorded) and prints its line; False once --max-checkpoints is reached."""
+        nonlocal busy
+        done = series.recorded(spec, label)
+        if done is not None:
+            print(f"#{done.index} {done.label}: already recorded, skipped", flush=True)
+            return True
+        print(f"#{len(series.records)} {label or spec}: auditing ...", flush=True)
+        busy = True
+        record = series.audit(spec, label=label)
+        busy = False
+        audited.append(record)
+        print(_record_line(record), flush=True)
+        return args.max_checkpoints is None or len(audited) < args.max_checkpoints
+
+    interrupted = False
+    try:
+        going = all(audit(spec) for spec in args.specs)
+        if watch is not None and going:
+            print(f"watching {watch} for {args.pattern!r} every {args.poll:g} s (Ctrl+C stops)", flush=True)
+            while going:
+                # Absolute paths: a Tune trial runs in a folder of its own.
+                new = [entry.resolve() for entry in watched_checkpoints(watch, pattern=args.pattern, settle=args.poll)]
+                new = [entry for entry in new if series.recorded(f"{args.kind}:{entry}", entry.name) is None]
+                for entry in new:
+                    going = audit(f"{args.kind}:{entry}", label=entry.name)
+                    if not going:
+                        break
+                else:
+                    time.sleep(args.poll)
+    except KeyboardInterrupt:
+        interrupted = True
+        print(f"\nstopped (Ctrl+C){' during an audit; it is not recorded' if busy else ''}", flush=True)
+    _print_series_paths(series)
+    failed = [r for r in audited if r.error]
+    if failed:
+        print(f"dsage-ray audit-series: {len(failed)} of {len(audited)} checkpoint audits failed (their error is in "
+              f"series.json): " + "; ".join(f"#{r.index} {r.label}: {r.error}" for r in failed), file=sys.stderr)
+    return 130 if interrupted and busy else 1 if failed else 0
+
+
+def _record_line(record) -> str:
+    """One line per audited checkpoint."""
+    if record.error and not record.suite_size:
+        return f"#{record.index} {record.label}: FAILED: {record.error}"
+    success = "n/a" if record.suite_success_rate is None else f"{record.suite_success_rate:.3f}"
+    line = (f"#{record.index} {record.label}: suite success {success} ({record.suite_size} levels), "
+            f"{len(record.fixed)} fixed, {len(record.regressed)} regressed")
+    if record.error:
+        return f"{line}; audit FAILED: {record.error}"
+    summary = record.summary
+    return (f"{line}; {record.new_failures} new failures, {summary.get('never_solved', '?')} never solved, "
+            f"{summary.get('failure_cells', '?')} failure cells ({record.wall_time / 60:.1f} min)")
+
+
+def _print_series_paths(series) -> None:
+    from dsage_ray.core.tensorboard_log import tensorboard_hint
+
+    if not series.series_path.is_file():
+        print("nothing recorded")
+        return
+    print(f"series: {series.series_path} ({len(series.records)} checkpoints, {len(series.suite)} suite levels)")
+    print(f"report: {series.report_path}")
+    print(f"TensorBoard: {tensorboard_hint(series.tensorboard_dir)}")

@@ -14,7 +14,7 @@ of an agent (``series.audit(spec, label=..., step=...)``). For checkpoint ``k`` 
    ``seed + k``, so that each checkpoint's search starts from other random levels) into
    ``out_dir/checkpoints/<k>-<label>``. With ``warm_start``, the search of checkpoint ``k > 0`` starts from the
    surrogate of the last audit that succeeded (``surrogate.init`` = that audit's folder; its dataset is only
-   a prior, :mod:`dsage_ray.surrogate.pretrained`);
+   a prior, :mod:`dsage_ray.core.warm_start`);
 3. adds the **new failures** to the suite: the audit's collection levels that are failing and whose solution
    (its bytes) is not in the suite yet, each with its collection seed; their success at checkpoint ``k`` is
    the collection's number for that seed;

@@ -36,6 +36,7 @@ _STYLE = """<style>
 .matrix td span.c.none { background: #f1f2f4; color: #9aa1aa; }
 .matrix tr > :first-child { position: sticky; left: 0; background: #fff; z-index: 1; padding: 3px 6px; }
 .matrix thead tr > :first-child { z-index: 2; background: var(--head); }
+.figs img.timeline { max-width: 600px; }
 #summary .stat { min-width: 6.5rem; flex: 1 1 6.5rem; }
 .legend span { display: inline-block; padding: 0 .4rem; margin: 0 .1rem; border-radius: 3px; }
 td.err { white-space: normal; min-width: 14rem; text-align: left; color: var(--accent); }
@@ -205,7 +206,7 @@ def write_series_report(out_dir: str | os.PathLike[str], series: dict[str, Any])
              + "".join(f"<div class='stat'><b>{_esc(v)}</b><span>{_esc(t)}</span></div>" for v, t in tiles)
              + "</div>"]
     if records:
-        parts += ["<h2>Timeline</h2>", "<div class='figs'>", _img(timeline_png(records), alt="timeline"), "</div>",
+        parts += ["<h2>Timeline</h2>", "<div class='figs'>", _img(timeline_png(records), alt="timeline").replace("<img ", "<img class='timeline' ", 1), "</div>",
                   "<h2>Checkpoints</h2>",
                   "<p class='lead'>Hover a header for its meaning; <i>report</i> opens the checkpoint's audit.</p>",
                   _checkpoint_table(out_dir, records)]
