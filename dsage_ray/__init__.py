@@ -18,20 +18,26 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from dsage_ray.api import (Collection, CollectionLevel, DsageError, ExperimentResult, InputError, ResourceError,
                                RunConfig, RunResult, TrialFailed, ablate, resolve_config, run, run_audit)
+    from dsage_ray.audit.series import AuditSeries
 
 try:
     __version__ = metadata.version("dsage_ray")
 except metadata.PackageNotFoundError:  # a source checkout that was never installed
     __version__ = "0+unknown"
 
-__all__ = ["Collection", "CollectionLevel", "DsageError", "ExperimentResult", "InputError", "ResourceError",
-           "RunConfig", "RunResult", "TrialFailed", "__version__", "ablate", "resolve_config", "run", "run_audit"]
+__all__ = ["AuditSeries", "Collection", "CollectionLevel", "DsageError", "ExperimentResult", "InputError",
+           "ResourceError", "RunConfig", "RunResult", "TrialFailed", "__version__", "ablate", "resolve_config", "run",
+           "run_audit"]
+
+
+#: Public names that live outside :mod:`dsage_ray.api`, by module.
+_ELSEWHERE = {"AuditSeries": "dsage_ray.audit.series"}
 
 
 def __getattr__(name: str) -> Any:
     # PEP 562: the API module (and what it imports) loads when a public name is first read.
     if name in __all__:
-        return getattr(importlib.import_module("dsage_ray.api"), name)
+        return getattr(importlib.import_module(_ELSEWHERE.get(name, "dsage_ray.api")), name)
     raise AttributeError(f"module 'dsage_ray' has no attribute {name!r}")
 
 

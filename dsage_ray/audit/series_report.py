@@ -206,7 +206,8 @@ def write_series_report(out_dir: str | os.PathLike[str], series: dict[str, Any])
              + "".join(f"<div class='stat'><b>{_esc(v)}</b><span>{_esc(t)}</span></div>" for v, t in tiles)
              + "</div>"]
     if records:
-        parts += ["<h2>Timeline</h2>", "<div class='figs'>", _img(timeline_png(records), alt="timeline").replace("<img ", "<img class='timeline' ", 1), "</div>",
+        timeline = _img(timeline_png(records), alt="timeline").replace("<img ", "<img class='timeline' ", 1)
+        parts += ["<h2>Timeline</h2>", "<div class='figs'>", timeline, "</div>",
                   "<h2>Checkpoints</h2>",
                   "<p class='lead'>Hover a header for its meaning; <i>report</i> opens the checkpoint's audit.</p>",
                   _checkpoint_table(out_dir, records)]
@@ -217,7 +218,8 @@ def write_series_report(out_dir: str | os.PathLike[str], series: dict[str, Any])
               "a red frame: regressed there, a green frame: fixed there; blank: not found yet. "
               "Click a header to sort.</p>")
     parts += [f"<h2>Levels × checkpoints ({len(suite)} levels)</h2>", legend,
-              _matrix(records, suite) if suite else "<p>The suite is empty: no audit has found a failing level yet.</p>"]
+              _matrix(records, suite) if suite
+              else "<p>The suite is empty: no audit has found a failing level yet.</p>"]
     path = out_dir / REPORT_NAME
     atomic_write_text(path, _page(title, "".join(parts)))
     return path
