@@ -3,15 +3,21 @@
     python experiments/audit_comparison.py --agent dcd:accel --preset cpu --seeds 3
     python experiments/audit_comparison.py --agent builtin:wall_follower --preset tiny --seeds 1 --variants dsage,dr
     python experiments/audit_comparison.py --out tb_logs/audit_comparison --summary-only   # the table again
+    python experiments/audit_comparison.py --variants cold=dsage,warm=dsage --arm-set warm:surrogate.init=FILE \
+        --first-seed 200 --budget 500 --out tb_logs/warm_start          # the same search, cold and warm-started
 
-Every (variant, seed) is one audit (``dsage-ray audit --local --variant V --seed K``) in ``OUT/V_seedK``:
+Every (arm, seed) is one audit (``dsage-ray audit --local --variant V --seed K``) in ``OUT/V_seedK``:
 the same agent, objective, measures and budget, and a collection whose elites are all re-evaluated
 with recorded seeds, so the counts compare searches, not the luck of the search's own episodes. The
 table (``OUT/summary.md``, mean ± standard error over seeds) holds the failure-diversity numbers of
 each collection (``dsage_ray.audit.summary``): never-solved levels, distinct archive cells with a
 level failing at least half the time, levels with any failure. Audits run ``--jobs`` at a time, each
 in its own process on one thread; one already collected is skipped and an interrupted one resumes,
-so the command can be run again after a stop.
+so the command can be run again after a stop. An arm is a variant, or ``LABEL=VARIANT`` with its own
+config keys (``--arm-set LABEL:KEY=VALUE``), so one search can be compared with itself under other
+settings; its folders and rows are named by the label. The table also gives each search's wall time
+(minutes of its ``wall_time``: the searches share the machine, so compare them only among runs of one
+invocation, at ``--jobs 1`` on a quiet machine).
 """
 
 from __future__ import annotations
@@ -27,7 +33,7 @@ from pathlib import Path
 
 #: The columns of the table: (summary key, heading).
 COLUMNS = (("never_solved", "Never solved"), ("failure_cells", "Cells with failure rate ≥ 0.5"),
-           ("with_failures", "Levels with failures"), ("levels", "Levels"))
+           ("with_failures", "Levels with failures"), ("levels", "Levels"), ("search_minutes", "Search minutes"))
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -35,8 +41,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--agent", default="dcd:accel", help="agent spec to audit (default dcd:accel)")
     parser.add_argument("--domain", default="maze")
     parser.add_argument("--preset", default="cpu")
-    parser.add_argument("--variants", default="dsage,map_elites,dr", help="comma-separated searches to compare")
-    parser.add_argument("--seeds", type=int, default=3, help="seeds 0..K-1")
+    parser.add_argument("--variants", default="dsage,map_elites,dr",
+                        help="comma-separated searches to compare: VARIANT or LABEL=VARIANT")
+    parser.add_argument("--arm-set", action="append", default=[], metavar="LABEL:KEY=VALUE",
+                        help="a config key for one arm only, e.g. warm:surrogate.init=tb_logs/accel.surrogate")
+    parser.add_argument("--seeds", type=int, default=3, help="seeds per arm (default 3)")
+    parser.add_argument("--first-seed", type=int, default=0, help="the first seed (default 0: seeds 0..K-1)")
     parser.add_argument("--budget", type=int, help="real evaluations per search (default: the preset's)")
     parser.add_argument("--jobs", type=int, default=2, help="audits at a time (one CPU each)")
     parser.add_argument("--out", type=Path, default=Path("tb_logs/audit_comparison"))
@@ -46,14 +56,34 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def audit_command(args: argparse.Namespace, variant: str, seed: int, folder: Path) -> list[str]:
+def parse_arms(args: argparse.Namespace) -> dict[str, str]:
+    """``{label: variant}`` of ``--variants``, in order; every ``--arm-set`` label must be one of them."""
+    arms: dict[str, str] = {}
+    for item in (v.strip() for v in args.variants.split(",")):
+        if item:
+            label, _, variant = item.rpartition("=")
+            arms[label or variant] = variant
+    for item in args.arm_set:
+        label, sep, _ = item.partition(":")
+        if not sep or label not in arms:
+            raise SystemExit(f"--arm-set {item!r}: expected LABEL:KEY=VALUE with LABEL one of {sorted(arms)}")
+    return arms
+
+
+def seeds(args: argparse.Namespace) -> list[int]:
+    return list(range(args.first_seed, args.first_seed + args.seeds))
+
+
+def audit_command(args: argparse.Namespace, label: str, seed: int, folder: Path) -> list[str]:
     """The ``dsage-ray audit`` command of one grid point (resuming its search if one was started)."""
+    variant = parse_arms(args)[label]
     command = [sys.executable, "-m", "dsage_ray.cli", "audit", "--local", "--domain", args.domain,
                "--agent", args.agent, "--preset", args.preset, "--variant", variant, "--seed", str(seed),
                "--out", str(folder)]
     if args.budget is not None:
         command += ["--budget", str(args.budget)]
-    for item in args.overrides:
+    arm_keys = [item.partition(":")[2] for item in args.arm_set if item.partition(":")[0] == label]
+    for item in [*args.overrides, *arm_keys]:
         command += ["--set", item]
     if (folder / "search").is_dir():
         command.append("--resume")
@@ -76,8 +106,17 @@ def collection_file(out: Path, variant: str, seed: int) -> Path:
     return out / f"{variant}_seed{seed}" / "collection" / "collection.json"
 
 
-def summarize(out: Path, variants: list[str], seeds: int) -> str:
-    """The markdown table over the finished audits in ``out`` (mean ± s.e. over seeds per variant)."""
+def search_minutes(collection_dir: Path) -> float:
+    """Minutes the audit's search stepped (its last ``wall_time``), NaN when its metrics are not there."""
+    metrics = collection_dir.parent / "search" / "metrics.json"
+    try:
+        return float(json.loads(metrics.read_text())[-1]["wall_time"]) / 60
+    except (OSError, ValueError, KeyError, IndexError):
+        return float("nan")
+
+
+def summarize(out: Path, variants: list[str], seeds: list[int]) -> str:
+    """The markdown table over the finished audits in ``out`` (mean ± s.e. over seeds per arm)."""
     from dsage_ray.audit.collection_file import load_collection
     from dsage_ray.audit.summary import failure_summary
     from dsage_ray.core.metrics import format_mean_se, mean_se
@@ -87,7 +126,8 @@ def summarize(out: Path, variants: list[str], seeds: int) -> str:
     per_run: dict[str, list[dict]] = {}
     for variant in variants:
         summaries = [failure_summary(load_collection(collection_file(out, variant, seed).parent))
-                     for seed in range(seeds) if collection_file(out, variant, seed).is_file()]
+                     | {"seed": seed, "search_minutes": search_minutes(collection_file(out, variant, seed).parent)}
+                     for seed in seeds if collection_file(out, variant, seed).is_file()]
         per_run[variant] = summaries
         if not summaries:
             continue
@@ -99,10 +139,10 @@ def summarize(out: Path, variants: list[str], seeds: int) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    variants = [v.strip() for v in args.variants.split(",") if v.strip()]
+    variants = list(parse_arms(args))
     args.out.mkdir(parents=True, exist_ok=True)
     if not args.summary_only:
-        todo = [(v, s) for v in variants for s in range(args.seeds) if not collection_file(args.out, v, s).is_file()]
+        todo = [(v, s) for v in variants for s in seeds(args) if not collection_file(args.out, v, s).is_file()]
         print(f"{len(todo)} audits to run ({len(variants)} variants × {args.seeds} seeds, "
               f"{len(variants) * args.seeds - len(todo)} already collected), {args.jobs} at a time; logs in {args.out}")
         failed = []
@@ -115,11 +155,13 @@ def main(argv: list[str] | None = None) -> int:
                     failed.append((variant, seed))
         if failed:
             print(f"{len(failed)} audits failed; run the command again to resume them", file=sys.stderr)
-    table = summarize(args.out, variants, args.seeds)
+    table = summarize(args.out, variants, seeds(args))
     (args.out / "summary.md").write_text(
         f"{table}\n\nAgent `{args.agent}`, preset `{args.preset}`"
         + (f", budget {args.budget}" if args.budget else "")
-        + f", seeds 0..{args.seeds - 1}; mean ± standard error over seeds. Every level of a collection was "
+        + "".join(f", {item}" for item in args.arm_set)
+        + f", seeds {args.first_seed}..{args.first_seed + args.seeds - 1}; mean ± standard error over seeds. Every "
+          "level of a collection was "
           "re-evaluated with its recorded seed.\n")
     print(table)
     print(f"table: {args.out / 'summary.md'}")

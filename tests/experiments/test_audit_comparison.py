@@ -34,9 +34,34 @@ def test_two_searches_two_seeds_one_table_and_a_rerun_runs_nothing(tmp_path, cap
     for variant in ("dsage", "dr"):
         collections = [load_collection(out / f"{variant}_seed{seed}" / "collection") for seed in (0, 1)]
         assert {c["config"]["variant"] for c in collections} == {variant}
-        assert runs[variant] == [failure_summary(c) for c in collections]
+        assert [{k: run[k] for k in failure_summary(c)} for run, c in zip(runs[variant], collections)] == [
+            failure_summary(c) for c in collections]
+        assert [run["seed"] for run in runs[variant]] == [0, 1]
+        assert all(0 < run["search_minutes"] < 30 for run in runs[variant])
         never = [failure_summary(c)["never_solved"] for c in collections]
         assert rows[variant].split("|")[3].strip().startswith(f"{sum(never) / 2:,.1f} ± ")
     # Everything collected: a second call only rebuilds the table.
     assert script.main(argv) == 0
     assert "0 audits to run" in capsys.readouterr().out
+
+
+def test_arms_are_labelled_variants_with_their_own_keys_on_the_seeds_asked_for(tmp_path):
+    script = load_script()
+    args = script.parse_args(["--variants", "cold=dsage,warm=dsage,dr", "--arm-set", "warm:surrogate.init=/x/y",
+                              "--arm-set", "warm:surrogate.init_prior=false", "--first-seed", "200", "--seeds", "2",
+                              "--set", "maze.episodes=3", "--out", str(tmp_path)])
+    assert script.parse_arms(args) == {"cold": "dsage", "warm": "dsage", "dr": "dr"}
+    assert script.seeds(args) == [200, 201]
+    warm = script.audit_command(args, "warm", 200, tmp_path / "warm_seed200")
+    cold = script.audit_command(args, "cold", 200, tmp_path / "cold_seed200")
+    assert warm[warm.index("--variant") + 1] == "dsage" and warm[warm.index("--seed") + 1] == "200"
+    assert [warm[i + 1] for i, a in enumerate(warm) if a == "--set"] == [
+        "maze.episodes=3", "surrogate.init=/x/y", "surrogate.init_prior=false"]
+    assert [cold[i + 1] for i, a in enumerate(cold) if a == "--set"] == ["maze.episodes=3"]
+    bad = script.parse_args(["--variants", "dsage", "--arm-set", "warm:surrogate.init=/x"])
+    try:
+        script.parse_arms(bad)
+    except SystemExit as exc:
+        assert "LABEL one of ['dsage']" in str(exc)
+    else:
+        raise AssertionError("an --arm-set of an unknown arm was accepted")
