@@ -17,7 +17,7 @@ is switched off with ``--no-x``)::
     tensorboard --logdir tb_logs
 
 Audits while training (``--audit-every N``, ``dsage_ray.integrations.rllib.AuditCallback``): every N
-iterations the current module is saved to ``tb_logs/<run_name>/audit_series/checkpoints/iter_<N>`` and audited
+iterations the current module is saved to ``tb_logs/<run_name>/checkpoints/iter_<N>`` and audited
 (the regression suite of earlier audits' failures re-evaluated, then a short warm-started DSAGE search of
 ``--audit-budget`` evaluations whose new failures join the suite); the series lives in
 ``tb_logs/<run_name>/audit_series`` and its numbers go to the run's TensorBoard under ``audit/...`` with
@@ -130,8 +130,8 @@ class Args:
     """real evaluations of each audit's DSAGE search"""
     audit_preset: str = DEFAULT_PRESET
     """the audits' preset (their search settings; --audit-budget replaces its budget)"""
-    audit_episodes: int = DEFAULT_EPISODES
-    """episodes per level when an audit re-evaluates the suite and its new failures"""
+    audit_episodes: int = 0
+    """episodes per level when an audit re-evaluates the suite and its new failures (0 = the preset's: tiny 5)"""
     audit_local: bool = True
     """run the audits in the training process (--no-audit-local: through Ray, on the training's cluster)"""
 
@@ -229,12 +229,13 @@ def collection_levels(folder: str | Path, *, height: int = 16, width: int = 16) 
 
 
 def audit_callback(args: Args, run_dir: Path, writer):
-    """``--audit-every``: the RLlib callback factory (series in ``run_dir/audit_series``, scalars to ``writer``)."""
+    """``--audit-every``: the RLlib callback factory (modules in ``run_dir/checkpoints``, series in
+    ``run_dir/audit_series``, scalars to ``writer``)."""
     from dsage_ray.integrations.rllib import AuditCallback
 
-    return AuditCallback.configured(audit_every=args.audit_every, audit_budget=args.audit_budget,
-                                    out_dir=run_dir / "audit_series", writer=writer, preset=args.audit_preset,
-                                    episodes=args.audit_episodes, local=args.audit_local, seed=args.seed)
+    return AuditCallback.configured(audit_every=args.audit_every, audit_budget=args.audit_budget, out_dir=run_dir,
+                                    writer=writer, preset=args.audit_preset, seed=args.seed, local=args.audit_local,
+                                    episodes=args.audit_episodes or DEFAULT_EPISODES)
 
 
 def difficulty_at(env_steps: int, args: Args) -> float:
@@ -285,8 +286,8 @@ def main(argv: list[str] | None = None) -> int:
 
     levels = None
     try:
-        if args.audit_every < 0 or args.audit_budget < 1:
-            raise InputError("--audit-every must be >= 0 and --audit-budget >= 1")
+        if args.audit_every < 0 or args.audit_budget < 1 or args.audit_episodes < 0:
+            raise InputError("--audit-every and --audit-episodes must be >= 0, --audit-budget >= 1")
         if not 0.0 <= args.collection_share <= 1.0:
             raise InputError(f"--collection-share {args.collection_share} is not a probability in [0, 1]")
         if args.train_on_collection:

@@ -15,6 +15,7 @@ never stops training. Names load lazily: importing this package imports neither 
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
@@ -30,8 +31,10 @@ DEFAULT_AUDIT_EVERY = 25
 DEFAULT_AUDIT_BUDGET = 30
 #: The audit's preset (its search settings; ``budget`` replaces the preset's).
 DEFAULT_PRESET = "tiny"
-#: Episodes per level when the suite and the new failures are re-evaluated.
-DEFAULT_EPISODES = 10
+#: Episodes per level when the suite and the new failures are re-evaluated (None: the preset's, 5 for ``tiny``).
+DEFAULT_EPISODES = None
+#: The series folder inside a callback's ``out_dir`` (module checkpoints go to ``out_dir/checkpoints``).
+SERIES_SUBDIR = "audit_series"
 
 log = logging.getLogger(__name__)
 
@@ -145,7 +148,8 @@ class SeriesAuditor:
         try:
             if callable(spec):
                 spec = spec()
-            record = self.series.audit(spec, label=label, step=step)
+            with _one_warning():
+                record = self.series.audit(spec, label=label, step=step)
         except Exception as exc:  # noqa: BLE001 - an audit must never stop training
             log.warning("audit of %s skipped: %s", label, describe(exc))
             return None
@@ -167,3 +171,21 @@ class SeriesAuditor:
             writer.add_scalar(tag, value, step)
         if hasattr(writer, "flush"):
             writer.flush()
+
+
+class _SeriesFailureFilter(logging.Filter):
+    """Drops the series' own warning about a failed checkpoint: the auditor's line says it instead."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not (record.levelno == logging.WARNING and str(record.msg).startswith("audit-series: checkpoint"))
+
+
+@contextlib.contextmanager
+def _one_warning():
+    """While an audit runs, its failure is logged once (``audit of ... skipped``), not also by the series."""
+    series_log, drop = logging.getLogger("dsage_ray.audit.series"), _SeriesFailureFilter()
+    series_log.addFilter(drop)
+    try:
+        yield
+    finally:
+        series_log.removeFilter(drop)

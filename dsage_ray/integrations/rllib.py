@@ -2,7 +2,7 @@
 
 Every ``audit_every`` training iterations :class:`AuditCallback` saves the current RLModule as a
 module-only checkpoint in ``<out_dir>/checkpoints/iter_<N>`` (what ``rllib:PATH`` loads) and audits it
-with an :class:`~dsage_ray.audit.series.AuditSeries` in ``out_dir``: the regression suite (every level
+with an :class:`~dsage_ray.audit.series.AuditSeries` in ``<out_dir>/audit_series``: the regression suite (every level
 earlier audits found) is re-evaluated, then a short DSAGE search, warm-started from the previous audit's
 surrogate, looks for new failures, which join the suite. The record's scalars land in the iteration's
 result under ``"audit"`` (``result["audit"]["suite_success_rate"]``, ...), so Tune's and RLlib's loggers
@@ -19,7 +19,7 @@ callable with the settings bound::
     from dsage_ray.integrations.rllib import AuditCallback
 
     config = PPOConfig()....callbacks(AuditCallback.configured(audit_every=25, audit_budget=30,
-                                                               out_dir="tb_logs/my_run/audit_series"))
+                                                               out_dir="tb_logs/my_run"))
     algo = config.build_algo()
     for _ in range(100):
         result = algo.train()          # result["audit"] holds the audit's numbers on audit iterations
@@ -38,7 +38,7 @@ from typing import Any, Mapping
 from ray.rllib.callbacks.callbacks import RLlibCallback
 
 from dsage_ray.integrations import (DEFAULT_AUDIT_BUDGET, DEFAULT_AUDIT_EVERY, DEFAULT_EPISODES, DEFAULT_PRESET,
-                                    SeriesAuditor, finite_scalars)
+                                    SERIES_SUBDIR, SeriesAuditor, finite_scalars)
 
 #: Result keys of the environment steps sampled so far, in the order they are tried.
 _STEP_KEYS = (("env_runners", "num_env_steps_sampled_lifetime"), ("num_env_steps_sampled_lifetime",),
@@ -88,8 +88,9 @@ class AuditCallback(RLlibCallback):
 
     Args:
         audit_every: Training iterations between audits (iterations ``audit_every``, ``2·audit_every``, ...).
-        out_dir: The audit series folder; module checkpoints go to ``out_dir/checkpoints/iter_<N>``.
-            Required unless ``series`` is an object.
+        out_dir: Module checkpoints go to ``out_dir/checkpoints/iter_<N>``, the audit series to
+            ``out_dir/audit_series`` (continued if it exists). Required unless ``series`` is an object.
+        series_dir: Another folder for the series.
         audit_budget: Real evaluations of each audit's search.
         policy: The module to audit.
         writer: A TensorBoard ``SummaryWriter`` (or a folder to open one on) that also gets the scalars,
@@ -106,6 +107,7 @@ class AuditCallback(RLlibCallback):
         *,
         audit_every: int = DEFAULT_AUDIT_EVERY,
         out_dir: str | os.PathLike[str] | None = None,
+        series_dir: str | os.PathLike[str] | None = None,
         audit_budget: int = DEFAULT_AUDIT_BUDGET,
         policy: str = "default_policy",
         writer: Any = None,
@@ -122,7 +124,9 @@ class AuditCallback(RLlibCallback):
         self.audit_every = int(audit_every)
         self.policy = policy
         self.out_dir = Path(out_dir) if out_dir is not None else None
-        self.auditor = SeriesAuditor(out_dir=self.out_dir or Path("."), series=series, writer=writer,
+        if series_dir is None:
+            series_dir = (self.out_dir or Path(".")) / SERIES_SUBDIR
+        self.auditor = SeriesAuditor(out_dir=series_dir, series=series, writer=writer,
                                      audit_budget=audit_budget, **series_settings)
         #: ``(iteration, record or None)`` of every audit this instance ran.
         self.audits: list[tuple[int, Any]] = []
@@ -133,7 +137,7 @@ class AuditCallback(RLlibCallback):
 
         The settings are checked here, so a bad one fails when the config is written, not in RLlib's setup.
         """
-        cls(**{**settings, "series": settings.get("series") or _NoSeries()})  # validates the arguments
+        cls(**settings)  # validates the arguments (the series is built at the first audit, not here)
         return ConfiguredAuditCallback(cls, settings)
 
     def checkpoint_dir(self, iteration: int) -> Path:

@@ -3,7 +3,7 @@
 :class:`AuditCheckpointsCallback` runs in Tune's driver. Every ``audit_every``-th checkpoint a trial
 reports (its 1st audited is checkpoint number ``audit_every``), it turns the checkpoint into an agent spec
 with ``spec_from_checkpoint`` and audits it with that trial's :class:`~dsage_ray.audit.series.AuditSeries`
-(``<out_dir>/<trial_id>/``): the regression suite re-evaluated, then a short warm-started DSAGE search.
+(``<out_dir>/<trial_id>/audit_series``): the regression suite re-evaluated, then a short warm-started DSAGE search.
 The scalars go to a TensorBoard writer in the trial's own folder (``audit/...``, step = the trial's
 environment steps when its results report them, else its training iteration), next to Tune's own event
 files, so one TensorBoard shows both::
@@ -33,7 +33,7 @@ from typing import Any, Callable, Mapping
 
 from ray.tune import Callback
 
-from dsage_ray.integrations import DEFAULT_AUDIT_BUDGET, DEFAULT_AUDIT_EVERY, SeriesAuditor
+from dsage_ray.integrations import DEFAULT_AUDIT_BUDGET, DEFAULT_AUDIT_EVERY, SERIES_SUBDIR, SeriesAuditor
 
 
 def rllib_module_dir(checkpoint: str | os.PathLike[str], *, policy: str = "default_policy") -> Path:
@@ -61,13 +61,13 @@ class AuditCheckpointsCallback(Callback):
     """Audits every ``audit_every``-th checkpoint of every trial (module docstring).
 
     Args:
-        out_dir: One series folder per trial goes here (``<out_dir>/<trial_id>``).
+        out_dir: One folder per trial goes here (``<out_dir>/<trial_id>``: ``audit_series/``, ``checkpoints/``).
         audit_every: Audit checkpoints number ``audit_every``, ``2·audit_every``, ... of each trial.
         audit_budget: Real evaluations of each audit's search.
         spec_from_checkpoint: Checkpoint folder → agent spec; default: the copied RLlib module (above).
         tensorboard: Also write the scalars to the trial's folder.
         series: A factory called with the ``AuditSeries`` keyword arguments (``out_dir`` is the trial's
-            folder), e.g. for tests; default :class:`~dsage_ray.audit.series.AuditSeries`.
+            series folder), e.g. for tests; default :class:`~dsage_ray.audit.series.AuditSeries`.
         **series_settings: ``preset``, ``domain``, ``seed``, ``overrides``, ``local``, ``workers``,
             ``address``, ``episodes``, ``warm_start`` of each series.
     """
@@ -106,7 +106,7 @@ class AuditCheckpointsCallback(Callback):
             writer = None
             if self.tensorboard:
                 writer = getattr(trial, "local_path", None) or getattr(trial, "path", None)
-            self._auditors[trial_id] = SeriesAuditor(out_dir=self.out_dir / trial_id, series=self.series,
+            self._auditors[trial_id] = SeriesAuditor(out_dir=self.out_dir / trial_id / SERIES_SUBDIR, series=self.series,
                                                      writer=writer, audit_budget=self.audit_budget,
                                                      **self.series_settings)
         return self._auditors[trial_id]
@@ -134,7 +134,7 @@ class AuditCheckpointsCallback(Callback):
                 return self.spec_from_checkpoint(str(path))
             import shutil
 
-            copy = (auditor.out_dir / "checkpoints" / label).resolve()
+            copy = (self.out_dir / trial_id / "checkpoints" / label).resolve()
             if copy.exists():
                 shutil.rmtree(copy)
             copy.parent.mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,162 @@
+"""``dsage_ray.integrations.rllib.AuditCallback``: when it audits, what it records, and that no audit stops training."""
+
+from __future__ import annotations
+
+import copy
+import logging
+import pickle
+from pathlib import Path
+
+import pytest
+
+from tests.integrations.conftest import FakeSeries, FakeWriter
+
+AuditCallback = pytest.importorskip("dsage_ray.integrations.rllib").AuditCallback
+
+
+class FakeModule:
+    def save_to_path(self, path: str) -> str:
+        Path(path).mkdir(parents=True)
+        (Path(path) / "module_state.pkl").write_bytes(b"weights")
+        return path
+
+
+class FakeAlgorithm:
+    """What the callback touches of an Algorithm: ``get_module``."""
+
+    def __init__(self, *, broken: bool = False) -> None:
+        self.broken = broken
+
+    def get_module(self, policy: str):
+        if self.broken:
+            raise OSError("disk full")
+        return FakeModule()
+
+
+def result(iteration: int, steps_per_iteration: int = 1000) -> dict:
+    return {"training_iteration": iteration,
+            "env_runners": {"num_env_steps_sampled_lifetime": iteration * steps_per_iteration}}
+
+
+def train(callback, iterations: int, algorithm=None) -> list[dict]:
+    algorithm = algorithm or FakeAlgorithm()
+    results = []
+    for i in range(1, iterations + 1):
+        results.append(result(i))
+        callback.on_train_result(algorithm=algorithm, metrics_logger=None, result=results[-1])
+    return results
+
+
+def audit_warnings(caplog) -> list[str]:
+    return [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING and "audit of" in r.getMessage()]
+
+
+def test_audits_every_n_iterations_with_module_checkpoint_label_and_env_steps(tmp_path):
+    series, writer = FakeSeries(), FakeWriter()
+    callback = AuditCallback(audit_every=3, out_dir=tmp_path, series=series, writer=writer)
+    results = train(callback, 7)
+    assert [(label, step) for _, label, step in series.calls] == [("iter_3", 3000), ("iter_6", 6000)]
+    assert series.calls[0][0] == f"rllib:{(tmp_path / 'checkpoints' / 'iter_3').resolve()}"
+    assert (tmp_path / "checkpoints" / "iter_6" / "module_state.pkl").is_file()
+    assert [("audit" in r) for r in results] == [False, False, True, False, False, True, False]
+    assert results[2]["audit"] == {"new_failures": 2.0, "wall_time": 0.01, "suite_success_rate": 0.5}
+    assert ("audit/suite_success_rate", 0.5, 6000) in writer.scalars
+    assert {tag for tag, _, _ in writer.scalars} == {"audit/new_failures", "audit/wall_time",
+                                                      "audit/suite_success_rate"}
+
+
+def test_default_series_is_built_lazily_in_the_series_folder(tmp_path):
+    built = []
+
+    def factory(**settings):
+        built.append(settings)
+        return FakeSeries(**settings)
+
+    callback = AuditCallback(audit_every=2, out_dir=tmp_path, series=factory, audit_budget=40)
+    train(callback, 1)
+    assert not built  # constructing and non-audit iterations build nothing (RLlib also builds one per env runner)
+    train(callback, 4)
+    assert len(built) == 1
+    assert built[0]["out_dir"] == tmp_path / "audit_series" and built[0]["budget"] == 40
+    assert built[0]["preset"] == "tiny" and built[0]["local"] is True
+
+
+def test_a_raising_audit_logs_one_warning_and_training_goes_on(tmp_path, caplog):
+    series = FakeSeries(fail=RuntimeError("The actor died unexpectedly before finishing this task.\nmore"))
+    callback = AuditCallback(audit_every=2, out_dir=tmp_path, series=series)
+    with caplog.at_level(logging.WARNING):
+        results = train(callback, 4)
+    assert audit_warnings(caplog) == [
+        "audit of iter_2 skipped: RuntimeError: The actor died unexpectedly before finishing this task.",
+        "audit of iter_4 skipped: RuntimeError: The actor died unexpectedly before finishing this task."]
+    assert len(series.calls) == 2 and not any("audit" in r for r in results)
+
+
+def test_an_unsaveable_checkpoint_logs_one_warning(tmp_path, caplog):
+    series = FakeSeries()
+    callback = AuditCallback(audit_every=1, out_dir=tmp_path, series=series)
+    with caplog.at_level(logging.WARNING):
+        train(callback, 1, FakeAlgorithm(broken=True))
+    assert audit_warnings(caplog) == ["audit of iter_1 skipped: OSError: disk full"]
+    assert not series.calls
+
+
+def test_an_unreadable_checkpoint_logs_one_warning(tmp_path, caplog):
+    series = FakeSeries(load=True)  # loads the spec: a module folder without RLlib's files does not load
+    callback = AuditCallback(audit_every=1, out_dir=tmp_path, series=series)
+    with caplog.at_level(logging.WARNING):
+        train(callback, 1)
+    (line,) = audit_warnings(caplog)
+    assert line.startswith("audit of iter_1 skipped: AgentError: rllib checkpoint") and "not an RLlib checkpoint" in line
+
+
+def test_a_record_with_an_error_logs_one_warning_and_keeps_its_numbers(tmp_path, caplog):
+    writer = FakeWriter()
+    callback = AuditCallback(audit_every=1, out_dir=tmp_path, writer=writer,
+                             series=FakeSeries(error="TrialFailed: the search failed"))
+    with caplog.at_level(logging.WARNING):
+        (out,) = train(callback, 1)
+    assert audit_warnings(caplog) == ["audit of iter_1 skipped: TrialFailed: the search failed"]
+    assert out["audit"] == {"new_failures": 2.0, "wall_time": 0.01}
+    assert len(writer.scalars) == 2
+
+
+def test_configured_is_what_rllib_accepts_and_survives_copies(tmp_path):
+    from ray.rllib.algorithms.ppo import PPOConfig
+
+    writer = FakeWriter()
+    factory = AuditCallback.configured(audit_every=5, out_dir=tmp_path, writer=writer)
+    config = PPOConfig().callbacks(factory)
+    built = copy.deepcopy(config).callbacks_class()
+    assert isinstance(built, AuditCallback) and built.audit_every == 5 and built.auditor.writer is writer
+    # Pickled (for remote env runners) a writer that cannot be pickled is dropped, not an error.
+    writer.lock = __import__("threading").Lock()
+    remote = pickle.loads(pickle.dumps(factory))()
+    assert remote.audit_every == 5 and remote.auditor.writer is None
+    with pytest.raises(ValueError, match="audit_every"):
+        AuditCallback.configured(audit_every=0, out_dir=tmp_path)
+    with pytest.raises(ValueError, match="out_dir"):
+        AuditCallback.configured(audit_every=1)
+
+
+def test_a_real_ppo_training_audits_a_loadable_module(tmp_path, ray_session, script, caplog):
+    """Three tiny PPO iterations of the project's training config with the callback: the audit of
+    iteration 2 gets a module checkpoint that the ``rllib:`` loader loads, at the lifetime env steps."""
+    args = script.parse_args(["--train-batch-size", "64", "--minibatch-size", "64", "--num-epochs", "1",
+                              "--num-envs", "1", "--audit-every", "2", "--seed", "3"])
+    series, writer = FakeSeries(load=True), FakeWriter()
+    config = script.build_config(args).callbacks(
+        AuditCallback.configured(audit_every=args.audit_every, out_dir=tmp_path, series=series, writer=writer))
+    algo = config.build_algo()
+    try:
+        with caplog.at_level(logging.WARNING):
+            results = [algo.train() for _ in range(3)]
+    finally:
+        algo.stop()
+    assert not audit_warnings(caplog)
+    ((agent, label, step),) = series.calls
+    steps = int(results[1]["env_runners"]["num_env_steps_sampled_lifetime"])
+    assert (agent, label, step) == (f"rllib:{(tmp_path / 'checkpoints' / 'iter_2').resolve()}", "iter_2", steps)
+    assert steps >= 128 and series.agents[0].__class__.__name__ == "RLlibAgent"
+    assert "audit" in results[1] and "audit" not in results[0] and "audit" not in results[2]
+    assert {s for _, _, s in writer.scalars} == {steps}
