@@ -22,12 +22,14 @@ iteration      int, N                 optional: when each level was evaluated (o
 
 Commands::
 
-    python benchmarks/maze_dataset.py from-run RUN_DIR --out FILE.npz [--holdout-out HELD.npz] [--retest 300]
+    python benchmarks/maze_dataset.py from-run RUN_DIR [RUN_DIR ...] --out FILE.npz [--holdout-out HELD.npz] [--retest 300]
     python benchmarks/maze_dataset.py build --levels 10000 --elites RUN_DIR --out tb_logs/accel_10k.npz
     python benchmarks/maze_dataset.py check FILE.npz
 
 ``from-run`` converts a finished Maze surrogate run (its ``checkpoint.dsage`` holds every level it evaluated,
-in order, and its held-out levels). ``build`` evaluates an agent (default ``dcd:accel``, 50 episodes) on
+in order, and its held-out levels); several runs of one agent are concatenated in the order given (their
+``iteration`` column is then dropped: the runs' iterations do not form one order; a warm-started run's
+prior samples are skipped, they are another run's levels). ``build`` evaluates an agent (default ``dcd:accel``, 50 episodes) on
 mutants of a run's archive elites and on random valid levels, through the Ray simulator pool
 (``--workers N``) or in this process (``--workers 0``), with a progress bar; it saves every
 ``--save-every`` levels and ``--resume`` continues a partial file. Keep such files outside git (tb_logs/).
@@ -266,10 +268,11 @@ def from_run(run: str | Path, *, retest: int = 0, seed: int = 0) -> tuple[MazeDa
     stored = SurrogateDataset(level_shape=tuple(state["dataset"]["level_shape"]),
                               num_measures=len(domain.measure_names), occupancy_shape=domain.occupancy_shape)
     stored.load_state_dict(state["dataset"])
-    walls = stored.levels()[:, WALL, :domain.height, :domain.width] > 0.5
-    data = MazeData(walls=walls, measures=stored.measures.astype(np.float32), measure_names=domain.measure_names,
-                    occupancy=stored.occupancy.astype(np.float32),
-                    iteration=_iterations(state.get("history", []), len(stored)))
+    own = slice(int(state.get("prior_samples", 0)), None)  # a warm start's prior: another run's levels
+    walls = stored.levels()[own, WALL, :domain.height, :domain.width] > 0.5
+    data = MazeData(walls=walls, measures=stored.measures[own].astype(np.float32), measure_names=domain.measure_names,
+                    occupancy=stored.occupancy[own].astype(np.float32),
+                    iteration=_iterations(state.get("history", []), len(walls)))
     if retest:
         rng = np.random.default_rng(seed)
         rows = np.sort(rng.choice(len(data), size=min(retest, len(data)), replace=False))
@@ -287,6 +290,25 @@ def from_run(run: str | Path, *, retest: int = 0, seed: int = 0) -> tuple[MazeDa
                         measure_names=domain.measure_names,
                         occupancy=np.array([r.occupancy for r in results], dtype=np.float32))
     return data, held
+
+
+def concatenate(parts: list[MazeData]) -> MazeData | None:
+    """One dataset of several of the same measures, in order, each level once (its first occurrence);
+    optional columns only where every part has them, and no ``iteration`` (the parts' iterations are not
+    one order). None for no parts."""
+    if not parts:
+        return None
+    names = {part.measure_names for part in parts}
+    if len(names) != 1:
+        raise MazeDatasetError(f"cannot concatenate datasets of different measures: {sorted(names)}")
+    def joined(attribute: str) -> np.ndarray | None:
+        arrays = [getattr(part, attribute) for part in parts]
+        return None if any(a is None for a in arrays) else np.concatenate(arrays)
+    merged = MazeData(walls=joined("walls"), measures=joined("measures"), measure_names=parts[0].measure_names,
+                      occupancy=joined("occupancy"), retest=joined("retest"))
+    # Two runs of one seed share their first (random) levels: a level twice would sit on both sides of a split.
+    _, first = np.unique(np.packbits(merged.walls.reshape(len(merged), -1), axis=1), axis=0, return_index=True)
+    return merged.subset(np.sort(first))
 
 
 # ------------------------------------------------------------------------------------ an offline dataset
@@ -454,7 +476,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     commands = parser.add_subparsers(dest="command", required=True)
     convert = commands.add_parser("from-run", help="convert a finished Maze surrogate run folder")
-    convert.add_argument("run", type=Path)
+    convert.add_argument("run", type=Path, nargs="+")
     convert.add_argument("--out", type=Path, required=True)
     convert.add_argument("--holdout-out", type=Path, help="also write the run's held-out levels here")
     convert.add_argument("--retest", type=int, default=0,
@@ -482,7 +504,9 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     try:
         if args.command == "from-run":
-            data, held = from_run(args.run, retest=args.retest, seed=args.seed)
+            parts = [from_run(run, retest=args.retest, seed=args.seed) for run in args.run]
+            data, held = parts[0] if len(parts) == 1 else (concatenate([d for d, _ in parts]),
+                                                           concatenate([h for _, h in parts if h is not None]))
             print(f"{save(data, args.out)}: {describe(data)}")
             if args.holdout_out is not None:
                 if held is None:

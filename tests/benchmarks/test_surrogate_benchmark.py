@@ -171,3 +171,16 @@ def test_bfs_features_match_the_domain(tmp_path):
         assert row[names.index("optimal_path")] == level.optimal_path_length
         assert row[names.index("reachable")] == level.reachable_cells.sum()
         assert (row[names.index("start_row")], row[names.index("start_col")]) == level.start
+
+
+def test_concatenated_datasets_keep_each_level_once_in_order():
+    first, second = synthetic(10), synthetic(6, seed=1)
+    second.walls[:3] = first.walls[4:7]  # two runs of one seed share their first random levels
+    merged = maze_dataset.concatenate([first, second])
+    assert len(merged) == 13 and merged.iteration is None
+    np.testing.assert_array_equal(merged.walls[:10], first.walls)
+    np.testing.assert_array_equal(merged.measures[10:], second.measures[3:])
+    with pytest.raises(MazeDatasetError, match="different measures"):
+        maze_dataset.concatenate([first, MazeData(walls=second.walls, measures=second.measures[:, :1],
+                                                  measure_names=("other",))])
+    assert maze_dataset.concatenate([]) is None
