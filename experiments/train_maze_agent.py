@@ -220,7 +220,10 @@ def collection_levels(folder: str | Path, *, height: int = 16, width: int = 16) 
         raise InputError(f"{name}: the collection holds no levels")
     texts = []
     for level in collection.levels:
-        maze = load_layout(level.level_path)  # LayoutError (an InputError) names the file and the line
+        try:
+            maze = load_layout(level.level_path)
+        except InputError as exc:  # LayoutError: names the file and the line
+            raise InputError(f"{name}: {exc}") from None
         if (maze.height, maze.width) != (height, width):
             raise InputError(f"{name}: {level.level_path} is {maze.height}x{maze.width}; the training mazes are "
                              f"{height}x{width}")

@@ -1,0 +1,101 @@
+"""``train_maze_agent.py --train-on-collection DIR``: a share of the training episodes replays the collection's
+levels, from the env's seeded rng; a folder that is not a Maze collection stops the script with one clear line."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from dsage_ray.domains.maze.generator import random_valid_levels
+from dsage_ray.domains.maze.layout import format_layout
+from dsage_ray.domains.maze.training import RandomMazeEnv, make_random_maze_env
+from dsage_ray.errors import InputError
+from tests.integrations.conftest import write_collection
+
+
+@pytest.fixture
+def collection(tmp_path):
+    levels = random_valid_levels(3, seed=7)
+    return write_collection(tmp_path / "audit" / "collection", levels), levels
+
+
+def sources(env, episodes: int, seed: int) -> list[int]:
+    out = []
+    for i in range(episodes):
+        _, info = env.reset(seed=seed if i == 0 else None)
+        out.append(info["source_level"])
+    return out
+
+
+def test_a_share_of_the_episodes_replays_the_collection_levels(collection, script):
+    folder, levels = collection
+    args = script.parse_args(["--train-on-collection", str(folder), "--collection-share", "0.5"])
+    texts = script.collection_levels(args.train_on_collection)
+    assert texts == [format_layout(level) for level in levels]
+    env_config = script.build_config(args, texts).env_config
+    assert env_config["level_share"] == 0.5 and len(env_config["levels"]) == 3
+    env = make_random_maze_env({**env_config, "difficulty": 1.0})
+    played = []
+    for i in range(60):
+        _, info = env.reset(seed=11 if i == 0 else None)
+        if info["source_level"] >= 0:
+            level = env.unwrapped._maze.level
+            expected = levels[info["source_level"]]
+            assert np.array_equal(level.walls, expected.walls) and (level.start, level.goal) == (expected.start, expected.goal)
+        played.append(info["source_level"])
+    share = np.mean([s >= 0 for s in played])
+    assert 0.3 < share < 0.7 and set(played) == {-1, 0, 1, 2}
+    # Seeded: the same sequence again; and an audit folder (holding collection/) names the same levels.
+    assert sources(make_random_maze_env({**env_config, "difficulty": 1.0}), 60, seed=11) == played
+    assert script.collection_levels(folder.parent) == texts
+
+
+def test_without_levels_the_random_mazes_are_unchanged():
+    plain, mixed = RandomMazeEnv(), RandomMazeEnv(levels=[], level_share=0.5)
+    for i in range(5):
+        a, _ = plain.reset(seed=3 if i == 0 else None)
+        b, _ = mixed.reset(seed=3 if i == 0 else None)
+        assert np.array_equal(a["image"], b["image"])
+        assert np.array_equal(plain._maze.level.walls, mixed._maze.level.walls)
+
+
+def test_bad_levels_and_shares_are_refused():
+    with pytest.raises(InputError, match="level 0 is 4x5; the training mazes are 16x16"):
+        RandomMazeEnv(levels=["S....\n.....\n.....\n....G\n"])
+    with pytest.raises(InputError, match="not a probability"):
+        RandomMazeEnv(levels=[format_layout(random_valid_levels(1, seed=0)[0])], level_share=1.5)
+
+
+@pytest.mark.parametrize("case, message", [
+    ("missing", "no such folder"),
+    ("empty", "no collection.json"),
+    ("garbage", "not a readable collection"),
+    ("mario", "a mario collection; the maze agent trains on maze levels"),
+    ("no_levels", "the collection holds no levels"),
+    ("bad_level", "level_0000.txt:2: ragged rows"),
+    ("small", "is 4x4; the training mazes are 16x16"),
+])
+def test_a_bad_folder_stops_the_script_with_one_line(tmp_path, script, capsys, case, message):
+    folder = tmp_path / "c"
+    if case != "missing":
+        folder.mkdir()
+    if case == "garbage":
+        (folder / "collection.json").write_text("{not json")
+    elif case == "mario":
+        write_collection(tmp_path / "m", random_valid_levels(1, seed=0), domain="mario")
+        folder = tmp_path / "m"
+    elif case == "no_levels":
+        write_collection(tmp_path / "n", [])
+        folder = tmp_path / "n"
+    elif case in ("bad_level", "small"):
+        write_collection(tmp_path / "b", random_valid_levels(1, seed=0))
+        folder = tmp_path / "b"
+        text = "S...\n....\n....\n...G\n" if case == "small" else "S..\n....\n"
+        (folder / "levels" / "level_0000.txt").write_text(text)
+    assert script.main(["--train-on-collection", str(folder), "--run-name", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"error: --train-on-collection {folder}: ")
+    assert message in err[0]
+    assert not (tmp_path / "run").exists()
