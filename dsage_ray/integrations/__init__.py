@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 __all__ = ["AuditCallback", "AuditCheckpointsCallback", "SeriesAuditor", "DEFAULT_AUDIT_EVERY", "DEFAULT_AUDIT_BUDGET",
-           "DEFAULT_PRESET", "DEFAULT_EPISODES"]
+           "DEFAULT_PRESET", "DEFAULT_EPISODES", "DEFAULT_OVERRIDES"]
 
 #: Training iterations (RLlib) or checkpoints (Tune) between audits, by default.
 DEFAULT_AUDIT_EVERY = 25
@@ -35,6 +35,10 @@ DEFAULT_PRESET = "tiny"
 DEFAULT_EPISODES = None
 #: The series folder inside a callback's ``out_dir`` (module checkpoints go to ``out_dir/checkpoints``).
 SERIES_SUBDIR = "audit_series"
+#: Config keys of every audit unless the caller's ``overrides`` set them: a smaller random start and
+#: selection than ``tiny`` (so that ``audit_budget`` 30 is one cold outer iteration after 20 random levels, or
+#: three warm-started ones), and no elite pictures in the search's TensorBoard.
+DEFAULT_OVERRIDES: Mapping[str, Any] = {"n_rand": 20, "selection.count": 10, "image_levels": 0}
 
 log = logging.getLogger(__name__)
 
@@ -85,6 +89,10 @@ class SeriesAuditor:
         audit_budget: Real evaluations of each audit's search.
         preset, domain, seed, overrides, local, workers, address, episodes, warm_start: The
             ``AuditSeries`` settings (``local``: audits run in this process, no Ray actors).
+            ``overrides`` go over :data:`DEFAULT_OVERRIDES`.
+
+    The global random states (``random``, NumPy's, torch's) are put back after every audit, so that an
+    audit does not change what the training samples next: a training with audits is the training without.
     """
 
     def __init__(
@@ -108,7 +116,7 @@ class SeriesAuditor:
             raise ValueError(f"audit_budget must be at least 1, got {audit_budget}")
         self.out_dir = Path(out_dir)
         self.series_kwargs = dict(out_dir=self.out_dir, domain=domain, preset=preset, budget=int(audit_budget),
-                                  seed=seed, overrides=dict(overrides or {}), local=local, workers=workers,
+                                  seed=seed, overrides={**DEFAULT_OVERRIDES, **dict(overrides or {})}, local=local, workers=workers,
                                   address=address, episodes=episodes, warm_start=warm_start)
         self._series = series
         self._series_built = series is not None and hasattr(series, "audit")
@@ -148,7 +156,7 @@ class SeriesAuditor:
         try:
             if callable(spec):
                 spec = spec()
-            with _one_warning():
+            with _one_warning(), _global_rng_kept():
                 record = self.series.audit(spec, label=label, step=step)
         except Exception as exc:  # noqa: BLE001 - an audit must never stop training
             log.warning("audit of %s skipped: %s", label, describe(exc))
@@ -189,3 +197,24 @@ def _one_warning():
         yield
     finally:
         series_log.removeFilter(drop)
+
+
+@contextlib.contextmanager
+def _global_rng_kept():
+    """Puts back the global random states (``random``, NumPy's, torch's, torch's thread count) afterwards."""
+    import random
+    import sys
+
+    import numpy as np
+
+    torch = sys.modules.get("torch")  # never imported here just for this
+    saved = (random.getstate(), np.random.get_state(),
+             (torch.get_rng_state(), torch.get_num_threads()) if torch is not None else None)
+    try:
+        yield
+    finally:
+        random.setstate(saved[0])
+        np.random.set_state(saved[1])
+        if saved[2] is not None:
+            torch.set_rng_state(saved[2][0])
+            torch.set_num_threads(saved[2][1])

@@ -160,3 +160,28 @@ def test_a_real_ppo_training_audits_a_loadable_module(tmp_path, ray_session, scr
     assert steps >= 128 and series.agents[0].__class__.__name__ == "RLlibAgent"
     assert "audit" in results[1] and "audit" not in results[0] and "audit" not in results[2]
     assert {s for _, _, s in writer.scalars} == {steps}
+
+
+def test_an_audit_leaves_the_global_random_states_as_they_were(tmp_path):
+    import random
+
+    import numpy as np
+    import torch
+
+    class Greedy(FakeSeries):
+        def audit(self, agent, *, label=None, step=None):
+            random.random(), np.random.random(), torch.rand(3)
+            torch.set_num_threads(2)
+            return super().audit(agent, label=label, step=step)
+
+    callback = AuditCallback(audit_every=1, out_dir=tmp_path, series=Greedy())
+    for seeded in (True, False):
+        random.seed(1), np.random.seed(1), torch.manual_seed(1)
+        threads = torch.get_num_threads()
+        if seeded:
+            train(callback, 1)
+        draws = (random.random(), np.random.random(), torch.rand(1).item())
+        assert torch.get_num_threads() == threads
+        if seeded:
+            with_audit = draws
+    assert draws == with_audit
