@@ -21,6 +21,8 @@ from dsage_ray.audit.series import (SERIES_FILE, SERIES_REPORT, AuditSeries, Ser
                                     fixed_and_regressed, is_failing)
 from dsage_ray.cli import main
 
+from .test_report_browser import browser  # noqa: F401 - the headless Chromium fixture (skips where it is missing)
+
 #: One outer iteration of 6 random 8x8 mazes, 4 episodes per level: a few seconds per checkpoint.
 TINY = {"n_rand": 6, "image_levels": 0, "maze.height": 8, "maze.width": 8}
 SETTINGS = dict(preset="tiny", budget=6, episodes=4, overrides=TINY, local=True)
@@ -227,3 +229,58 @@ def test_watching_audits_new_checkpoints_and_a_broken_one_does_not_stop_it(tmp_p
     assert stderr.startswith("dsage-ray audit-series: 1 of 1 checkpoint audits failed")
     record = json.loads((out / SERIES_FILE).read_text())["records"][0]
     assert record["agent"] == f"rllib:{(watch / 'checkpoint_000001').resolve()}" and record["error"]
+
+
+def synthetic_series(checkpoints: int = 12, per_checkpoint: int = 4) -> dict:
+    """A series.json of ``checkpoints`` records, ``per_checkpoint`` new levels each, one failed audit (#3)."""
+    rng = np.random.default_rng(0)
+    records, suite = [], []
+    for k in range(checkpoints):
+        previous = {lv["id"]: lv["results"][str(k - 1)] for lv in suite if str(k - 1) in lv["results"]}
+        for lv in suite:
+            lv["results"][str(k)] = float(rng.choice([0.0, 0.2, 0.6, 1.0]))
+        fixed, regressed = fixed_and_regressed(previous, {lv["id"]: lv["results"][str(k)] for lv in suite})
+        error = "agent 'rllib:/a/rather/long/path/checkpoint_000015': not found" if k == 3 else None
+        new = 0 if error else per_checkpoint
+        suite += [{"id": len(suite) + i, "seed": 1, "origin": k, "level_file": None, "results": {str(k): 0.0},
+                   "solution": []} for i in range(new)]
+        records.append({"index": k, "label": f"/a/rather/long/path/to/the/run/checkpoint_{k:06d}",
+                        "agent": f"rllib:/a/rather/long/path/to/the/run/checkpoint_{k:06d}", "step": 40_000 * k,
+                        "suite_size": len(previous), "suite_success_rate": 0.5 if previous else None,
+                        "fixed": list(fixed), "regressed": list(regressed), "new_failures": new,
+                        "summary": {} if error else {"never_solved": 3, "failure_cells": 9}, "audit_dir": None,
+                        "wall_time": 200.0, "error": error})
+    return {"domain": "maze", "preset": "cpu", "budget": 500, "episodes": 50, "warm_start": True,
+            "failing": "failure rate (1 - success rate) >= 0.5", "records": records, "suite": suite}
+
+
+def test_the_report_fits_a_phone_and_its_matrix_sorts(browser, tmp_path):
+    """At 390 px wide nothing scrolls the page sideways; the wide tables scroll in their box; a checkpoint's
+    column sorts the matrix; the page logs no error."""
+    from selenium.webdriver.common.by import By
+
+    from dsage_ray.audit.series_report import write_series_report
+
+    data = synthetic_series()
+    page = write_series_report(tmp_path, data)
+    browser.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
+                            {"width": 390, "height": 844, "deviceScaleFactor": 1, "mobile": True})
+    try:
+        browser.get(page.resolve().as_uri())
+        assert browser.execute_script("return document.documentElement.scrollWidth") <= 390
+        for box in ("div.hscroll", "div.scroll"):
+            inner, outer = browser.execute_script(
+                f"var b = document.querySelector('{box}'); return [b.scrollWidth, b.clientWidth];")
+            assert inner > outer and outer <= 390, box
+        last = data["records"][-1]["index"]
+        header = browser.find_element(By.XPATH,
+                                      f"//table[contains(@class, 'matrix')]//th[.//button[text()='#{last}']]")
+        header.find_element(By.TAG_NAME, "button").click()
+        rates = browser.execute_script(
+            "return Array.from(document.querySelectorAll('table.matrix tbody tr'), r => r.lastElementChild.textContent);")
+        assert len(rates) == len(data["suite"])
+        assert [float(r) for r in rates] == sorted(float(r) for r in rates)
+        assert header.get_attribute("aria-sort") == "ascending"
+        assert not [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
+    finally:
+        browser.execute_cdp_cmd("Emulation.clearDeviceMetricsOverride", {})
