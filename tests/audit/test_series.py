@@ -277,7 +277,8 @@ def test_the_report_fits_a_phone_and_its_matrix_sorts(browser, tmp_path):
                                       f"//table[contains(@class, 'matrix')]//th[.//button[text()='#{last}']]")
         header.find_element(By.TAG_NAME, "button").click()
         rates = browser.execute_script(
-            "return Array.from(document.querySelectorAll('table.matrix tbody tr'), r => r.lastElementChild.textContent);")
+            "return Array.from(document.querySelectorAll('table.matrix tbody tr'), "
+            "r => r.lastElementChild.textContent);")
         assert len(rates) == len(data["suite"])
         assert [float(r) for r in rates] == sorted(float(r) for r in rates)
         assert header.get_attribute("aria-sort") == "ascending"
