@@ -9,13 +9,16 @@
 * :class:`dsage_ray.integrations.tune.AuditCheckpointsCallback` — a ``ray.tune.Callback`` that audits every
   ``audit_every``-th checkpoint any Tune trainable writes.
 
-An audit that fails, for any reason, logs one warning line (``audit of iter_N skipped: <reason>``) and
-never stops training. Names load lazily: importing this package imports neither Ray nor torch.
+By default the audits run in the background, in a Ray actor with a CPU of its own
+(:class:`SeriesAuditor`): training waits only for the checkpoint to be written. An audit that fails, for any
+reason, logs one warning line (``audit of iter_N skipped: <reason>``) and never stops training. Names load
+lazily: importing this package imports neither Ray nor torch.
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import math
 import os
@@ -74,25 +77,53 @@ def finite_scalars(record: Any) -> dict[str, float]:
     return out
 
 
+@dataclasses.dataclass(frozen=True)
+class FinishedAudit:
+    """An audit that ended: its label, its training step, its record (None when it raised) and when it ended."""
+
+    label: str
+    step: int | None
+    record: Any
+
+
+@dataclasses.dataclass
+class _InFlight:
+    label: str
+    step: int | None
+    ref: Any
+
+
 class SeriesAuditor:
-    """What the callbacks share: an audit series built on first use, a TensorBoard writer, and the fault rule.
+    """What the callbacks share: the audit series, a TensorBoard writer, background audits and the fault rule.
+
+    Audits run in one of two ways:
+
+    * **in the background** (``background=True``): the series lives in a Ray actor of its own
+      (``audit_cpus`` CPUs, on this node, since it reads the checkpoints this process writes) and
+      :meth:`submit` returns at once; :meth:`poll` collects an audit that has finished. Training waits only
+      for the checkpoint to be written. One audit runs at a time: one that is due while another still
+      runs is skipped (with a warning: audit less often). An actor that dies is replaced at the next audit
+      and its series continues from ``series.json``;
+    * **in this process** (``background=False``): :meth:`submit` runs the audit and returns it. The global
+      random states (``random``, NumPy's, torch's, torch's thread count) are put back afterwards, so that
+      the training samples what it would have without the audit.
 
     Args:
         out_dir: The series folder (``series.json``, one folder per audit); an existing series there is
             continued.
         series: None (an :class:`~dsage_ray.audit.series.AuditSeries` on ``out_dir`` with the settings
-            below), an object with ``audit(spec, label=, step=)``, or a factory called with the
-            ``AuditSeries`` keyword arguments that returns one.
+            below), a factory called with the ``AuditSeries`` keyword arguments that returns an object with
+            ``audit(spec, label=, step=)`` (a class, a function; it must pickle for background audits),
+            or such an object itself (audited in this process).
         writer: Where the audit's scalars also go: an object with ``add_scalar(tag, value, step)`` (a
-            ``SummaryWriter``), a folder to open a ``tensorboardX.SummaryWriter`` on when the first audit
-            ends, or None.
+            ``SummaryWriter``), a folder to open a ``tensorboardX.SummaryWriter`` on at the first audit,
+            or None.
+        background: Audit in a Ray actor (default: yes, unless ``series`` is an object).
+        audit_cpus: CPUs the background actor reserves.
         audit_budget: Real evaluations of each audit's search.
         preset, domain, seed, overrides, local, workers, address, episodes, warm_start: The
-            ``AuditSeries`` settings (``local``: audits run in this process, no Ray actors).
+            ``AuditSeries`` settings (``local``: the audit runs in its process, no further actors).
             ``overrides`` go over :data:`DEFAULT_OVERRIDES`.
-
-    The global random states (``random``, NumPy's, torch's) are put back after every audit, so that an
-    audit does not change what the training samples next: a training with audits is the training without.
     """
 
     def __init__(
@@ -101,6 +132,8 @@ class SeriesAuditor:
         out_dir: str | os.PathLike[str],
         series: Any = None,
         writer: Any = None,
+        background: bool | None = None,
+        audit_cpus: float = 1.0,
         audit_budget: int = DEFAULT_AUDIT_BUDGET,
         preset: str | None = DEFAULT_PRESET,
         domain: str = "maze",
@@ -114,24 +147,29 @@ class SeriesAuditor:
     ) -> None:
         if int(audit_budget) < 1:
             raise ValueError(f"audit_budget must be at least 1, got {audit_budget}")
+        is_object = series is not None and not isinstance(series, type) and hasattr(series, "audit")
+        self.background = (not is_object) if background is None else bool(background)
+        if self.background and is_object:
+            raise ValueError("background audits build their series in a Ray actor: pass a factory (a class or a "
+                             "function), not a series object, or background=False")
         self.out_dir = Path(out_dir)
+        self.audit_cpus = float(audit_cpus)
         self.series_kwargs = dict(out_dir=self.out_dir, domain=domain, preset=preset, budget=int(audit_budget),
-                                  seed=seed, overrides={**DEFAULT_OVERRIDES, **dict(overrides or {})}, local=local, workers=workers,
-                                  address=address, episodes=episodes, warm_start=warm_start)
+                                  seed=seed, overrides={**DEFAULT_OVERRIDES, **dict(overrides or {})}, local=local,
+                                  workers=workers, address=address, episodes=episodes, warm_start=warm_start)
         self._series = series
-        self._series_built = series is not None and hasattr(series, "audit")
+        self._series_built = is_object
         self._writer = writer
+        self._actor: Any = None
+        self._inflight: _InFlight | None = None
+
+    # ------------------------------------------------------------------------------------ series
 
     @property
     def series(self) -> Any:
-        """The series the audits go to (built on first use, so that constructing a callback is cheap)."""
+        """The series of in-process audits (built on first use, so that constructing a callback is cheap)."""
         if not self._series_built:
-            if self._series is None:
-                from dsage_ray.audit.series import AuditSeries
-
-                self._series = AuditSeries(**self.series_kwargs)
-            else:
-                self._series = self._series(**self.series_kwargs)
+            self._series = build_series(self._series, self.series_kwargs)
             self._series_built = True
         return self._series
 
@@ -146,12 +184,76 @@ class SeriesAuditor:
             self._writer = SummaryWriter(str(self._writer))
         return self._writer
 
-    def audit(self, spec: str | Callable[[], str], *, label: str, step: int | None) -> Any:
-        """Audits one checkpoint; the series' record, or None when the audit raised (one warning logged).
+    @property
+    def running(self) -> str | None:
+        """The label of the background audit in flight, if any."""
+        return None if self._inflight is None else self._inflight.label
 
-        ``spec`` may be a callable that produces the agent spec (e.g. by saving the checkpoint): what
-        it raises counts as a failed audit too. A record whose ``error`` is set logs the same one
-        warning; its scalars that are numbers still go to the writer.
+    # ---------------------------------------------------------------------------------- auditing
+
+    def submit(self, spec: str | Callable[[], str], *, label: str, step: int | None) -> list[FinishedAudit]:
+        """Starts (background) or runs (in this process) the audit of ``spec``; the audits that ended meanwhile.
+
+        ``spec`` may be a callable that produces the agent spec (e.g. by saving the checkpoint): what it
+        raises counts as a failed audit too. Nothing is raised: a failed audit is one warning line
+        (``audit of <label> skipped: <reason>``) and a :class:`FinishedAudit` whose record is None.
+        """
+        if not self.background:
+            return [FinishedAudit(label, step, self.audit(spec, label=label, step=step))]
+        finished = self.poll()
+        if self._inflight is not None:
+            log.warning("audit of %s skipped: the audit of %s is still running (or waiting for a CPU); audit less "
+                        "often", label, self._inflight.label)
+            return finished
+        try:
+            if callable(spec):
+                spec = spec()
+            ref = self._ensure_actor().audit.remote(spec, label, step)
+        except Exception as exc:  # noqa: BLE001 - an audit must never stop training
+            log.warning("audit of %s skipped: %s", label, describe(exc))
+            return [*finished, FinishedAudit(label, step, None)]
+        self._inflight = _InFlight(label, step, ref)
+        return finished
+
+    def poll(self, timeout: float | None = 0.0) -> list[FinishedAudit]:
+        """The background audit, if it has ended (within ``timeout`` seconds; None: wait for it), reported."""
+        if self._inflight is None:
+            return []
+        import ray
+
+        ready, _ = ray.wait([self._inflight.ref], timeout=timeout)
+        if not ready:
+            return []
+        inflight, self._inflight = self._inflight, None
+        try:
+            record = ray.get(inflight.ref)
+        except Exception as exc:  # noqa: BLE001 - a dead actor, an error in the audit: never stop training
+            if isinstance(exc, ray.exceptions.RayActorError):
+                self._actor = None  # replaced at the next audit
+            cause = getattr(exc, "cause", None)
+            log.warning("audit of %s skipped: %s", inflight.label, describe(cause if cause is not None else exc))
+            return [FinishedAudit(inflight.label, inflight.step, None)]
+        self.report(record, label=inflight.label, step=inflight.step)
+        return [FinishedAudit(inflight.label, inflight.step, record)]
+
+    def finish(self, timeout: float | None = None) -> list[FinishedAudit]:
+        """Waits for the background audit (up to ``timeout`` seconds), then ends the actor if none runs."""
+        finished = self.poll(timeout=timeout)
+        if self._inflight is not None:
+            log.warning("audit of %s still running after %s s; left to finish in its actor", self._inflight.label,
+                        timeout)
+        elif self._actor is not None:
+            import ray
+
+            ray.kill(self._actor)
+            self._actor = None
+        return finished
+
+    def audit(self, spec: str | Callable[[], str], *, label: str, step: int | None) -> Any:
+        """Audits one checkpoint in this process; the series' record, or None when the audit raised.
+
+        A record whose ``error`` is set logs the same one warning; its scalars that are numbers still go to
+        the writer.
         """
         try:
             if callable(spec):
@@ -161,6 +263,11 @@ class SeriesAuditor:
         except Exception as exc:  # noqa: BLE001 - an audit must never stop training
             log.warning("audit of %s skipped: %s", label, describe(exc))
             return None
+        self.report(record, label=label, step=step)
+        return record
+
+    def report(self, record: Any, *, label: str, step: int | None) -> None:
+        """Logs a record's error (one warning) and writes its numeric scalars."""
         if getattr(record, "error", None):
             reason = str(record.error).strip().splitlines()
             log.warning("audit of %s skipped: %s", label, reason[-1] if reason else "unknown error")
@@ -168,7 +275,6 @@ class SeriesAuditor:
             self.write(finite_scalars(record), step)
         except Exception as exc:  # noqa: BLE001
             log.warning("audit of %s: scalars not written: %s", label, describe(exc))
-        return record
 
     def write(self, scalars: Mapping[str, float], step: int | None) -> None:
         """Writes ``scalars`` (``audit/...`` tags) to the writer, if there is one, at ``step``."""
@@ -179,6 +285,40 @@ class SeriesAuditor:
             writer.add_scalar(tag, value, step)
         if hasattr(writer, "flush"):
             writer.flush()
+
+    def _ensure_actor(self) -> Any:
+        if self._actor is None:
+            import ray
+            from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
+            # On this node (the checkpoints are this process's files), outside any placement group of a trial.
+            here = NodeAffinitySchedulingStrategy(node_id=ray.get_runtime_context().get_node_id(), soft=False)
+            self._actor = ray.remote(SeriesActor).options(num_cpus=self.audit_cpus, scheduling_strategy=here).remote(
+                self._series, self.series_kwargs)
+        return self._actor
+
+
+def build_series(series: Any, kwargs: Mapping[str, Any]) -> Any:
+    """The series object: an ``AuditSeries`` for None, else the factory's product."""
+    if series is None:
+        from dsage_ray.audit.series import AuditSeries
+
+        return AuditSeries(**kwargs)
+    return series(**kwargs)
+
+
+class SeriesActor:
+    """The series of background audits, in a Ray actor of its own (one torch thread)."""
+
+    def __init__(self, series: Any, kwargs: Mapping[str, Any]) -> None:
+        import torch
+
+        torch.set_num_threads(1)
+        self.series = build_series(series, kwargs)
+
+    def audit(self, spec: str, label: str, step: int | None) -> Any:
+        with _one_warning():
+            return self.series.audit(spec, label=label, step=step)
 
 
 class _SeriesFailureFilter(logging.Filter):

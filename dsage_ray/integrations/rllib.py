@@ -16,22 +16,28 @@ RLlib builds its callbacks itself (``config.callbacks(callbacks_class=...)`` tak
 returns one), on the algorithm and on every env runner. :meth:`AuditCallback.configured` returns such a
 callable with the settings bound::
 
-    from dsage_ray.integrations.rllib import AuditCallback
+    from dsage_ray.integrations.rllib import AuditCallback, finish_audits
 
     config = PPOConfig()....callbacks(AuditCallback.configured(audit_every=25, audit_budget=30,
                                                                out_dir="tb_logs/my_run"))
     algo = config.build_algo()
     for _ in range(100):
-        result = algo.train()          # result["audit"] holds the audit's numbers on audit iterations
+        result = algo.train()          # result["audit"]: the numbers of an audit that just ended
+    finish_audits(algo)                # waits for the last audit
 
 Only the algorithm's instance audits (``on_train_result`` runs in the algorithm's process); the env
-runners' copies do nothing. Audits run synchronously, between iterations: training waits for them, and
-their wall time is the overhead (``benchmarks/bench_audit_callback.py`` measures it).
+runners' copies do nothing. By default the audits run in the background, in a Ray actor with one CPU of its
+own: training waits only for the module to be saved, and an audit's numbers arrive a few iterations later
+(at the step of the checkpoint they belong to). One audit runs at a time; one that falls due while another
+runs is skipped, with a warning. ``background=False`` audits in the training process, between iterations
+(``benchmarks/bench_audit_callback.py`` measures both). Call :func:`finish_audits` (or the callback's
+``finish``) after the last iteration to wait for the last audit.
 """
 
 from __future__ import annotations
 
 import os
+import time
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -96,10 +102,17 @@ class AuditCallback(RLlibCallback):
         writer: A TensorBoard ``SummaryWriter`` (or a folder to open one on) that also gets the scalars,
             step = environment steps. Objects that cannot be pickled are not sent to remote processes
             (an algorithm run by Tune on an actor gets None): pass a folder there.
-        series: An audit series object (``audit(spec, label=, step=)``), or a factory returning one;
+        series: A factory of audit series (a class or function called with the ``AuditSeries`` keyword
+            arguments), or a series object (``audit(spec, label=, step=)``, audited in this process);
             default :class:`~dsage_ray.audit.series.AuditSeries`, built at the first audit.
-        **series_settings: ``preset``, ``domain``, ``seed``, ``overrides``, ``local``, ``workers``,
-            ``address``, ``episodes``, ``warm_start`` of the series (:class:`~dsage_ray.integrations.SeriesAuditor`).
+        **series_settings: ``background`` (default: audits in a Ray actor of their own, unless ``series``
+            is an object), ``audit_cpus``, and the series' ``preset``, ``domain``, ``seed``, ``overrides``,
+            ``local``, ``workers``, ``address``, ``episodes``, ``warm_start``
+            (:class:`~dsage_ray.integrations.SeriesAuditor`).
+
+    Background audits report when they end: their scalars go into the result of the iteration that sees
+    them end (``result["audit"]``, with ``checkpoint_iteration``, the iteration audited) and to the writer at
+    the audited checkpoint's env steps. :meth:`finish` (or :func:`finish_audits`) waits for the last one.
     """
 
     def __init__(
@@ -117,8 +130,8 @@ class AuditCallback(RLlibCallback):
         super().__init__()
         if int(audit_every) < 1:
             raise ValueError(f"audit_every must be at least 1, got {audit_every}")
-        if out_dir is None and not hasattr(series, "audit"):
-            raise ValueError("AuditCallback needs out_dir (or a series object)")
+        if out_dir is None and series_dir is None:
+            raise ValueError("AuditCallback needs out_dir (or series_dir)")
         series_settings.setdefault("preset", DEFAULT_PRESET)
         series_settings.setdefault("episodes", DEFAULT_EPISODES)
         self.audit_every = int(audit_every)
@@ -128,8 +141,10 @@ class AuditCallback(RLlibCallback):
             series_dir = (self.out_dir or Path(".")) / SERIES_SUBDIR
         self.auditor = SeriesAuditor(out_dir=series_dir, series=series, writer=writer,
                                      audit_budget=audit_budget, **series_settings)
-        #: ``(iteration, record or None)`` of every audit this instance ran.
-        self.audits: list[tuple[int, Any]] = []
+        #: ``(iteration, record or None, seconds)`` of every audit that ended (seconds: how long training waited
+        #: for it: saving the module, and in this process the audit itself).
+        self.audits: list[tuple[int, Any, float]] = []
+        self._waited: dict[str, float] = {}
 
     @classmethod
     def configured(cls, **settings: Any) -> "ConfiguredAuditCallback":
@@ -147,21 +162,41 @@ class AuditCallback(RLlibCallback):
     def on_train_result(self, *, algorithm: Any, metrics_logger: Any = None, result: dict, **kwargs: Any) -> None:
         iteration = result.get("training_iteration")
         iteration = int(iteration) if iteration is not None else int(getattr(algorithm, "iteration", 0))
-        if iteration <= 0 or iteration % self.audit_every:
-            return
-        label = f"iter_{iteration}"
-        step = env_steps(result)
+        finished = self.auditor.poll() if self.auditor.background else []
+        if iteration > 0 and iteration % self.audit_every == 0:
+            label = f"iter_{iteration}"
 
-        def spec() -> str:
-            return f"rllib:{save_module(algorithm, self.checkpoint_dir(iteration), policy=self.policy)}"
+            def spec() -> str:
+                return f"rllib:{save_module(algorithm, self.checkpoint_dir(iteration), policy=self.policy)}"
 
-        record = self.auditor.audit(spec, label=label, step=step)
-        self.audits.append((iteration, record))
-        if record is not None:
+            started = time.perf_counter()
+            finished += self.auditor.submit(spec, label=label, step=env_steps(result))
+            self._waited[label] = time.perf_counter() - started
+        self._record(finished, result)
+
+    def finish(self, timeout: float | None = None) -> list[tuple[int, Any, float]]:
+        """Waits for a background audit still running (up to ``timeout`` s); the audits that ended here."""
+        finished = self.auditor.finish(timeout=timeout)
+        self._record(finished, None)
+        return self.audits[len(self.audits) - len(finished):] if finished else []
+
+    def _record(self, finished: list, result: dict | None) -> None:
+        for audit in finished:
+            self.audits.append((int(audit.label.removeprefix("iter_")), audit.record, self._waited.pop(audit.label, 0.0)))
+            if audit.record is None or result is None:
+                continue
             try:
-                result["audit"] = {tag.removeprefix("audit/"): value for tag, value in finite_scalars(record).items()}
+                numbers = {tag.removeprefix("audit/"): value for tag, value in finite_scalars(audit.record).items()}
             except Exception:  # noqa: BLE001 - already warned about by the auditor
-                pass
+                continue
+            result["audit"] = {**numbers, "checkpoint_iteration": int(audit.label.removeprefix("iter_"))}
+
+
+def finish_audits(algorithm: Any, timeout: float | None = None) -> list[tuple[int, Any, float]]:
+    """Waits for the background audits of ``algorithm``'s :class:`AuditCallback` s; the audits that ended."""
+    callbacks = algorithm.callbacks if isinstance(algorithm.callbacks, (list, tuple)) else [algorithm.callbacks]
+    return [audit for callback in callbacks if isinstance(callback, AuditCallback)
+            for audit in callback.finish(timeout=timeout)]
 
 
 class ConfiguredAuditCallback:

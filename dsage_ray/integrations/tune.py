@@ -21,8 +21,11 @@ that the audited module outlives Tune's checkpoint clean-up (``num_to_keep``), a
 ``rllib:<copy>``. Any other trainer: pass a function from the checkpoint folder to a spec
 (``lambda path: f"torchscript:{path}/policy.pt"``).
 
-As for the RLlib callback, a failed audit logs one warning (``audit of <label> skipped: <reason>``) and
-the trials go on. Audits block Tune's driver loop while they run (trials keep training on their actors).
+As for the RLlib callback, the audits run in the background by default, in one Ray actor per trial with a
+CPU of its own (Tune's driver loop, which all trials wait on, only copies the module), one audit at a time per
+trial; the experiment's end waits for the last ones. A failed audit logs one warning (``audit of <label>
+skipped: <reason>``) and the trials go on. Leave a CPU free for the audit actor (``audit_cpus``), or
+its audits wait for one.
 """
 
 from __future__ import annotations
@@ -68,8 +71,8 @@ class AuditCheckpointsCallback(Callback):
         tensorboard: Also write the scalars to the trial's folder.
         series: A factory called with the ``AuditSeries`` keyword arguments (``out_dir`` is the trial's
             series folder), e.g. for tests; default :class:`~dsage_ray.audit.series.AuditSeries`.
-        **series_settings: ``preset``, ``domain``, ``seed``, ``overrides``, ``local``, ``workers``,
-            ``address``, ``episodes``, ``warm_start`` of each series.
+        **series_settings: ``background`` (default True), ``audit_cpus``, and each series' ``preset``,
+            ``domain``, ``seed``, ``overrides``, ``local``, ``workers``, ``address``, ``episodes``, ``warm_start``.
     """
 
     def __init__(
@@ -92,10 +95,11 @@ class AuditCheckpointsCallback(Callback):
         self.tensorboard = tensorboard
         self.series = series
         self.series_settings = series_settings
-        SeriesAuditor(out_dir=self.out_dir, audit_budget=self.audit_budget, **series_settings)  # checks the settings
+        SeriesAuditor(out_dir=self.out_dir, audit_budget=self.audit_budget, series=series,
+                      **series_settings)  # checks the settings
         #: Checkpoints seen per trial id.
         self.counts: dict[str, int] = {}
-        #: ``(trial_id, label, record or None)`` of every audit run.
+        #: ``(trial_id, label, record or None)`` of every audit that ended.
         self.audits: list[tuple[str, str, Any]] = []
         self._auditors: dict[str, SeriesAuditor] = {}
 
@@ -141,8 +145,23 @@ class AuditCheckpointsCallback(Callback):
             shutil.copytree(rllib_module_dir(path), copy)
             return f"rllib:{copy}"
 
-        record = auditor.audit(spec, label=label, step=_trial_step(result))
-        self.audits.append((trial_id, label, record))
+        self._record(trial_id, auditor.submit(spec, label=label, step=_trial_step(result)))
+
+    def on_step_begin(self, iteration: int, trials: list, **info: Any) -> None:
+        for trial_id, auditor in self._auditors.items():
+            if auditor.running:
+                self._record(trial_id, auditor.poll())
+
+    def on_experiment_end(self, trials: list, **info: Any) -> None:
+        self.finish()
+
+    def finish(self, timeout: float | None = None) -> None:
+        """Waits for the audits still running (up to ``timeout`` s each) and ends their actors."""
+        for trial_id, auditor in self._auditors.items():
+            self._record(trial_id, auditor.finish(timeout=timeout))
+
+    def _record(self, trial_id: str, finished: list) -> None:
+        self.audits.extend((trial_id, audit.label, audit.record) for audit in finished)
 
     def get_state(self) -> dict | None:
         return {"counts": dict(self.counts)}

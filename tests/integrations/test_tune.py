@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import pickle
+import time
 from pathlib import Path
 
 import pytest
@@ -43,7 +44,7 @@ def checkpoint(callback, trial, tmp_path: Path, n: int) -> Path:
 
 def test_every_nth_checkpoint_of_each_trial_is_audited(tmp_path):
     made: dict = {}
-    callback = AuditCheckpointsCallback(out_dir=tmp_path / "audits", audit_every=3, tensorboard=False,
+    callback = AuditCheckpointsCallback(out_dir=tmp_path / "audits", audit_every=3, tensorboard=False, background=False,
                                         series=series_factory(made), spec_from_checkpoint=lambda p: f"dcd:{p}/model.tar")
     a, b = FakeTrial("a", str(tmp_path / "a")), FakeTrial("b", str(tmp_path / "b"))
     for n in range(1, 8):
@@ -64,7 +65,7 @@ def test_every_nth_checkpoint_of_each_trial_is_audited(tmp_path):
 def test_the_default_spec_is_a_copy_of_the_rllib_module(tmp_path):
     made: dict = {}
     callback = AuditCheckpointsCallback(out_dir=tmp_path / "audits", audit_every=1, tensorboard=False,
-                                        series=series_factory(made))
+                                        series=series_factory(made), background=False)
     trial = FakeTrial("t", str(tmp_path / "t"))
     path = tmp_path / "t" / "checkpoint_000001"
     module = path / "learner_group" / "learner" / "rl_module" / "default_policy"
@@ -81,7 +82,8 @@ def test_the_default_spec_is_a_copy_of_the_rllib_module(tmp_path):
 def test_a_failing_audit_logs_one_warning_and_the_experiment_goes_on(tmp_path, caplog):
     made: dict = {}
     callback = AuditCheckpointsCallback(out_dir=tmp_path / "audits", audit_every=1, tensorboard=False,
-                                        series=series_factory(made, fail=ConnectionError("actor died")))
+                                        series=series_factory(made, fail=ConnectionError("actor died")),
+                                        background=False)
     trial = FakeTrial("t", str(tmp_path / "t"))
     with caplog.at_level(logging.WARNING):
         checkpoint(callback, trial, tmp_path, 1)  # an empty folder: not an RLlib checkpoint
@@ -97,7 +99,23 @@ def test_a_failing_audit_logs_one_warning_and_the_experiment_goes_on(tmp_path, c
 def test_scalars_go_to_the_trial_folder(tmp_path):
     made: dict = {}
     callback = AuditCheckpointsCallback(out_dir=tmp_path / "audits", audit_every=1, series=series_factory(made),
-                                        spec_from_checkpoint=lambda p: "builtin:random")
+                                        spec_from_checkpoint=lambda p: "builtin:random", background=False)
     trial = FakeTrial("t", str(tmp_path / "trial_dir"))
     checkpoint(callback, trial, tmp_path, 1)
     assert list((tmp_path / "trial_dir").glob("events.out.tfevents.*"))
+
+
+def test_background_audits_end_with_the_experiment(tmp_path, ray_session):
+    callback = AuditCheckpointsCallback(out_dir=tmp_path / "audits", audit_every=2, series=FakeSeries,
+                                        spec_from_checkpoint=lambda p: f"dcd:{p}", tensorboard=False)
+    trial = FakeTrial("t", str(tmp_path / "t"))
+    for n in range(1, 5):
+        checkpoint(callback, trial, tmp_path, n)
+        if n == 2:  # Tune's loop polls the running audit at every step until it has ended
+            deadline = time.monotonic() + 60
+            while not callback.audits and time.monotonic() < deadline:
+                callback.on_step_begin(iteration=n, trials=[trial])
+                time.sleep(0.1)
+    callback.on_experiment_end(trials=[trial])  # waits for the audit of the 4th
+    assert [(label, record.agent, record.step) for _, label, record in callback.audits] == [
+        ("iter_20", f"dcd:{tmp_path}/t/checkpoint_000002", 8000), ("iter_40", f"dcd:{tmp_path}/t/checkpoint_000004", 16000)]
