@@ -21,7 +21,10 @@ iterations the current module is saved to ``tb_logs/<run_name>/checkpoints/iter_
 (the regression suite of earlier audits' failures re-evaluated, then a short warm-started DSAGE search of
 ``--audit-budget`` evaluations whose new failures join the suite); the series lives in
 ``tb_logs/<run_name>/audit_series`` and its numbers go to the run's TensorBoard under ``audit/...`` with
-step = env steps. A failed audit logs one warning line; training goes on::
+step = env steps. The audits run in a Ray actor with a CPU of its own while training goes on (one at a time:
+one that falls due while another runs is skipped with a warning; the end of training waits for the last);
+``--no-audit-background`` audits between iterations instead. A failed audit logs one warning line; training
+goes on::
 
     nice -n 10 python experiments/train_maze_agent.py --run-name ppo_audited --audit-every 25 --audit-budget 30
 
@@ -132,8 +135,9 @@ class Args:
     """the audits' preset (their search settings; --audit-budget replaces its budget)"""
     audit_episodes: int = 0
     """episodes per level when an audit re-evaluates the suite and its new failures (0 = the preset's: tiny 5)"""
-    audit_local: bool = True
-    """run the audits in the training process (--no-audit-local: through Ray, on the training's cluster)"""
+    audit_background: bool = True
+    """audit in a Ray actor with a CPU of its own while training goes on (--no-audit-background: in the training
+    process, between iterations)"""
 
     # Training on an audit's failures
     train_on_collection: str = ""
@@ -237,8 +241,17 @@ def audit_callback(args: Args, run_dir: Path, writer):
     from dsage_ray.integrations.rllib import AuditCallback
 
     return AuditCallback.configured(audit_every=args.audit_every, audit_budget=args.audit_budget, out_dir=run_dir,
-                                    writer=writer, preset=args.audit_preset, seed=args.seed, local=args.audit_local,
-                                    episodes=args.audit_episodes or DEFAULT_EPISODES)
+                                    writer=writer, preset=args.audit_preset, seed=args.seed,
+                                    background=args.audit_background, episodes=args.audit_episodes or DEFAULT_EPISODES)
+
+
+def print_audit(audit: dict) -> None:
+    """One line per audit that ended (``result["audit"]``)."""
+    success = audit.get("suite_success_rate")
+    print(f"  audit of iteration {audit.get('checkpoint_iteration', '?')}: suite success "
+          f"{'-' if success is None else f'{success:.3f}'}  fixed {audit.get('fixed', 0):.0f}  "
+          f"regressed {audit.get('regressed', 0):.0f}  new failures {audit.get('new_failures', 0):.0f}  "
+          f"never solved {audit.get('never_solved', 0):.0f}  {audit.get('wall_time', 0):.0f} s", flush=True)
 
 
 def difficulty_at(env_steps: int, args: Args) -> float:
@@ -357,10 +370,7 @@ def main(argv: list[str] | None = None) -> int:
               f"len {scalars['train/episode_len_mean'] or 0:6.1f}  difficulty {scalars['train/difficulty']:.2f}  "
               f"{scalars['train/env_steps_per_s']:.0f} steps/s", flush=True)
         if "audit" in result:
-            audit = result["audit"]
-            print(f"  audit: suite success {audit.get('suite_success_rate', float('nan')):.3f}  "
-                  f"fixed {audit.get('fixed', 0):.0f}  regressed {audit.get('regressed', 0):.0f}  "
-                  f"new failures {audit.get('new_failures', 0):.0f}  {audit.get('wall_time', 0):.0f} s", flush=True)
+            print_audit(result["audit"])
 
         last = finished()
         if progress["iteration"] % args.checkpoint_every == 0 or last:
@@ -374,6 +384,15 @@ def main(argv: list[str] | None = None) -> int:
         writer.flush()
 
     checkpoint = save_checkpoint(algo, run_dir, progress)
+    if args.audit_every:
+        from dsage_ray.integrations.rllib import finish_audits
+
+        print("waiting for the last audit ...", flush=True)
+        for iteration, record, _ in finish_audits(algo):
+            if record is not None:
+                print_audit({k.removeprefix("audit/"): v for k, v in record.scalars().items()} | {
+                    "checkpoint_iteration": iteration})
+        print(f"audit series: {run_dir / 'audit_series'}", flush=True)
     if args.export:
         export = Path(args.export)
         if export.exists():
