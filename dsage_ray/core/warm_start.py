@@ -264,15 +264,16 @@ def subset(surrogate, dataset, rows: np.ndarray):
 
 
 def _spearman(surrogate, dataset, rows: np.ndarray, *, measure_names: Sequence[str]) -> dict[str, float]:
-    """Spearman ρ of the predicted against the real value per measure on ``rows`` (empty without rows)."""
+    """Spearman ρ of the predicted against the real objective and each measure on ``rows`` (empty with < 3)."""
     from scipy.stats import spearmanr
 
     if len(rows) < 3:
         return {}
     prediction = surrogate.predict(dataset.levels(rows))
-    real = dataset.measures[rows]
+    pairs = {"objective": (prediction.objective, dataset.objective[rows]),
+             **{name: (prediction.measures[:, i], dataset.measures[rows, i]) for i, name in enumerate(measure_names)}}
     result = {}
-    for i, name in enumerate(measure_names):
-        rho = spearmanr(prediction.measures[:, i], real[:, i]).statistic
+    for name, (predicted, real) in pairs.items():
+        rho = spearmanr(predicted, real).statistic
         result[name] = float(rho) if np.isfinite(rho) else float("nan")
     return result
