@@ -29,7 +29,7 @@ __all__ = ["AuditCallback", "AuditCheckpointsCallback", "SeriesAuditor", "DEFAUL
            "DEFAULT_PRESET", "DEFAULT_EPISODES", "DEFAULT_OVERRIDES"]
 
 #: Training iterations (RLlib) or checkpoints (Tune) between audits, by default.
-DEFAULT_AUDIT_EVERY = 25
+DEFAULT_AUDIT_EVERY = 50
 #: Real evaluations of each audit's DSAGE search, by default.
 DEFAULT_AUDIT_BUDGET = 30
 #: The audit's preset (its search settings; ``budget`` replaces the preset's).
