@@ -115,6 +115,7 @@ def main() -> int:
     ray.init(num_cpus=args.num_cpus, include_dashboard=False, log_to_driver=False)
     out = Path(options.out) if options.out else Path(tempfile.mkdtemp(prefix="bench_audit_callback."))
     audit = dict(audit_every=options.audit_every, audit_budget=options.audit_budget)
+    load_before = os.getloadavg()[0]
     try:
         runs = {"without the callback": train(script, args, iterations)}
         runs["audits in the background"] = train(script, args, iterations, audit_dir=(out / "background").resolve(),
@@ -130,7 +131,8 @@ def main() -> int:
     due = iterations // options.audit_every
     print(f"PPO, {args.train_batch_size} env steps per iteration, seed {options.seed}, {iterations} iterations, "
           f"Ray with {args.num_cpus} CPUs; audit every {options.audit_every} iterations ({due} due), "
-          f"audit budget {options.audit_budget} evaluations")
+          f"audit budget {options.audit_budget} evaluations; load average {load_before:.1f} before, "
+          f"{os.getloadavg()[0]:.1f} after")
     for name, run in runs.items():
         total = sum(run["seconds"])
         line = f"  {name:<32} {total:7.1f} s training ({run['steps']} env steps)"
