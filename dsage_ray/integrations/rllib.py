@@ -95,8 +95,8 @@ class AuditCallback(RLlibCallback):
     Args:
         audit_every: Training iterations between audits (iterations ``audit_every``, ``2·audit_every``, ...).
         out_dir: Module checkpoints go to ``out_dir/checkpoints/iter_<N>``, the audit series to
-            ``out_dir/audit_series`` (continued if it exists). Required unless ``series`` is an object.
-        series_dir: Another folder for the series.
+            ``out_dir/audit_series`` (continued if it exists).
+        series_dir: Another folder for the series (one of ``out_dir`` and ``series_dir`` is required).
         audit_budget: Real evaluations of each audit's search.
         policy: The module to audit.
         writer: A TensorBoard ``SummaryWriter`` (or a folder to open one on) that also gets the scalars,
@@ -218,17 +218,18 @@ class ConfiguredAuditCallback:
         return ConfiguredAuditCallback(self.cls, self.settings)
 
     def __reduce__(self):
-        import pickle
+        from ray import cloudpickle
 
         settings = {}
         for key, value in self.settings.items():
             try:
-                pickle.dumps(value)
+                cloudpickle.dumps(value)
             except Exception:  # noqa: BLE001 - writers hold threads and files
-                value = None
+                if key == "series":  # a series object that stays here: the copy cannot audit
+                    value, settings["background"] = _NoSeries(), False
+                else:
+                    value = None
             settings[key] = value
-        if settings.get("series") is None and settings.get("out_dir") is None:
-            settings["series"] = _NoSeries()
         return (ConfiguredAuditCallback, (self.cls, settings))
 
     def __repr__(self) -> str:

@@ -163,6 +163,10 @@ class AuditCheckpointsCallback(Callback):
     def _record(self, trial_id: str, finished: list) -> None:
         self.audits.extend((trial_id, audit.label, audit.record) for audit in finished)
 
+    def __getstate__(self) -> dict:
+        # Tune pickles its callbacks with the experiment; actors and writers stay in this process.
+        return {**self.__dict__, "_auditors": {}}
+
     def get_state(self) -> dict | None:
         return {"counts": dict(self.counts)}
 

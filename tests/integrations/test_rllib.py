@@ -139,10 +139,14 @@ def test_configured_is_what_rllib_accepts_and_survives_copies(tmp_path):
     config = PPOConfig().callbacks(factory)
     built = copy.deepcopy(config).callbacks_class()
     assert isinstance(built, AuditCallback) and built.audit_every == 5 and built.auditor.writer is writer
-    # Pickled (for remote env runners) a writer that cannot be pickled is dropped, not an error.
+    # Pickled (for remote env runners) a writer or series that cannot be pickled is dropped, not an error.
     writer.lock = __import__("threading").Lock()
     remote = pickle.loads(pickle.dumps(factory))()
     assert remote.audit_every == 5 and remote.auditor.writer is None
+    series = FakeSeries()
+    series.lock = writer.lock
+    remote = pickle.loads(pickle.dumps(AuditCallback.configured(audit_every=1, out_dir=tmp_path, series=series)))()
+    assert not remote.auditor.background and type(remote.auditor.series).__name__ == "_NoSeries"
     with pytest.raises(ValueError, match="audit_every"):
         AuditCallback.configured(audit_every=0, out_dir=tmp_path)
     with pytest.raises(ValueError, match="out_dir"):

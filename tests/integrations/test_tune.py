@@ -57,6 +57,9 @@ def test_every_nth_checkpoint_of_each_trial_is_audited(tmp_path):
     assert [label for _, label, _ in series_b.calls] == ["iter_30"]
     assert [(t, label) for t, label, _ in callback.audits] == [("a", "iter_30"), ("b", "iter_30"), ("a", "iter_60")]
     # Tune saves and restores callback state with the experiment: the counts go on after a restore.
+    from ray import cloudpickle
+
+    assert cloudpickle.loads(cloudpickle.dumps(callback))._auditors == {}  # Tune pickles its callbacks
     restored = AuditCheckpointsCallback(out_dir=tmp_path / "audits", audit_every=3)
     restored.set_state(pickle.loads(pickle.dumps(callback.get_state())))
     assert restored.counts == {"a": 7, "b": 3}
