@@ -19,6 +19,7 @@ if TYPE_CHECKING:
     from dsage_ray.api import (Collection, CollectionLevel, DsageError, ExperimentResult, InputError, ResourceError,
                                RunConfig, RunResult, TrialFailed, ablate, resolve_config, run, run_audit)
     from dsage_ray.audit.series import AuditSeries
+    from dsage_ray.core.warm_start import pretrain_surrogate
 
 try:
     __version__ = metadata.version("dsage_ray")
@@ -26,12 +27,12 @@ except metadata.PackageNotFoundError:  # a source checkout that was never instal
     __version__ = "0+unknown"
 
 __all__ = ["AuditSeries", "Collection", "CollectionLevel", "DsageError", "ExperimentResult", "InputError",
-           "ResourceError", "RunConfig", "RunResult", "TrialFailed", "__version__", "ablate", "resolve_config", "run",
-           "run_audit"]
+           "ResourceError", "RunConfig", "RunResult", "TrialFailed", "__version__", "ablate", "pretrain_surrogate",
+           "resolve_config", "run", "run_audit"]
 
 
 #: Public names that live outside :mod:`dsage_ray.api`, by module.
-_ELSEWHERE = {"AuditSeries": "dsage_ray.audit.series"}
+_ELSEWHERE = {"AuditSeries": "dsage_ray.audit.series", "pretrain_surrogate": "dsage_ray.core.warm_start"}
 
 
 def __getattr__(name: str) -> Any:

@@ -64,7 +64,7 @@ def pretrain_command(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from dsage_ray.cli_args import config_overrides
-    from dsage_ray.core.warm_start import load_warm_start, pretrain
+    from dsage_ray.core.warm_start import pretrain_surrogate
 
     if bool(args.sources) == bool(args.agent):
         raise InputError("give either --from PATH ... (earlier runs) or --agent SPEC --levels N (a new search)")
@@ -81,15 +81,16 @@ def pretrain_command(args: argparse.Namespace) -> int:
     if args.sources:
         if args.preset:
             raise InputError("--preset applies to the search of --agent; with --from, change keys with --set")
-        sources = [load_warm_start(path) for path in args.sources]
-        config = sources[0].config.replace(**overrides) if overrides else sources[0].config
+        sources, overrides = args.sources, overrides
     else:
-        search = _search(args, overrides, out)
-        sources = [load_warm_start(search)]
-        config = sources[0].config
-    with tqdm(total=args.epochs or config.surrogate.epochs, desc="pretrain", unit="epoch") as bar:
-        result = pretrain(sources=sources, config=config, out=out, seed=args.seed, epochs=args.epochs,
-                          progress=lambda epoch, _total: bar.update(1))
+        sources, overrides = [_search(args, overrides, out)], {}
+    with tqdm(desc="pretrain", unit="epoch") as bar:
+        def advance(epoch: int, total: int) -> None:
+            bar.total = total
+            bar.update(1)
+
+        result = pretrain_surrogate(sources, out=out, overrides=overrides, seed=args.seed, epochs=args.epochs,
+                                    progress=advance)
     print(describe(result))
     agent = f"--agent {result.agent} " if result.agent else ""
     print(f"pretrained surrogate: {result.path}\nuse it: dsage-ray audit {agent}--surrogate-init {result.path}")

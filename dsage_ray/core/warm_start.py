@@ -247,6 +247,31 @@ def pretrain(*, sources: Sequence[WarmStart], config: RunConfig, out: str | Path
                      agent=state["agent"], info=info)
 
 
+def pretrain_surrogate(sources: Sequence[str | Path], *, out: str | Path, overrides: Mapping[str, Any] | None = None,
+                       epochs: int | None = None, seed: int = 0,
+                       progress: Callable[[int, int], None] | None = None) -> WarmStart:
+    """Pretrains a surrogate on earlier surrogate runs, audits or pretrained files: ``dsage-ray surrogate pretrain
+    --from`` from Python (``dsage_ray.pretrain_surrogate``).
+
+    Args:
+        sources: Run, audit or Tune trial folders, checkpoint files or pretrained files; their levels are pooled.
+        out: The file to write (``--surrogate-init`` / ``surrogate.init`` then reads it).
+        overrides: Dotted config keys changed from the first source's config (e.g. ``{"surrogate.epochs": 30}``).
+        epochs, seed, progress: As in :func:`pretrain`.
+
+    Returns:
+        The pretrained surrogate; ``.info`` holds its held-out Spearman ρ per predicted quantity.
+
+    Raises:
+        SurrogateInitError: A source that does not load or does not fit the others' network and encoding.
+    """
+    loaded = [load_warm_start(path) for path in sources]
+    if not loaded:
+        raise SurrogateInitError("surrogate pretrain: no source runs or files to train on")
+    config = loaded[0].config.replace(**dict(overrides)) if overrides else loaded[0].config
+    return pretrain(sources=loaded, config=config, out=out, seed=seed, epochs=epochs, progress=progress)
+
+
 def concatenate_datasets(surrogate, states: Sequence[Mapping[str, Any]]):
     """One dataset of ``surrogate``'s shapes holding every sample of ``states`` (dataset state dicts), in order."""
     dataset = surrogate.make_dataset()

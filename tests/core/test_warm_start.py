@@ -178,3 +178,13 @@ def test_the_cli_pretrains_describes_and_refuses_bad_arguments(maze_run, tmp_pat
     assert "--levels" in capsys.readouterr().err
     assert main(["surrogate", "info", str(tmp_path / "nothing")]) == 2
     assert "no such file or folder" in capsys.readouterr().err
+
+
+def test_pretrain_surrogate_is_public_and_takes_paths_and_keys(maze_run, tmp_path):
+    result = dsage_ray.pretrain_surrogate([maze_run], out=tmp_path / "api.surrogate",
+                                          overrides={"surrogate.epochs": 1, "surrogate.lr": 5e-4})
+    assert result.info["epochs"] == 1 and result.config.surrogate.lr == 5e-4
+    assert load_warm_start(tmp_path / "api.surrogate").levels == load_warm_start(maze_run).levels
+    with pytest.raises(SurrogateInitError, match="no source"):
+        dsage_ray.pretrain_surrogate([], out=tmp_path / "none.surrogate")
+    assert not (tmp_path / "none.surrogate").exists()
