@@ -304,6 +304,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.audit_every < 0 or args.audit_budget < 1 or args.audit_episodes < 0:
             raise InputError("--audit-every and --audit-episodes must be >= 0, --audit-budget >= 1")
+        if args.audit_every and args.audit_background and args.num_cpus < 2:
+            raise InputError(f"background audits need a CPU of their own: --num-cpus {args.num_cpus} leaves none "
+                             f"(raise it, or audit between iterations with --no-audit-background)")
         if not 0.0 <= args.collection_share <= 1.0:
             raise InputError(f"--collection-share {args.collection_share} is not a probability in [0, 1]")
         if args.train_on_collection:

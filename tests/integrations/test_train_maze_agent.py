@@ -1,5 +1,6 @@
-"""``train_maze_agent.py --train-on-collection DIR``: a share of the training episodes replays the collection's
-levels, from the env's seeded rng; a folder that is not a Maze collection stops the script with one clear line."""
+"""``experiments/train_maze_agent.py``: ``--train-on-collection DIR`` makes a share of the training episodes replay
+the collection's levels, from the env's seeded rng; a folder that is not a Maze collection, or background audits
+without a CPU for them, stop the script with one clear line."""
 
 from __future__ import annotations
 
@@ -99,3 +100,8 @@ def test_a_bad_folder_stops_the_script_with_one_line(tmp_path, script, capsys, c
     assert len(err) == 1 and err[0].startswith(f"error: --train-on-collection {folder}: ")
     assert message in err[0]
     assert not (tmp_path / "run").exists()
+
+
+def test_background_audits_without_a_cpu_for_them_are_refused(tmp_path, script, capsys):
+    assert script.main(["--audit-every", "5", "--num-cpus", "1", "--run-name", str(tmp_path / "run")]) == 2
+    assert "background audits need a CPU of their own" in capsys.readouterr().err
