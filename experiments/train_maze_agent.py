@@ -406,6 +406,7 @@ def main(argv: list[str] | None = None) -> int:
     algo.stop()
     ray.shutdown()
     print(f"done: {progress['env_steps']} env steps in {progress['wall_s'] / 60:.1f} min; checkpoint {checkpoint}")
+    print(f"open it in TensorBoard: tensorboard --logdir {run_dir}")
     return 0
 
 
