@@ -7,5 +7,7 @@ save them reproducibly, compare agents.
 * :mod:`dsage_ray.audit.summary` — how diverse the failures of a collection are;
 * :mod:`dsage_ray.audit.report` — ``report.html`` and the comparison page;
 * :func:`dsage_ray.audit.compare.compare_agents` — two agents on one collection (any auditable domain) with the
-  same seeds.
+  same seeds;
+* :class:`dsage_ray.audit.series.AuditSeries` — checkpoints audited in training order: a regression suite, a
+  short warm-started search each (:mod:`dsage_ray.audit.series_report` writes ``series.html``).
 """
