@@ -299,6 +299,9 @@ def _spearman(surrogate, dataset, rows: np.ndarray, *, measure_names: Sequence[s
              **{name: (prediction.measures[:, i], dataset.measures[rows, i]) for i, name in enumerate(measure_names)}}
     result = {}
     for name, (predicted, real) in pairs.items():
+        if np.ptp(predicted) == 0 or np.ptp(real) == 0:  # a constant has no rank order: ρ is undefined
+            result[name] = float("nan")
+            continue
         rho = spearmanr(predicted, real).statistic
         result[name] = float(rho) if np.isfinite(rho) else float("nan")
     return result
