@@ -63,13 +63,14 @@ def load_run_config(args: argparse.Namespace, path: str | None):
     return RunConfig.from_file(path, overrides) if path else RunConfig.build(overrides)
 
 
-def add_ray_arguments(parser: argparse.ArgumentParser, *, resume: str, local: bool = True) -> None:
+def add_ray_arguments(parser: argparse.ArgumentParser, *, resume: str | None, local: bool = True) -> None:
     """Where a search runs (``--local``, ``--workers``, ``--address``) and ``--resume``: one definition,
     one help group, for every command that searches (``run``, ``ablate``, ``audit``).
 
     Args:
         parser: The command's parser.
-        resume: What ``--resume`` continues, for its help.
+        resume: What ``--resume`` continues, for its help; None: no ``--resume`` (a command that always
+            continues, such as ``audit-series``).
         local: Offer ``--local`` (``ablate`` runs through Tune only).
     """
     group = parser.add_argument_group("where it runs")
@@ -78,7 +79,8 @@ def add_ray_arguments(parser: argparse.ArgumentParser, *, resume: str, local: bo
     group.add_argument("--workers", type=int,
                        help="simulator actors per run (sets ray.num_workers; 0: simulate in the trial process)")
     group.add_argument("--address", help="join an existing Ray cluster (default: RAY_ADDRESS, else a new local one)")
-    group.add_argument("--resume", action="store_true", help=resume)
+    if resume is not None:
+        group.add_argument("--resume", action="store_true", help=resume)
 
 
 def preset_budgets(domain: str) -> dict[str, int]:

@@ -182,7 +182,7 @@ until Ctrl+C (or --max-checkpoints). Python: dsage_ray.AuditSeries (docs/API.md)
 
 def add_series_subparser(subparsers) -> None:
     """Registers ``audit-series``."""
-    from dsage_ray.cli_args import preset_help
+    from dsage_ray.cli_args import add_config_arguments, add_ray_arguments
 
     series = subparsers.add_parser(
         "audit-series", help="audit checkpoints in training order: a growing regression suite, a short search each",
@@ -197,13 +197,11 @@ def add_series_subparser(subparsers) -> None:
                         help="series folder; one that holds series.json is continued")
     series.add_argument("--domain", default="maze", help="maze (default), mario, or a plug-in domain with audits")
     search = series.add_argument_group("each checkpoint's audit")
-    search.add_argument("--preset", help=preset_help() + " (default cpu)")
+    add_config_arguments(search)
     search.add_argument("--budget", type=int,
                         help="real evaluations per checkpoint (default: a quarter of the preset's, at least "
                              "n_rand + selection.count)")
     search.add_argument("--seed", type=int, default=0, help="run seed; checkpoint k's search uses SEED + k")
-    search.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a config key of every audit, e.g. --set maze.episodes=20")
     search.add_argument("--episodes", type=int,
                         help="episodes (mario: runs) per level, in the suite and the collections")
     search.add_argument("--no-warm-start", dest="warm_start", action="store_false",
@@ -220,10 +218,7 @@ def add_series_subparser(subparsers) -> None:
                             "long (default 30)")
     watch.add_argument("--max-checkpoints", type=int, metavar="N",
                        help="stop after auditing N checkpoints (recorded ones skipped do not count)")
-    where = series.add_argument_group("where it runs")
-    where.add_argument("--local", action="store_true", help="run in this process, without Ray")
-    where.add_argument("--workers", type=int, help="simulator actors (sets ray.num_workers; 0: in the search process)")
-    where.add_argument("--address", help="join an existing Ray cluster (default: RAY_ADDRESS, else a new local one)")
+    add_ray_arguments(series, resume=None)  # a series always continues what its --out holds
     series.set_defaults(handler=run_series_command)
 
 
@@ -262,7 +257,7 @@ def run_series_command(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from dsage_ray.audit.series import AuditSeries
-    from dsage_ray.config import parse_override
+    from dsage_ray.cli_args import config_overrides
     from dsage_ray.preflight import preflight
 
     if not args.specs and not args.watch:
@@ -274,7 +269,7 @@ def run_series_command(args: argparse.Namespace) -> int:
     if watch is not None and not watch.is_dir():
         raise InputError(f"--watch {watch}: no such folder")
     series = AuditSeries(out_dir=args.out, domain=args.domain, preset=args.preset, budget=args.budget, seed=args.seed,
-                         overrides=dict(parse_override(item) for item in args.overrides), local=args.local,
+                         overrides=config_overrides(args), local=args.local,
                          workers=args.workers, address=args.address, episodes=args.episodes,
                          warm_start=args.warm_start)
     # Every agent loads (and a watched kind is one the domain plays) before anything is written.
