@@ -16,8 +16,8 @@ in its own process on one thread; one already collected is skipped and an interr
 so the command can be run again after a stop. An arm is a variant, or ``LABEL=VARIANT`` with its own
 config keys (``--arm-set LABEL:KEY=VALUE``), so one search can be compared with itself under other
 settings; its folders and rows are named by the label. The table also gives each search's wall time
-(minutes of its ``wall_time``: the searches share the machine, so compare them only among runs of one
-invocation, at ``--jobs 1`` on a quiet machine).
+(minutes of its ``wall_time``: compare it only on a quiet machine at ``--jobs 1``) and its CPU seconds (the
+search process's ``cpu_time``, evaluation included: the clock to compare when audits share the machine).
 """
 
 from __future__ import annotations
@@ -33,7 +33,8 @@ from pathlib import Path
 
 #: The columns of the table: (summary key, heading).
 COLUMNS = (("never_solved", "Never solved"), ("failure_cells", "Cells with failure rate ≥ 0.5"),
-           ("with_failures", "Levels with failures"), ("levels", "Levels"), ("search_minutes", "Search minutes"))
+           ("with_failures", "Levels with failures"), ("levels", "Levels"), ("search_minutes", "Search minutes"),
+           ("search_cpu_s", "Search CPU seconds"))
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -106,13 +107,16 @@ def collection_file(out: Path, variant: str, seed: int) -> Path:
     return out / f"{variant}_seed{seed}" / "collection" / "collection.json"
 
 
-def search_minutes(collection_dir: Path) -> float:
-    """Minutes the audit's search stepped (its last ``wall_time``), NaN when its metrics are not there."""
+def search_time(collection_dir: Path) -> dict[str, float]:
+    """The audit's search time: minutes it stepped (its last ``wall_time``) and the CPU seconds of its process
+    (``cpu_time``: the fair clock when audits share the machine, as ``--local`` evaluates in that process);
+    NaN when its metrics are not there."""
     metrics = collection_dir.parent / "search" / "metrics.json"
     try:
-        return float(json.loads(metrics.read_text())[-1]["wall_time"]) / 60
+        last = json.loads(metrics.read_text())[-1]
+        return {"search_minutes": float(last["wall_time"]) / 60, "search_cpu_s": float(last["cpu_time"])}
     except (OSError, ValueError, KeyError, IndexError):
-        return float("nan")
+        return {"search_minutes": float("nan"), "search_cpu_s": float("nan")}
 
 
 def summarize(out: Path, variants: list[str], seeds: list[int]) -> str:
@@ -126,7 +130,7 @@ def summarize(out: Path, variants: list[str], seeds: list[int]) -> str:
     per_run: dict[str, list[dict]] = {}
     for variant in variants:
         summaries = [failure_summary(load_collection(collection_file(out, variant, seed).parent))
-                     | {"seed": seed, "search_minutes": search_minutes(collection_file(out, variant, seed).parent)}
+                     | {"seed": seed, **search_time(collection_file(out, variant, seed).parent)}
                      for seed in seeds if collection_file(out, variant, seed).is_file()]
         per_run[variant] = summaries
         if not summaries:

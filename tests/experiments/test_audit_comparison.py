@@ -38,6 +38,7 @@ def test_two_searches_two_seeds_one_table_and_a_rerun_runs_nothing(tmp_path, cap
             failure_summary(c) for c in collections]
         assert [run["seed"] for run in runs[variant]] == [0, 1]
         assert all(0 < run["search_minutes"] < 30 for run in runs[variant])
+        assert all(0 < run["search_cpu_s"] < 30 * 60 for run in runs[variant])
         never = [failure_summary(c)["never_solved"] for c in collections]
         assert rows[variant].split("|")[3].strip().startswith(f"{sum(never) / 2:,.1f} ± ")
     # Everything collected: a second call only rebuilds the table.
