@@ -31,14 +31,23 @@ def preflight(*configs: RunConfig) -> None:
     """
     from dsage_ray.core.warm_start import check_warm_start
 
-    seen = set()
+    domains: dict[tuple[str, str], object] = {}
+    warm_starts_checked: set[tuple] = set()
     for config in configs:
-        check_warm_start(config)
-        key = (config.domain, json.dumps(config.to_dict().get(config.domain), sort_keys=True))
-        if key in seen:
+        values = config.to_dict()
+        key = (config.domain, json.dumps(values.get(config.domain), sort_keys=True))
+        fresh = key not in domains
+        if fresh:
+            domains[key] = build_domain(config)
+        domain = domains[key]
+        # A grid shares its warm start: read and check it once per domain section and surrogate section.
+        warm_key = (*key, json.dumps(values["surrogate"], sort_keys=True))
+        if config.surrogate.init and warm_key not in warm_starts_checked:
+            warm_starts_checked.add(warm_key)
+            check_warm_start(config, domain=domain)
+        if not fresh:
             continue
-        seen.add(key)
-        check = getattr(build_domain(config), "preflight", None)
+        check = getattr(domain, "preflight", None)
         if check is None:
             continue
         try:

@@ -96,9 +96,10 @@ class WarmStart:
             raise fail(f"predicts the measures {list(their_measures)}, this run's are {list(our_measures)}")
 
 
-def check_warm_start(config: RunConfig) -> WarmStart | None:
+def check_warm_start(config: RunConfig, *, domain=None) -> WarmStart | None:
     """Loads ``config.surrogate.init`` and checks it fits ``config``: every entry point's preflight calls this,
-    so a wrong file fails in one line before any evaluation. None without ``surrogate.init``.
+    so a wrong file fails in one line before any evaluation. None without ``surrogate.init``. ``domain``: the
+    config's domain when the caller has built it already.
 
     Raises:
         SurrogateInitError: As :func:`load_warm_start` and :meth:`WarmStart.check_compatible`.
@@ -108,7 +109,7 @@ def check_warm_start(config: RunConfig) -> WarmStart | None:
     from dsage_ray.domains import build_domain
     from dsage_ray.surrogate.models import encode_solutions
 
-    domain = build_domain(config)
+    domain = build_domain(config) if domain is None else domain
     sample = encode_solutions(domain, domain.random_solutions(1, np.random.default_rng(0)))
     source = load_warm_start(config.surrogate.init)
     source.check_compatible(config, level_shape=sample.shape[1:])
