@@ -1,0 +1,61 @@
+"""benchmarks/bench_equal_compute.py: the step-function readings and the pairing by seed at a run's own end."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
+sys.path.insert(0, str(BENCHMARKS))
+
+import bench_equal_compute as bench  # noqa: E402
+
+
+def run(seed: int, rows: list[tuple[int, float, float, float]], variant: str) -> dict:
+    """A loaded run: rows of (evals, qd_score, cpu_time at the row's end, time_evaluate of the row)."""
+    history = [{"evals": e, "qd_score": q, "cpu_time": t, "wall_time": t, "time_evaluate": ev, "time_total": ev}
+               for e, q, t, ev in rows]
+    return {"folder": Path("."), "variant": variant, "name": variant, "seed": seed, "history": history}
+
+
+# A surrogate run with two long outer iterations, and a baseline with short batches.
+SURROGATE = run(1, [(100, 50.0, 100.0, 40.0), (400, 300.0, 500.0, 200.0)], "dsage")
+BASELINE = run(1, [(150 * k, 40.0 * k, 60.0 * k, 60.0) for k in range(1, 11)], "map_elites")
+
+
+def test_a_common_horizon_reads_the_surrogate_run_before_its_last_step():
+    assert bench.qd_at_time(SURROGATE["history"], 499.0, "cpu") == 50.0
+    assert bench.qd_at_time(SURROGATE["history"], 500.0, "cpu") == 300.0
+    assert bench.qd_at_time(BASELINE["history"], 499.0, "cpu") == 320.0  # 8 batches ended by 480 s
+
+
+def test_pairs_read_the_baseline_where_each_run_ended():
+    (seed, own, base, long_enough), = bench.paired_at_own_end([SURROGATE], [BASELINE], "cpu")
+    assert (seed, own, base, long_enough) == (1, 300.0, 320.0, True)  # 8 batches by 500 s
+
+
+def test_surrogate_free_pairs_count_evaluation_seconds_only():
+    # The surrogate run evaluated for 240 s; the baseline had 4 batches (240 s of evaluation) by then.
+    (_, own, base, _), = bench.paired_at_own_end([SURROGATE], [BASELINE], "cpu", evaluation_only=True)
+    assert (own, base) == (300.0, 160.0)
+
+
+def test_a_baseline_that_stopped_early_is_flagged_and_seeds_without_a_partner_are_skipped():
+    short = run(1, [(150, 40.0, 60.0, 60.0)], "map_elites")
+    (_, _, base, long_enough), = bench.paired_at_own_end([SURROGATE], [short], "cpu")
+    assert (base, long_enough) == (40.0, False)
+    assert bench.paired_at_own_end([run(2, [(1, 1.0, 1.0, 1.0)], "dsage")], [BASELINE], "cpu") == []
+
+
+def test_main_prints_the_paired_ratio(tmp_path, capsys):
+    for loaded in (SURROGATE, BASELINE):
+        folder = tmp_path / loaded["variant"]
+        folder.mkdir()
+        (folder / "config.json").write_text(json.dumps({"variant": loaded["variant"], "seed": loaded["seed"]}))
+        history = [{**row, "time_exploit": 1.0} if loaded is SURROGATE else row for row in loaded["history"]]
+        (folder / "metrics.json").write_text(json.dumps(history))
+    assert bench.main([str(tmp_path / "dsage"), str(tmp_path / "map_elites"), "--clock", "cpu"]) == 0
+    out = capsys.readouterr().out
+    assert "seed 1: 300.0 vs 320.0 → 0.94x" in out
+    assert "dsage / map_elites at each dsage run's own end (cpu time): 0.94x over 1 seeds" in out
