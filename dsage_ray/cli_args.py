@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import argparse
 import re
+from collections.abc import Callable
+from typing import Any
 
 #: Seconds per unit of a ``--time-budget`` (no unit: seconds).
 _DURATION_UNITS = {"": 1.0, "s": 1.0, "m": 60.0, "h": 3600.0}
@@ -16,7 +18,7 @@ _DURATION = re.compile(r"(\d+(?:\.\d*)?|\.\d+)\s*([smh]?)")
 
 def add_config_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
     """The config arguments every run-like command shares (on a parser or one of its argument groups)."""
-    parser.add_argument("--preset", help=preset_help())
+    parser.add_argument("--preset", action=LazyHelp, help_text=preset_help)
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a config key, e.g. --set budget=2000 --set surrogate.epochs=50")
     parser.add_argument("--time-budget", type=parse_duration, metavar="DURATION",
@@ -81,6 +83,33 @@ def add_ray_arguments(parser: argparse.ArgumentParser, *, resume: str | None, lo
     group.add_argument("--address", help="join an existing Ray cluster (default: RAY_ADDRESS, else a new local one)")
     if resume is not None:
         group.add_argument("--resume", action="store_true", help=resume)
+
+
+class LazyHelp(argparse.Action):
+    """A store action (``append=True``: an append action) whose help ``help_text()`` builds when help is shown.
+
+    Some help texts list every domain's presets or agent kinds, which imports every domain: about a
+    second that no command but ``--help`` needs.
+    """
+
+    def __init__(self, option_strings: list[str], dest: str, *, help_text: Callable[[], str],
+                 append: bool = False, **kwargs: Any) -> None:
+        self._help_text = help_text
+        self._append = append
+        super().__init__(option_strings, dest, **kwargs)
+
+    @property
+    def help(self) -> str:
+        return self._help_text()
+
+    @help.setter
+    def help(self, _value: str | None) -> None:
+        pass  # argparse.Action.__init__ assigns it; the property above is the help
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        if self._append:
+            values = [*(getattr(namespace, self.dest, None) or []), values]
+        setattr(namespace, self.dest, values)
 
 
 def preset_budgets(domain: str) -> dict[str, int]:

@@ -52,3 +52,24 @@ def test_an_audit_without_agent_is_the_short_demo_and_says_so(monkeypatch, capsy
                           "(500 evaluations)")
     assert seen["config"].preset == "demo" and seen["config"].budget == 500
     assert seen["config"].maze.agent == "rllib:ppo_maze"
+
+
+def test_lazy_help_options_store_and_append_like_argparse_and_build_help_only_when_shown():
+    import argparse
+
+    from dsage_ray.cli_args import LazyHelp
+
+    built = []
+
+    def text() -> str:
+        built.append(1)
+        return "built on demand"
+
+    parser = argparse.ArgumentParser(prog="x")
+    parser.add_argument("--one", action=LazyHelp, help_text=text)
+    parser.add_argument("--many", action=LazyHelp, append=True, help_text=text)
+    parser.add_argument("rest", nargs="*", action=LazyHelp, help_text=text)
+    args = parser.parse_args(["--one", "a", "--many", "b", "--many", "c", "d", "e"])
+    assert (args.one, args.many, args.rest) == ("a", ["b", "c"], ["d", "e"])
+    assert not built
+    assert "built on demand" in parser.format_help() and built

@@ -26,7 +26,7 @@ Python: dsage_ray.run_audit() takes the same arguments and returns the collectio
 
 def add_subparser(subparsers) -> None:
     """Registers ``audit`` and ``compare`` on the top-level CLI's sub-parsers."""
-    from dsage_ray.cli_args import add_config_arguments, add_ray_arguments
+    from dsage_ray.cli_args import LazyHelp, add_config_arguments, add_ray_arguments
 
     audit = subparsers.add_parser(
         "audit", help="search for levels where an agent fails (or does worse than a reference) and save them",
@@ -38,9 +38,10 @@ def add_subparser(subparsers) -> None:
     what = audit.add_argument_group("what to audit")
     what.add_argument("--domain", default="maze",
                       help="maze (default), mario, or a plug-in domain that declares audits")
-    what.add_argument("--agent", metavar="SPEC",
-                      help=f"agent spec, of a kind the domain plays ({agent_help()}). Without it: a demo audit "
-                           f"of the domain's shipped agent (maze: rllib:ppo_maze) with the demo preset")
+    what.add_argument("--agent", metavar="SPEC", action=LazyHelp,
+                      help_text=lambda: f"agent spec, of a kind the domain plays ({agent_help()}). Without it: a "
+                                        f"demo audit of the domain's shipped agent (maze: rllib:ppo_maze) with the "
+                                        f"demo preset")
     what.add_argument("--reference", metavar="SPEC",
                       help="maze: search where --agent does worse than this agent, on the same seeds "
                            "(objective regression)")
@@ -72,8 +73,9 @@ def add_subparser(subparsers) -> None:
         description="Evaluates agents A and B on every level of a collection (of any domain that declares audits) "
                     "with its recorded seed and reports where B is worse (and better) than A, as a table and an "
                     "HTML page.")
-    compare.add_argument("--agent", action="append", required=True, metavar="SPEC",
-                         help=f"give twice: --agent A --agent B; kinds the collection's domain plays ({agent_help()})")
+    compare.add_argument("--agent", action=LazyHelp, append=True, required=True, metavar="SPEC",
+                         help_text=lambda: f"give twice: --agent A --agent B; kinds the collection's domain plays "
+                                           f"({agent_help()})")
     compare.add_argument("--collection", required=True, metavar="DIR", help="a collection folder from dsage-ray audit")
     compare.add_argument("--threshold", type=float, default=0.1,
                          help="success-rate difference that counts as worse/better (default 0.1)")
@@ -182,7 +184,7 @@ until Ctrl+C (or --max-checkpoints). Python: dsage_ray.AuditSeries (docs/API.md)
 
 def add_series_subparser(subparsers) -> None:
     """Registers ``audit-series``."""
-    from dsage_ray.cli_args import add_config_arguments, add_ray_arguments
+    from dsage_ray.cli_args import LazyHelp, add_config_arguments, add_ray_arguments
 
     series = subparsers.add_parser(
         "audit-series", help="audit checkpoints in training order: a growing regression suite, a short search each",
@@ -191,8 +193,8 @@ def add_series_subparser(subparsers) -> None:
                     "series.json,\nseries.html (timeline, table per checkpoint, level x checkpoint matrix), each "
                     "checkpoint's audit\nfolder and TensorBoard scalars audit/... into --out.",
         epilog=SERIES_EXAMPLES)
-    series.add_argument("specs", nargs="*", metavar="SPEC",
-                        help=f"checkpoint agent specs, oldest first ({agent_help()})")
+    series.add_argument("specs", nargs="*", metavar="SPEC", action=LazyHelp,
+                        help_text=lambda: f"checkpoint agent specs, oldest first ({agent_help()})")
     series.add_argument("--out", required=True, metavar="DIR",
                         help="series folder; one that holds series.json is continued")
     series.add_argument("--domain", default="maze", help="maze (default), mario, or a plug-in domain with audits")
