@@ -207,7 +207,8 @@ def add_series_subparser(subparsers) -> None:
     search.add_argument("--episodes", type=int,
                         help="episodes (mario: runs) per level, in the suite and the collections")
     search.add_argument("--no-warm-start", dest="warm_start", action="store_false",
-                        help="start every search cold instead of from the previous audit's surrogate")
+                        help="start every search cold instead of from the previous audit's surrogate. "
+                             "--surrogate-init FILE overrides both: every search then starts from FILE")
     watch = series.add_argument_group("watching a folder")
     watch.add_argument("--watch", metavar="DIR", help="audit new checkpoints of DIR as they appear (after the SPECs)")
     watch.add_argument("--kind", default="rllib",

@@ -219,7 +219,8 @@ class AuditSeries:
         workers: Simulator actors (``ray.num_workers``) of the searches and the suite's re-evaluation.
         address: A Ray cluster to join.
         episodes: Episodes per level, in the collections and the suite's re-evaluation (default: the config's).
-        warm_start: Start each search after the first from the previous audit's surrogate.
+        warm_start: Start each search after the first from the previous audit's surrogate. A
+            ``surrogate.init`` in ``overrides`` wins over it: every search then starts from that source.
 
     Raises:
         InputError: An unknown domain or preset, a bad config key, a non-positive ``budget``/``episodes``, or
