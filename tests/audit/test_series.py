@@ -132,6 +132,24 @@ def test_a_failing_search_is_one_warning_keeps_the_suite_numbers_and_warm_starts
     assert set(record.scalars()) == {"audit/suite_success_rate", "audit/fixed", "audit/regressed", "audit/wall_time"}
 
 
+def test_a_surrogate_init_override_starts_every_search_from_that_source(series, tmp_path, monkeypatch):
+    import dsage_ray.audit.series as module
+
+    copy = tmp_path / "copy"
+    shutil.copytree(series.out_dir, copy)
+    first = str(series.records[0].audit_dir)
+    seen = {}
+
+    def recording_audit(**kwargs):
+        seen.update(kwargs)
+        raise RuntimeError("stop here")
+
+    monkeypatch.setattr(module, "run_audit", recording_audit)
+    settings = {**SETTINGS, "overrides": {**TINY, "surrogate.init": first}}
+    AuditSeries(out_dir=copy, **settings).audit("builtin:random", label="again")
+    assert seen["overrides"]["surrogate.init"] == first  # not the last audit's folder
+
+
 def test_scalars_and_tensorboard(series):
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
