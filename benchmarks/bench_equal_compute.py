@@ -126,6 +126,33 @@ def paired_at_own_end(group: list[dict], baseline: list[dict], clock: str, *,
     return pairs
 
 
+def time_to_reach(history: list[dict], qd_score: float, clock: str) -> float | None:
+    """The ``clock`` second at which the outer iteration that first reached ``qd_score`` ended, or ``None``."""
+    return next((float(row[f"{clock}_time"]) for row in history if row["qd_score"] >= qd_score), None)
+
+
+def print_time_to_reach(variant: str, group: list[dict], baseline: list[dict], clock: str) -> None:
+    """Per seed: how long the baseline took to reach the run's final QD-score, against the run's own time."""
+    baseline_by_seed = {run["seed"]: run for run in baseline}
+    speedups = []
+    for run in group:
+        other = baseline_by_seed.get(run["seed"])
+        if other is None:
+            continue
+        target, own = run["history"][-1]["qd_score"], run_end(run, clock)
+        reached = time_to_reach(other["history"], target, clock)
+        if reached is None:
+            print(f"  seed {run['seed']}: {variant} reached {target:,.1f} at {own:,.0f} s; the baseline never did "
+                  f"(in {run_end(other, clock):,.0f} s)")
+            continue
+        speedups.append(reached / max(own, 1e-9))
+        print(f"  seed {run['seed']}: {variant} reached {target:,.1f} at {own:,.0f} s, the baseline at "
+              f"{reached:,.0f} s → {speedups[-1]:.2f}x")
+    if speedups:
+        print(f"baseline's time / {variant}'s time to {variant}'s final QD-score ({clock}): "
+              f"{mean_pm(speedups, '.2f')}x over {len(speedups)} seeds")
+
+
 def print_pairs(variant: str, baseline: str, pairs: list[tuple[int, float, float, bool]], what: str) -> None:
     """One line per seed and the mean ratio (± s.e. over seeds) of :func:`paired_at_own_end`'s pairs."""
     if not pairs:
@@ -200,6 +227,7 @@ def main(argv: list[str] | None = None) -> int:
         if variant != args.baseline:
             print_pairs(variant, args.baseline, paired_at_own_end(by_variant[variant], by_variant[args.baseline],
                                                                   args.clock), f"{args.clock} time")
+            print_time_to_reach(variant, by_variant[variant], by_variant[args.baseline], args.clock)
 
     surrogate_variants = [v for v, g in by_variant.items()
                           if any("time_exploit" in row for run in g for row in run["history"])]

@@ -59,3 +59,8 @@ def test_main_prints_the_paired_ratio(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "seed 1: 300.0 vs 320.0 → 0.94x" in out
     assert "dsage / map_elites at each dsage run's own end (cpu time): 0.94x over 1 seeds" in out
+
+
+def test_time_to_reach_is_the_end_of_the_first_step_at_or_above_the_target():
+    assert bench.time_to_reach(BASELINE["history"], 300.0, "cpu") == 480.0  # 8 batches: 320
+    assert bench.time_to_reach(BASELINE["history"], 401.0, "cpu") is None
