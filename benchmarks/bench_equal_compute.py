@@ -19,6 +19,10 @@ seeds:
    evaluations), which bounds what any speed-up of the surrogate can buy; and the simulator cost at
    which the surrogate variant breaks even with the baseline at equal time (the evaluation cost scaled
    by k for both searches, the surrogate's own time fixed).
+5. **The counting bound**: one evaluation fills at most one archive cell, so at the second a surrogate
+   run ended it could at best stand at (its evaluations × QD-score per elite) / the baseline's QD-score
+   then; and with the surrogate free, at as many evaluations as its evaluation seconds per level allow.
+   It prints the share of evaluations that would have to fill a new cell to reach ``--target``.
 
     python benchmarks/bench_equal_compute.py /work/runs/eq/dsage_s1* /work/runs/eq/map_elites_s1* \\
         --baseline map_elites --at-evals 2000
@@ -153,6 +157,50 @@ def print_time_to_reach(variant: str, group: list[dict], baseline: list[dict], c
               f"{mean_pm(speedups, '.2f')}x over {len(speedups)} seeds")
 
 
+def counting_bound(run: dict, baseline_run: dict, clock: str) -> dict[str, float]:
+    """How far ``run`` could get at equal time if every evaluation it made had filled a new archive cell.
+
+    One evaluation adds at most one elite, so a run's QD-score is at most its evaluations times the
+    QD-score per elite (1 in the Maze, whose objective is 1 on every valid level). Read at the second
+    ``run`` ended, against the baseline's QD-score then.
+
+    Returns:
+        ``baseline_qd`` then; ``ratio`` (the run's final QD-score over it); ``perfect`` (its evaluations,
+        each a new elite); ``perfect_free`` (the same with the surrogate free: as many evaluations as its
+        evaluation seconds per level allow in that time); ``yield`` (new elites per evaluation now).
+    """
+    history = run["history"]
+    end, last = run_end(run, clock), history[-1]
+    per_elite = last["qd_score"] / max(last.get("num_elites", last["qd_score"]), 1e-9)
+    evaluate = sum(row.get("time_evaluate", 0.0) for row in history)
+    total = sum(row.get("time_total", 0.0) for row in history)
+    seconds_per_evaluation = end * evaluate / max(total, 1e-9) / max(last["evals"], 1)
+    baseline_qd = max(qd_at_time(baseline_run["history"], end, clock), 1e-9)
+    return {"baseline_qd": baseline_qd, "ratio": last["qd_score"] / baseline_qd,
+            "perfect": last["evals"] * per_elite / baseline_qd,
+            "perfect_free": end / max(seconds_per_evaluation, 1e-9) * per_elite / baseline_qd,
+            "yield": last.get("num_elites", last["qd_score"]) / max(last["evals"], 1)}
+
+
+def print_counting_bound(variant: str, group: list[dict], baseline: list[dict], clock: str, target: float) -> None:
+    """Per seed, :func:`counting_bound`, and the share of evaluations that would have to fill a new cell."""
+    baseline_by_seed = {run["seed"]: run for run in baseline}
+    rows = [(run["seed"], counting_bound(run, baseline_by_seed[run["seed"]], clock))
+            for run in group if run["seed"] in baseline_by_seed]
+    for seed, bound in rows:
+        print(f"  seed {seed}: now {bound['ratio']:.2f}x with {bound['yield']:.0%} of its evaluations filling a new "
+              f"cell; every one filling one: {bound['perfect']:.2f}x; and the surrogate free: "
+              f"{bound['perfect_free']:.2f}x")
+    if rows:
+        for key, what in (("perfect", "every evaluation a new cell"),
+                          ("perfect_free", "every evaluation a new cell, surrogate free")):
+            values = [bound[key] for _, bound in rows]
+            needed = [target / bound[key] for _, bound in rows]
+            print(f"{variant} / baseline at equal {clock} time, {what}: at most {mean_pm(values, '.2f')}x; "
+                  f"{target}x needs {mean_pm([100 * n for n in needed], '.0f')}% of its evaluations to fill a "
+                  f"new cell")
+
+
 def print_pairs(variant: str, baseline: str, pairs: list[tuple[int, float, float, bool]], what: str) -> None:
     """One line per seed and the mean ratio (± s.e. over seeds) of :func:`paired_at_own_end`'s pairs."""
     if not pairs:
@@ -188,6 +236,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--at-evals", type=float, default=2000, help="evaluations of the equal-evaluation table")
     parser.add_argument("--at-time", type=float, help="seconds of the equal-time table (default: shortest run)")
     parser.add_argument("--clock", choices=["wall", "cpu"], default="wall")
+    parser.add_argument("--target", type=float, default=1.4, help="equal-time ratio the counting bound is read "
+                                                                  "against (issue 17's 1.4)")
     parser.add_argument("--label", choices=["variant", "name"], default="variant",
                         help="group runs by their config's variant, or by its name (settings of one variant)")
     args = parser.parse_args(argv)
@@ -282,6 +332,11 @@ def main(argv: list[str] | None = None) -> int:
             cost = factor * eval_cost[args.baseline]
             print(f"  break-even: at equal time {variant} is ahead once an evaluation costs more than "
                   f"{max(factor, 0):.2f}x this simulator's ({max(cost, 0):.3f} s per {args.baseline} evaluation)")
+
+    print(f"\n5. The counting bound: one evaluation fills at most one cell (read at each run's own end, {args.clock} "
+          f"time)")
+    for variant in surrogate_variants:
+        print_counting_bound(variant, by_variant[variant], baseline, args.clock, args.target)
     return 0
 
 

@@ -64,3 +64,16 @@ def test_main_prints_the_paired_ratio(tmp_path, capsys):
 def test_time_to_reach_is_the_end_of_the_first_step_at_or_above_the_target():
     assert bench.time_to_reach(BASELINE["history"], 300.0, "cpu") == 480.0  # 8 batches: 320
     assert bench.time_to_reach(BASELINE["history"], 401.0, "cpu") is None
+
+
+def test_the_counting_bound_allows_one_new_elite_per_evaluation():
+    # 400 evaluations, 300 elites of objective 2 (QD 600), ended at 500 s, half of its time evaluating.
+    history = [{"evals": 400, "qd_score": 600.0, "num_elites": 300, "cpu_time": 500.0, "wall_time": 500.0,
+                "time_evaluate": 100.0, "time_total": 200.0}]
+    surrogate = {"seed": 1, "history": history}
+    bound = bench.counting_bound(surrogate, BASELINE, "cpu")  # the baseline has 320 by 500 s
+    assert bound["baseline_qd"] == 320.0 and bound["ratio"] == 600.0 / 320.0
+    assert bound["yield"] == 0.75
+    assert bound["perfect"] == 400 * 2.0 / 320.0
+    # 0.625 evaluation seconds per level: 800 evaluations in 500 s with the surrogate free.
+    assert bound["perfect_free"] == 800 * 2.0 / 320.0
