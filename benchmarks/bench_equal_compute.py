@@ -84,14 +84,34 @@ def qd_at_evals(history: list[dict], evals: float) -> tuple[float, bool]:
     return float(np.interp(evals, xs, ys)), True
 
 
+def phase_seconds(history: list[dict], clock: str) -> list[dict[str, float]]:
+    """Each outer iteration's seconds on ``clock``, split into its phases.
+
+    The ``time_<phase>`` columns are wall seconds; each iteration's shares of them are applied to its
+    seconds on ``clock``, so that on a shared machine the ``cpu`` clock stays the run's own compute.
+    """
+    rows, previous = [], 0.0
+    for row in history:
+        span, previous = row[f"{clock}_time"] - previous, row[f"{clock}_time"]
+        total = row.get("time_total", 0.0)
+        shares = {phase: row.get(f"time_{phase}", 0.0) / total if total > 0 else 0.0 for phase in PHASES}
+        rows.append({"total": span, **{phase: span * share for phase, share in shares.items()}})
+    return rows
+
+
+def evaluation_ends(history: list[dict], clock: str) -> np.ndarray:
+    """Cumulative evaluation seconds on ``clock`` at each outer iteration's end (the run, surrogate free)."""
+    return np.cumsum([row["evaluate"] for row in phase_seconds(history, clock)])
+
+
 def qd_at_time(history: list[dict], seconds: float, clock: str, *, evaluation_only: bool = False) -> float:
     """QD-score of the last outer iteration that ended by ``seconds`` on ``clock`` (0 before the first).
 
-    With ``evaluation_only`` the clock counts only the evaluations (``time_evaluate``): the run as it
-    would be with a free surrogate.
+    With ``evaluation_only`` the clock counts only the evaluations (:func:`evaluation_ends`): the run as
+    it would be with a free surrogate.
     """
     if evaluation_only:
-        ends = np.cumsum([row.get("time_evaluate", 0.0) for row in history])
+        ends = evaluation_ends(history, clock)
     else:
         ends = np.array([row[f"{clock}_time"] for row in history])
     done = [row["qd_score"] for row, end in zip(history, ends) if end <= seconds]
@@ -101,7 +121,7 @@ def qd_at_time(history: list[dict], seconds: float, clock: str, *, evaluation_on
 def run_end(run: dict, clock: str, *, evaluation_only: bool = False) -> float:
     """When ``run``'s last outer iteration ended on ``clock`` (or after its evaluations alone)."""
     if evaluation_only:
-        return float(sum(row.get("time_evaluate", 0.0) for row in run["history"]))
+        return float(evaluation_ends(run["history"], clock)[-1])
     return float(run["history"][-1][f"{clock}_time"])
 
 
@@ -172,9 +192,7 @@ def counting_bound(run: dict, baseline_run: dict, clock: str) -> dict[str, float
     history = run["history"]
     end, last = run_end(run, clock), history[-1]
     per_elite = last["qd_score"] / max(last.get("num_elites", last["qd_score"]), 1e-9)
-    evaluate = sum(row.get("time_evaluate", 0.0) for row in history)
-    total = sum(row.get("time_total", 0.0) for row in history)
-    seconds_per_evaluation = end * evaluate / max(total, 1e-9) / max(last["evals"], 1)
+    seconds_per_evaluation = run_end(run, clock, evaluation_only=True) / max(last["evals"], 1)
     baseline_qd = max(qd_at_time(baseline_run["history"], end, clock), 1e-9)
     return {"baseline_qd": baseline_qd, "ratio": last["qd_score"] / baseline_qd,
             "perfect": last["evals"] * per_elite / baseline_qd,
@@ -214,13 +232,11 @@ def print_pairs(variant: str, baseline: str, pairs: list[tuple[int, float, float
           f"over {len(ratios)} seeds")
 
 
-def evals_and_time_to(history: list[dict], qd_score: float) -> tuple[float, float] | None:
-    """Evaluations and evaluation seconds at which the run first reached ``qd_score`` (linear within an
-    outer iteration), or ``None`` if it never did."""
+def evals_and_time_to(history: list[dict], qd_score: float, clock: str) -> tuple[float, float] | None:
+    """Evaluations and evaluation seconds (on ``clock``) at which the run first reached ``qd_score`` (linear
+    within an outer iteration), or ``None`` if it never did."""
     previous_evals, previous_qd, previous_eval_time = 0.0, 0.0, 0.0
-    eval_time = 0.0
-    for row in history:
-        eval_time += row.get("time_evaluate", 0.0)
+    for row, eval_time in zip(history, evaluation_ends(history, clock)):
         if row["qd_score"] >= qd_score:
             share = (qd_score - previous_qd) / max(row["qd_score"] - previous_qd, 1e-9)
             return (previous_evals + share * (row["evals"] - previous_evals),
@@ -283,14 +299,14 @@ def main(argv: list[str] | None = None) -> int:
                           if any("time_exploit" in row for run in g for row in run["history"])]
     if not surrogate_variants:
         return 0
-    print("\n3. Where the time goes (share of the summed time_total)")
+    print(f"\n3. Where the time goes (share of the runs' {args.clock} time)")
     print("| variant | " + " | ".join(PHASES) + " | other | seconds per evaluation (evaluate only) |")
     print("|---|" + "---|" * (len(PHASES) + 2))
     eval_cost = {}
     for variant, group in sorted(by_variant.items()):
-        totals = {phase: sum(row.get(f"time_{phase}", 0.0) for run in group for row in run["history"])
-                  for phase in PHASES}
-        total = sum(row.get("time_total", 0.0) for run in group for row in run["history"])
+        rows = [row for run in group for row in phase_seconds(run["history"], args.clock)]
+        totals = {phase: sum(row[phase] for row in rows) for phase in PHASES}
+        total = sum(row["total"] for row in rows)
         evals = sum(run["history"][-1]["evals"] for run in group)
         eval_cost[variant] = totals["evaluate"] / max(evals, 1)
         shares = [totals[phase] / max(total, 1e-9) for phase in PHASES]
@@ -301,7 +317,7 @@ def main(argv: list[str] | None = None) -> int:
     baseline = by_variant[args.baseline]
     for variant in surrogate_variants:
         group = by_variant[variant]
-        horizon = float(np.mean([sum(row.get("time_evaluate", 0.0) for row in run["history"]) for run in group]))
+        horizon = float(np.mean([run_end(run, args.clock, evaluation_only=True) for run in group]))
         free = [qd_at_time(run["history"], horizon, args.clock, evaluation_only=True) for run in group]
         base_free = [qd_at_time(run["history"], horizon, args.clock, evaluation_only=True) for run in baseline]
         print(f"{variant}, surrogate free, at {horizon:,.0f} s of evaluation (a common horizon): {mean_pm(free)} vs "
@@ -309,19 +325,19 @@ def main(argv: list[str] | None = None) -> int:
         print_pairs(variant, args.baseline, paired_at_own_end(group, baseline, args.clock, evaluation_only=True),
                     "surrogate free: evaluation seconds only; no speed-up of the surrogate can do better")
         target = float(np.mean([run["history"][-1]["qd_score"] for run in group]))
-        reached = [evals_and_time_to(run["history"], target) for run in baseline]
+        reached = [evals_and_time_to(run["history"], target, args.clock) for run in baseline]
         if any(r is None for r in reached):
             print(f"  break-even: {args.baseline} did not reach {variant}'s final QD-score {target:,.1f} in every "
                   f"run; give it a longer budget")
             continue
         base_eval_time = float(np.mean([t for _, t in reached]))
-        base_other = float(np.mean([sum(row.get("time_total", 0.0) - row.get("time_evaluate", 0.0)
-                                        for row in run["history"]) for run in baseline]))
+        base_other = float(np.mean([run_end(run, args.clock) - run_end(run, args.clock, evaluation_only=True)
+                                    for run in baseline]))
         base_other *= float(np.mean([e for e, _ in reached])) / float(np.mean([r["history"][-1]["evals"]
                                                                                 for r in baseline]))
         own_eval_time = horizon
-        own_other = float(np.mean([sum(row.get("time_total", 0.0) - row.get("time_evaluate", 0.0)
-                                       for row in run["history"]) for run in group]))
+        own_other = float(np.mean([run_end(run, args.clock) - run_end(run, args.clock, evaluation_only=True)
+                                   for run in group]))
         gap = base_eval_time - own_eval_time
         print(f"  to reach {target:,.1f}: {variant} {own_eval_time:,.0f} s evaluating + {own_other:,.0f} s else; "
               f"{args.baseline} {base_eval_time:,.0f} s evaluating + {base_other:,.0f} s else")

@@ -13,9 +13,12 @@ import bench_equal_compute as bench  # noqa: E402
 
 
 def run(seed: int, rows: list[tuple[int, float, float, float]], variant: str) -> dict:
-    """A loaded run: rows of (evals, qd_score, cpu_time at the row's end, time_evaluate of the row)."""
-    history = [{"evals": e, "qd_score": q, "cpu_time": t, "wall_time": t, "time_evaluate": ev, "time_total": ev}
-               for e, q, t, ev in rows]
+    """A loaded run on a quiet machine: rows of (evals, qd_score, cpu_time at the row's end, time_evaluate of the
+    row); the row's time_total is its span on the clock."""
+    ends = [t for _, _, t, _ in rows]
+    spans = [end - start for start, end in zip([0.0, *ends], ends)]
+    history = [{"evals": e, "qd_score": q, "cpu_time": t, "wall_time": t, "time_evaluate": ev, "time_total": span}
+               for (e, q, t, ev), span in zip(rows, spans)]
     return {"folder": Path("."), "variant": variant, "name": variant, "seed": seed, "history": history}
 
 
@@ -77,3 +80,12 @@ def test_the_counting_bound_allows_one_new_elite_per_evaluation():
     assert bound["perfect"] == 400 * 2.0 / 320.0
     # 0.625 evaluation seconds per level: 800 evaluations in 500 s with the surrogate free.
     assert bound["perfect_free"] == 800 * 2.0 / 320.0
+
+
+def test_evaluation_seconds_follow_the_chosen_clock_on_a_shared_machine():
+    # Neighbours doubled the wall clock: 100 s of wall per row (60 evaluating) for 50 s of CPU.
+    history = [{"evals": 10 * k, "qd_score": float(k), "cpu_time": 50.0 * k, "wall_time": 100.0 * k,
+                "time_evaluate": 60.0, "time_total": 100.0} for k in (1, 2)]
+    assert list(bench.evaluation_ends(history, "cpu")) == [30.0, 60.0]
+    assert list(bench.evaluation_ends(history, "wall")) == [60.0, 120.0]
+    assert bench.evals_and_time_to(history, 1.5, "cpu") == (15.0, 45.0)
