@@ -229,7 +229,8 @@ def print_pairs(variant: str, baseline: str, pairs: list[tuple[int, float, float
         note = "" if long_enough else f" ({baseline} stopped before this second: give it a larger budget)"
         print(f"  seed {seed}: {own:,.1f} vs {base:,.1f} → {ratio:.2f}x{note}")
     print(f"{variant} / {baseline} at each {variant} run's own end ({what}): {mean_pm(ratios, '.2f')}x "
-          f"over {len(ratios)} seeds")
+          f"over {len(ratios)} seeds ({variant} {mean_pm([own for _, own, _, _ in pairs])} vs {baseline} "
+          f"{mean_pm([base for _, _, base, _ in pairs])})")
 
 
 def evals_and_time_to(history: list[dict], qd_score: float, clock: str) -> tuple[float, float] | None:

@@ -61,7 +61,7 @@ def test_main_prints_the_paired_ratio(tmp_path, capsys):
     assert bench.main([str(tmp_path / "dsage"), str(tmp_path / "map_elites"), "--clock", "cpu"]) == 0
     out = capsys.readouterr().out
     assert "seed 1: 300.0 vs 320.0 → 0.94x" in out
-    assert "dsage / map_elites at each dsage run's own end (cpu time): 0.94x over 1 seeds" in out
+    assert "dsage / map_elites at each dsage run's own end (cpu time): 0.94x over 1 seeds (dsage 300.0 vs map_elites 320.0)" in out
 
 
 def test_time_to_reach_is_the_end_of_the_first_step_at_or_above_the_target():
