@@ -16,9 +16,14 @@ _DURATION_UNITS = {"": 1.0, "s": 1.0, "m": 60.0, "h": 3600.0}
 _DURATION = re.compile(r"(\d+(?:\.\d*)?|\.\d+)\s*([smh]?)")
 
 
-def add_config_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
-    """The config arguments every run-like command shares (on a parser or one of its argument groups)."""
-    parser.add_argument("--preset", action=LazyHelp, help_text=preset_help)
+def add_config_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGroup, *,
+                         preset_default: str | None = None) -> None:
+    """The config arguments every run-like command shares (on a parser or one of its argument groups).
+
+    ``preset_default``: the preset the command uses without ``--preset``, for its help.
+    """
+    default = f" (default {preset_default})" if preset_default else ""
+    parser.add_argument("--preset", action=LazyHelp, help_text=lambda: preset_help() + default)
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a config key, e.g. --set budget=2000 --set surrogate.epochs=50")
     parser.add_argument("--time-budget", type=parse_duration, metavar="DURATION",

@@ -199,7 +199,7 @@ def add_series_subparser(subparsers) -> None:
                         help="series folder; one that holds series.json is continued")
     series.add_argument("--domain", default="maze", help="maze (default), mario, or a plug-in domain with audits")
     search = series.add_argument_group("each checkpoint's audit")
-    add_config_arguments(search)
+    add_config_arguments(search, preset_default="cpu")
     search.add_argument("--budget", type=int,
                         help="real evaluations per checkpoint (default: a quarter of the preset's, at least "
                              "n_rand + selection.count)")
