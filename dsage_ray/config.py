@@ -103,6 +103,10 @@ class SurrogateConfig:
     #: With ``init``: its dataset becomes the oldest part of this run's dataset, so it weighs in the first
     #: trainings and leaves the ``train_window`` as this run's evaluations arrive. Off: weights only.
     init_prior: bool = True
+    #: With ``init``: the first outer iteration evaluates at most this many of its picks (a random subset,
+    #: drawn from the run's rng), so the surrogate retrains on this run's agent after a small batch instead
+    #: of spending a large share of the budget on the source's model. 0: every pick.
+    init_first_picks: int = 0
 
 
 @dataclasses.dataclass
@@ -326,6 +330,7 @@ class RunConfig:
         need(self.surrogate.incremental_epochs >= 0, "surrogate.incremental_epochs", "must be >= 0 (0: epochs)")
         need(self.surrogate.lr > 0, "surrogate.lr", "must be positive")
         need(self.surrogate.holdout_levels >= 0, "surrogate.holdout_levels", "must be >= 0 (0: off)")
+        need(self.surrogate.init_first_picks >= 0, "surrogate.init_first_picks", "must be >= 0 (0: every pick)")
         need(0.0 <= self.surrogate.validation_fraction < 1.0, "surrogate.validation_fraction",
              "must be in [0, 1) (0: no early stopping)")
         need(self.surrogate.patience >= 1, "surrogate.patience", "must be positive")

@@ -28,6 +28,12 @@ goes on::
 
     nice -n 10 python experiments/train_maze_agent.py --run-name ppo_audited --audit-every 25 --audit-budget 30
 
+Fine-tuning a trained module (``--init-from``): the weights of an ``rllib:`` checkpoint start the run (the optimiser
+state starts fresh), e.g. to continue training the shipped agent on the failures an audit found::
+
+    nice -n 10 python experiments/train_maze_agent.py --run-name ppo_fixed --init-from ppo_maze --curriculum-steps 0 \
+        --total-env-steps 200000 --train-on-collection tb_logs/audit_mine
+
 Training on found failures (``--train-on-collection DIR``): a share (``--collection-share``, default 0.25) of
 the episodes replays a level of an audit collection (``DIR`` is the collection folder, or an audit folder
 holding ``collection/``) instead of a fresh random maze, drawn from the env's seeded rng::
@@ -72,6 +78,10 @@ class Args:
     """also stop after this much wall-clock training time (0 = no limit)"""
     resume: bool = False
     """continue tb_logs/<run_name>/checkpoint"""
+    init_from: str = ""
+    """start from this RLModule's weights instead of a fresh initialisation: an ``rllib:`` spec or folder (a
+    shipped name such as ``ppo_maze``, a module-only or algorithm checkpoint) of the same --hidden/--use-lstm;
+    ignored with --resume, whose checkpoint already holds the weights (empty = fresh weights)"""
     export: str = ""
     """at the end, copy the module-only checkpoint to this folder (empty = no export)"""
 
@@ -235,6 +245,32 @@ def collection_levels(folder: str | Path, *, height: int = 16, width: int = 16) 
     return texts
 
 
+def init_module_dir(spec: str) -> Path:
+    """The RLModule folder that ``--init-from`` names (``rllib:`` prefix optional); InputError when there is none."""
+    from dsage_ray.agents.base import AgentError
+    from dsage_ray.agents.rllib import resolve_module_dir
+    from dsage_ray.errors import InputError
+
+    try:
+        return resolve_module_dir(spec.removeprefix("rllib:")).resolve()
+    except AgentError as exc:
+        raise InputError(f"--init-from {spec}: {exc}") from None
+
+
+def load_initial_weights(algo, module: Path, spec: str) -> None:
+    """Puts the weights of ``module`` into the learner and the env runners; InputError when they do not fit."""
+    from dsage_ray.errors import InputError
+
+    component = str(Path("learner_group") / "learner" / "rl_module" / "default_policy")
+    try:
+        algo.restore_from_path(str(module), component=component)
+    except (RuntimeError, KeyError, ValueError) as exc:  # torch's load_state_dict: missing keys or other shapes
+        # torch names the module, then one line per mismatch: the first mismatch says enough.
+        lines = [line.strip() for line in str(exc).splitlines() if line.strip()] or [type(exc).__name__]
+        raise InputError(f"--init-from {spec}: its weights do not fit this run's module (--hidden, --use-lstm): "
+                         f"{' '.join(lines[:2])}") from None
+
+
 def audit_callback(args: Args, run_dir: Path, writer):
     """``--audit-every``: the RLlib callback factory (modules in ``run_dir/checkpoints``, series in
     ``run_dir/audit_series``, scalars to ``writer``)."""
@@ -311,6 +347,7 @@ def main(argv: list[str] | None = None) -> int:
             raise InputError(f"--collection-share {args.collection_share} is not a probability in [0, 1]")
         if args.train_on_collection:
             levels = collection_levels(args.train_on_collection)
+        initial_module = init_module_dir(args.init_from) if args.init_from and not args.resume else None
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -324,6 +361,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{run_dir} already holds a run; pass --resume to continue it or pick another --run-name",
               file=sys.stderr)
         return 2
+    new_run = not run_dir.exists()
     run_dir.mkdir(parents=True, exist_ok=True)
     (run_dir / "args.json").write_text(json.dumps(dataclasses.asdict(args), indent=2))
 
@@ -342,6 +380,18 @@ def main(argv: list[str] | None = None) -> int:
         algo.restore_from_path(str((run_dir / "checkpoint").resolve()))
         progress = json.loads((run_dir / "progress.json").read_text())
         print(f"resumed at iteration {progress['iteration']}, {progress['env_steps']} env steps")
+    elif initial_module is not None:
+        try:
+            load_initial_weights(algo, initial_module, args.init_from)
+        except InputError as exc:
+            algo.stop()
+            writer.close()
+            ray.shutdown()
+            if new_run:  # nothing half-written: the folder held only this attempt's args and empty event file
+                shutil.rmtree(run_dir, ignore_errors=True)
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        print(f"started from the weights of {initial_module}", flush=True)
 
     started = time.perf_counter() - progress["wall_s"]
     def finished() -> bool:

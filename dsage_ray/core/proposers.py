@@ -209,6 +209,11 @@ class SurrogateAssisted:
         proposal.times["exploit"] = time.perf_counter() - tic
         tic = time.perf_counter()
         proposal.solutions = self._select(surrogate_archive, proposal.metrics)
+        cap = self.config.surrogate.init_first_picks
+        if outer_iteration == 0 and cap and len(proposal.solutions) > cap:
+            keep = np.sort(self.seeds.rng.choice(len(proposal.solutions), size=cap, replace=False))
+            proposal.solutions = proposal.solutions[keep]
+            proposal.metrics["selection_capped"] = float(cap)
         proposal.times["select"] = time.perf_counter() - tic
         proposal.metrics["surrogate_archive_size"] = float(len(surrogate_archive))
         return proposal

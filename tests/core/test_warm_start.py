@@ -188,3 +188,20 @@ def test_pretrain_surrogate_is_public_and_takes_paths_and_keys(maze_run, tmp_pat
     with pytest.raises(SurrogateInitError, match="no source"):
         dsage_ray.pretrain_surrogate([], out=tmp_path / "none.surrogate")
     assert not (tmp_path / "none.surrogate").exists()
+
+
+def test_init_first_picks_caps_the_first_warm_batch_only(cold_checkpoint):
+    path, _ = cold_checkpoint
+    uncapped = bitmap_runner(seed=5, **{"surrogate.init": str(path)}).step()
+    cap = int(uncapped["evaluated_this_iteration"]) // 2
+    assert cap >= 1, "the uncapped first batch must be large enough to cap"
+    runner = bitmap_runner(seed=5, **{"surrogate.init": str(path), "surrogate.init_first_picks": cap})
+    first = runner.step()
+    assert first["evaluated_this_iteration"] == cap and first["selection_capped"] == cap
+    second = runner.step()
+    assert "selection_capped" not in second
+
+
+def test_init_first_picks_must_not_be_negative():
+    with pytest.raises(ConfigError, match="surrogate.init_first_picks"):
+        RunConfig.build({**SMALL_RUN, "surrogate.init_first_picks": -1})

@@ -105,3 +105,37 @@ def test_a_bad_folder_stops_the_script_with_one_line(tmp_path, script, capsys, c
 def test_background_audits_without_a_cpu_for_them_are_refused(tmp_path, script, capsys):
     assert script.main(["--audit-every", "5", "--num-cpus", "1", "--run-name", str(tmp_path / "run")]) == 2
     assert "background audits need a CPU of their own" in capsys.readouterr().err
+
+
+def test_init_from_puts_the_modules_weights_into_the_learner_and_the_env_runner(ray_session, script):
+    import torch
+
+    from dsage_ray.agents.rllib import load_rllib_module
+
+    args = script.parse_args(["--train-batch-size", "64", "--minibatch-size", "64", "--num-epochs", "1",
+                              "--num-envs", "1", "--init-from", "rllib:ppo_maze"])
+    algo = script.build_config(args).build_algo()
+    try:
+        expected = load_rllib_module("ppo_maze").state_dict()
+        before = algo.get_module().state_dict()
+        assert any(not torch.equal(before[k], v) for k, v in expected.items()), "fresh weights equal the shipped ones"
+        script.load_initial_weights(algo, script.init_module_dir(args.init_from), args.init_from)
+        for module in (algo.get_module(), algo.env_runner.module):
+            loaded = module.state_dict()
+            assert all(torch.equal(loaded[k], v) for k, v in expected.items())
+    finally:
+        algo.stop()
+
+
+def test_an_init_from_that_does_not_fit_stops_with_one_line_and_writes_nothing(tmp_path, ray_session, script,
+                                                                               capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(ray_session, "init", lambda **_: None)  # the session's cluster serves the script
+    monkeypatch.setattr(ray_session, "shutdown", lambda: None)
+    assert script.main(["--init-from", "ppo_maze", "--hidden", "32", "--run-name", "bad_init"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("error: --init-from ppo_maze: its weights do not fit this run's module")
+    assert "size mismatch" in err[-1]
+    assert not (tmp_path / "tb_logs" / "bad_init").exists()
+    assert script.main(["--init-from", "nosuch", "--run-name", "missing"]) == 2
+    assert "error: --init-from nosuch: rllib checkpoint 'nosuch': not found" in capsys.readouterr().err
