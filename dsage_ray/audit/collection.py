@@ -212,7 +212,7 @@ def build_collection(
     from dsage_ray.qd.archives import make_archive
 
     domain = build_domain(config)
-    evaluator = evaluator or InProcessEvaluator(domain=domain)
+    evaluator = evaluator or InProcessEvaluator(domain=domain, threads=config.torch_threads)
     objective_name = config.domain_config.objective
     data = archive.data()
     solutions = np.asarray(data["solution"])

@@ -158,7 +158,7 @@ def _evaluate(config: RunConfig, domain, solutions: Solutions, seeds: Sequence[i
     from dsage_ray.core.evaluation import InProcessEvaluator
 
     if not workers:
-        return reevaluate(InProcessEvaluator(domain=domain), solutions, seeds, desc=desc)
+        return reevaluate(InProcessEvaluator(domain=domain, threads=config.torch_threads), solutions, seeds, desc=desc)
     from dsage_ray.ray.pool import SimulatorPool
 
     pool = SimulatorPool(config=config)

@@ -424,7 +424,8 @@ class AuditSeries:
         from dsage_ray.core.evaluation import InProcessEvaluator
 
         if self.local or config.ray.num_workers == 0:
-            return reevaluate(InProcessEvaluator(domain=domain), solutions, seeds, desc=desc)
+            return reevaluate(InProcessEvaluator(domain=domain, threads=config.torch_threads), solutions, seeds,
+                              desc=desc)
         from dsage_ray.ray.experiment import connect
         from dsage_ray.ray.pool import SimulatorPool
 

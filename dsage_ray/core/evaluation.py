@@ -8,6 +8,7 @@ from typing import Sequence
 
 import numpy as np
 
+from dsage_ray.core.threads import torch_threads
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
 
 logger = logging.getLogger(__name__)
@@ -21,12 +22,23 @@ class InProcessEvaluator:
 
     Args:
         domain: Builds levels and simulates the agent.
+        threads: Torch intra-op threads while evaluating (a run's ``torch_threads``); None leaves the
+            process's count. Torch's default, one thread per core, makes an agent's small per-step batches
+            several times slower when other processes share the cores (measured: 2.7 s instead of 0.6 s per
+            50-episode Maze level beside another audit).
     """
 
-    def __init__(self, *, domain: Domain) -> None:
+    def __init__(self, *, domain: Domain, threads: int | None = None) -> None:
         self.domain = domain
+        self.threads = threads
 
     def __call__(self, solutions: Solutions, seeds: Sequence[int]) -> list[EvaluationResult]:
+        if self.threads is None:
+            return self._evaluate(solutions, seeds)
+        with torch_threads(self.threads):
+            return self._evaluate(solutions, seeds)
+
+    def _evaluate(self, solutions: Solutions, seeds: Sequence[int]) -> list[EvaluationResult]:
         return [evaluate_safely(self.domain, solution, int(seed)) for solution, seed in zip(solutions, seeds)]
 
 

@@ -42,10 +42,9 @@ Nothing here imports Ray: the domain and the evaluator are injected.
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import time
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 
@@ -60,6 +59,7 @@ from dsage_ray.domains import build_domain
 from dsage_ray.errors import DsageError
 from dsage_ray.qd.archives import archive_stats
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
+from dsage_ray.core.threads import torch_threads
 
 __all__ = ["DSAGE", "EvaluationsFailed", "ProgressCallback", "torch_threads"]
 
@@ -285,20 +285,3 @@ class DSAGE:
         self.seeds.load_state_dict(state)
         self.archive = state["archive"]
         self.proposer.load_state_dict(state)
-
-
-@contextlib.contextmanager
-def torch_threads(count: int) -> Iterator[None]:
-    """Runs the block with ``count`` torch intra-op threads, then restores the caller's count.
-
-    The count a run trains and predicts with is part of its config, so ``--local``, a Tune trial
-    and a resumed run compute the same floats whatever their process was set to.
-    """
-    import torch
-
-    previous = torch.get_num_threads()
-    torch.set_num_threads(count)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(previous)
