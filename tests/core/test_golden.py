@@ -6,13 +6,34 @@ import json
 
 import pytest
 
-from tests.core.golden import FIXTURE, SEEDS, fingerprint
+from tests.core.golden import FIXTURE, SEEDS, fingerprint, kernel_probe
 
-EXPECTED = json.loads(FIXTURE.read_text())
+FIXTURE_DATA = json.loads(FIXTURE.read_text())
+PROBE = kernel_probe()
+RECORDED = FIXTURE_DATA["by_kernel_probe"]
+#: The surrogate runs are the same for every probe's machines: their keys from any recorded probe.
+SURROGATE_KEYS = sorted(next(iter(RECORDED.values()))["fingerprints"])
 
 
-@pytest.mark.parametrize("key", sorted(EXPECTED))
-def test_a_seed_finds_the_same_archive_and_metrics_as_before(key):
+def check(key: str, expected: dict) -> None:
     variant, seed = key.split("/seed")
     assert int(seed) in SEEDS
-    assert fingerprint(variant, int(seed)) == EXPECTED[key]
+    assert fingerprint(variant, int(seed)) == expected
+
+
+@pytest.mark.parametrize("key", sorted(FIXTURE_DATA["portable"]))
+def test_a_run_without_a_surrogate_finds_the_same_archive_and_metrics_on_every_machine(key):
+    check(key, FIXTURE_DATA["portable"][key])
+
+
+@pytest.mark.parametrize("key", SURROGATE_KEYS)
+def test_a_surrogate_run_finds_the_same_archive_and_metrics_as_before(key):
+    if PROBE not in RECORDED:
+        recorded = ", ".join(f"{probe} ({entry['machine']})" for probe, entry in RECORDED.items())
+        pytest.skip(f"no fingerprints for this machine's torch kernels (probe {PROBE}; recorded: {recorded}); "
+                    f"record them from a commit known to be right with `python -m tests.core.golden`")
+    check(key, RECORDED[PROBE]["fingerprints"][key])
+
+
+def test_the_kernel_probe_is_stable_within_a_machine():
+    assert kernel_probe() == PROBE
