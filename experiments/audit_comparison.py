@@ -5,6 +5,8 @@
     python experiments/audit_comparison.py --out tb_logs/audit_comparison --summary-only   # the table again
     python experiments/audit_comparison.py --variants cold=dsage,warm=dsage --arm-set warm:surrogate.init=FILE \
         --first-seed 200 --budget 500 --out tb_logs/warm_start          # the same search, cold and warm-started
+    python experiments/audit_comparison.py --variants dsage,map_elites --budget 100000 --set time_budget=360 \
+        --match-time map_elites --first-seed 10 --out tb_logs/equal_time   # equal search time, not evaluations
 
 Every (arm, seed) is one audit (``dsage-ray audit --local --variant V --seed K``) in ``OUT/V_seedK``:
 the same agent, objective, measures and budget, and a collection whose elites are all re-evaluated
@@ -18,6 +20,13 @@ config keys (``--arm-set LABEL:KEY=VALUE``), so one search can be compared with 
 settings; its folders and rows are named by the label. The table also gives each search's wall time
 (minutes of its ``wall_time``: compare it only on a quiet machine at ``--jobs 1``) and its CPU seconds (the
 search process's ``cpu_time``, evaluation included: the clock to compare when audits share the machine).
+
+**Equal time.** A time budget ends a search after the outer iteration during which it is reached, so a search
+with long iterations (DSAGE's can evaluate hundreds of levels) overshoots it more than one with short ones.
+``--match-time LABEL`` (repeatable) therefore runs the other arms first and gives each of LABEL's audits the
+time its seed's first other arm actually searched (its final ``wall_time``) as ``time_budget``; give every arm
+an evaluation ``--budget`` it cannot reach. Audits run seed by seed, so those side by side share the machine
+alike.
 """
 
 from __future__ import annotations
@@ -53,6 +62,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--out", type=Path, default=Path("tb_logs/audit_comparison"))
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="any config key, for every audit")
+    parser.add_argument("--match-time", action="append", default=[], metavar="LABEL",
+                        help="run LABEL's audits with the time that the same seed's first other arm searched as "
+                             "their time_budget (module docstring, 'Equal time')")
     parser.add_argument("--summary-only", action="store_true", help="only write the table from finished audits")
     return parser.parse_args(argv)
 
@@ -68,11 +80,25 @@ def parse_arms(args: argparse.Namespace) -> dict[str, str]:
         label, sep, _ = item.partition(":")
         if not sep or label not in arms:
             raise SystemExit(f"--arm-set {item!r}: expected LABEL:KEY=VALUE with LABEL one of {sorted(arms)}")
+    for label in args.match_time:
+        if label not in arms:
+            raise SystemExit(f"--match-time {label!r}: not an arm (arms: {sorted(arms)})")
+    if args.match_time and not set(arms) - set(args.match_time):
+        raise SystemExit("--match-time: at least one arm must keep its own time (the reference)")
     return arms
 
 
 def seeds(args: argparse.Namespace) -> list[int]:
     return list(range(args.first_seed, args.first_seed + args.seeds))
+
+
+def reference_time(args: argparse.Namespace, seed: int) -> float:
+    """Seconds the seed's reference search stepped (``--match-time``): the first arm not matched."""
+    reference = next(label for label in parse_arms(args) if label not in args.match_time)
+    seconds = search_time(collection_file(args.out, reference, seed).parent)["search_minutes"] * 60
+    if not seconds == seconds:  # NaN: the reference has no metrics
+        raise SystemExit(f"--match-time: the {reference} audit of seed {seed} has no search metrics in {args.out}")
+    return seconds
 
 
 def audit_command(args: argparse.Namespace, label: str, seed: int, folder: Path) -> list[str]:
@@ -86,6 +112,8 @@ def audit_command(args: argparse.Namespace, label: str, seed: int, folder: Path)
     arm_keys = [item.partition(":")[2] for item in args.arm_set if item.partition(":")[0] == label]
     for item in [*args.overrides, *arm_keys]:
         command += ["--set", item]
+    if label in args.match_time:
+        command += ["--set", f"time_budget={reference_time(args, seed):.1f}"]
     if (folder / "search").is_dir():
         command.append("--resume")
     return command
@@ -146,17 +174,23 @@ def main(argv: list[str] | None = None) -> int:
     variants = list(parse_arms(args))
     args.out.mkdir(parents=True, exist_ok=True)
     if not args.summary_only:
-        todo = [(v, s) for v in variants for s in seeds(args) if not collection_file(args.out, v, s).is_file()]
+        # Seed by seed, so that the arms running side by side share the machine alike; matched arms last.
+        todo = [(v, s) for matched in (False, True) for s in seeds(args) for v in variants
+                if (v in args.match_time) == matched and not collection_file(args.out, v, s).is_file()]
         print(f"{len(todo)} audits to run ({len(variants)} variants × {args.seeds} seeds, "
               f"{len(variants) * args.seeds - len(todo)} already collected), {args.jobs} at a time; logs in {args.out}")
         failed = []
-        with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-            for variant, seed, code, seconds in pool.map(lambda point: run_audit(args, *point), todo):
-                status = "done" if code == 0 else f"FAILED (exit {code})"
-                print(f"  {variant} seed {seed}: {status} in {seconds / 60:.1f} min "
-                      f"({args.out / f'{variant}_seed{seed}.log'})", flush=True)
-                if code != 0:
-                    failed.append((variant, seed))
+        for matched in (False, True):
+            phase = [(v, s) for v, s in todo if (v in args.match_time) == matched]
+            if matched and failed:
+                break  # a matched arm needs its reference
+            with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+                for variant, seed, code, seconds in pool.map(lambda point: run_audit(args, *point), phase):
+                    status = "done" if code == 0 else f"FAILED (exit {code})"
+                    print(f"  {variant} seed {seed}: {status} in {seconds / 60:.1f} min "
+                          f"({args.out / f'{variant}_seed{seed}.log'})", flush=True)
+                    if code != 0:
+                        failed.append((variant, seed))
         if failed:
             print(f"{len(failed)} audits failed; run the command again to resume them", file=sys.stderr)
     table = summarize(args.out, variants, seeds(args))
@@ -164,6 +198,7 @@ def main(argv: list[str] | None = None) -> int:
         f"{table}\n\nAgent `{args.agent}`, preset `{args.preset}`"
         + (f", budget {args.budget}" if args.budget else "")
         + "".join(f", {item}" for item in args.arm_set)
+        + "".join(f", {label} given the time of the same seed's reference search" for label in args.match_time)
         + f", seeds {args.first_seed}..{args.first_seed + args.seeds - 1}; mean ± standard error over seeds. Every "
           "level of a collection was "
           "re-evaluated with its recorded seed.\n")

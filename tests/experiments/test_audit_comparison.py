@@ -66,3 +66,32 @@ def test_arms_are_labelled_variants_with_their_own_keys_on_the_seeds_asked_for(t
         assert "LABEL one of ['dsage']" in str(exc)
     else:
         raise AssertionError("an --arm-set of an unknown arm was accepted")
+
+
+def test_match_time_gives_an_arm_the_time_its_seeds_reference_searched(tmp_path):
+    script = load_script()
+    args = script.parse_args(["--variants", "dsage,map_elites", "--match-time", "map_elites", "--budget", "100000",
+                              "--first-seed", "10", "--out", str(tmp_path)])
+    assert script.parse_arms(args) == {"dsage": "dsage", "map_elites": "map_elites"}
+    search = tmp_path / "dsage_seed10" / "search"
+    search.mkdir(parents=True)
+    (search / "metrics.json").write_text(json.dumps([{"wall_time": 100.0, "cpu_time": 90.0},
+                                                     {"wall_time": 361.25, "cpu_time": 350.0}]))
+    matched = script.audit_command(args, "map_elites", 10, tmp_path / "map_elites_seed10")
+    assert [matched[i + 1] for i, a in enumerate(matched) if a == "--set"] == ["time_budget=361.2"]
+    reference = script.audit_command(args, "dsage", 10, tmp_path / "dsage_seed10")
+    assert not any(a.startswith("time_budget=") for a in reference)
+    try:  # seed 11's reference has not run
+        script.audit_command(args, "map_elites", 11, tmp_path / "map_elites_seed11")
+    except SystemExit as exc:
+        assert "the dsage audit of seed 11 has no search metrics" in str(exc)
+    else:
+        raise AssertionError("a matched arm ran without its reference's time")
+    for argv, message in [(["--match-time", "dr"], "not an arm"), (["--match-time", "dsage", "--match-time",
+                                                                      "map_elites"], "at least one arm")]:
+        try:
+            script.parse_arms(script.parse_args(["--variants", "dsage,map_elites", *argv]))
+        except SystemExit as exc:
+            assert message in str(exc)
+        else:
+            raise AssertionError(f"{argv} was accepted")
