@@ -7,7 +7,8 @@ One readable experiment, top to bottom:
    a share of its episodes replaying the levels of ``--collection`` (``--train-on-collection``). Continuing
    the audited agent is the loop a user runs: audit a checkpoint, then train it on what the audit found.
 2. **Evaluate** the starting module and every trained one, with the same seeds for every agent, on
-   - ``shown``: every level of ``--collection`` (the levels the mixed arm trained on);
+   - ``shown``: every level of ``--collection`` (the levels the mixed arm trained on), and among them those the
+     audit found never solved (``shown, never solved``);
    - ``unseen``: the never-solved levels of ``--fresh``, a second audit of the starting module with another
      seed (levels identical to one of ``--collection`` are dropped): failures neither arm was shown;
    - ``random``: ``--mazes`` random valid mazes (the model card's set, ``benchmarks/bench_agents.py``).
@@ -21,7 +22,8 @@ Usage::
     python experiments/train_on_collection.py --collection RUNS/loop/collection --fresh RUNS/loop/fresh \\
         --init-from ppo_maze --env-steps 200000 --seeds 0 1 2 --out RUNS/loop/train
 
-A finished training (its ``progress.json`` at ``--env-steps``) is not run again, so the command resumes.
+A finished training (its ``progress.json`` at ``--env-steps``) is not run again, and the evaluations in
+``results.json`` made with the same test sets and episodes are reused, so the command resumes.
 """
 
 from __future__ import annotations
@@ -105,7 +107,10 @@ def train_all(args: argparse.Namespace, out: Path) -> None:
 # ---------------------------------------------------------------------------------------- 2. evaluate
 
 def test_sets(args: argparse.Namespace) -> dict[str, list[tuple[str, int]]]:
-    """``set name -> [(layout text, seed)]``: the shown, unseen and random levels (module docstring)."""
+    """``set name -> [(layout text, seed)]``: the shown, unseen and random levels (module docstring).
+
+    The shown levels come worst first, as the collection lists them, so those the audit never saw solved
+    lead (:func:`never_solved_shown`)."""
     from dsage_ray.audit.results import Collection
     from dsage_ray.domains.maze.generator import random_valid_levels
     from dsage_ray.domains.maze.layout import format_layout, load_layout
@@ -122,6 +127,15 @@ def test_sets(args: argparse.Namespace) -> dict[str, list[tuple[str, int]]]:
     return {"shown": shown, "unseen": unseen, "random": random}
 
 
+def never_solved_shown(args: argparse.Namespace) -> list[int]:
+    """Indices into the shown set of the levels the audit of ``--collection`` never saw solved."""
+    from dsage_ray.audit.results import Collection
+
+    path = Path(args.collection)
+    levels = Collection.load(path / "collection" if (path / "collection").is_dir() else path).levels
+    return [index for index, level in enumerate(levels) if level.success_rate == 0.0]
+
+
 def success_rates(spec: str, levels: list[tuple[str, int]], episodes: int) -> list[float]:
     """``spec``'s success rate on each level, evaluated with the level's seed (runs in a worker process)."""
     import torch
@@ -136,17 +150,33 @@ def success_rates(spec: str, levels: list[tuple[str, int]], episodes: int) -> li
             for text, seed in levels]
 
 
+def evaluation_key(args: argparse.Namespace, sets: dict[str, list[tuple[str, int]]]) -> str:
+    """What an earlier ``results.json`` must share for its evaluations to be reused: the levels, seeds and
+    episodes of every set, the starting module and the trainings' settings."""
+    import hashlib
+
+    digest = hashlib.sha256(json.dumps([sets, args.episodes, args.init_from, args.env_steps, args.share]).encode())
+    return digest.hexdigest()
+
+
 def evaluate_all(args: argparse.Namespace, out: Path, sets: dict[str, list[tuple[str, int]]]) -> dict[str, dict]:
-    """``agent name -> set name -> per-level success rates``, for the starting module and every training."""
+    """``agent name -> set name -> per-level success rates``, for the starting module and every training
+    (reusing those of an earlier ``results.json`` with the same :func:`evaluation_key`)."""
     from train_maze_agent import module_dir
 
     agents = {"start": f"rllib:{args.init_from}"} | {
         run_name(arm, seed): f"rllib:{module_dir(out / 'tb_logs' / run_name(arm, seed) / 'checkpoint')}"
         for seed in args.seeds for arm in ARMS}
     results: dict[str, dict] = {name: {} for name in agents}
+    earlier = out / "results.json"
+    if earlier.is_file():
+        data = json.loads(earlier.read_text())
+        if data.get("evaluation_key") == evaluation_key(args, sets):
+            for name in agents:
+                results[name].update(data["results"].get(name, {}))
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         futures = {(name, set_name): pool.submit(success_rates, spec, sets[set_name], args.episodes)
-                   for name, spec in agents.items() for set_name in SETS}
+                   for name, spec in agents.items() for set_name in SETS if set_name not in results[name]}
         for (name, set_name), future in futures.items():
             results[name][set_name] = future.result()
             print(f"  {name:10s} {set_name:7s} success {np.mean(results[name][set_name]):.3f}", flush=True)
@@ -161,20 +191,30 @@ def mean_se(values: list[float]) -> tuple[float, float]:
     return float(values.mean()), se
 
 
-def summary_table(args: argparse.Namespace, sets: dict[str, list], results: dict[str, dict]) -> str:
-    """The markdown table: one row per arm and the paired difference, one column per test set."""
+def summary_table(args: argparse.Namespace, sets: dict[str, list], results: dict[str, dict],
+                  shown_never: list[int]) -> str:
+    """The markdown table: one row per arm and the paired difference, one column per test set (and one for
+    the shown levels at ``shown_never``, those the audit never saw solved)."""
     def cell(values: list[float]) -> str:
         mean, se = mean_se(values)
         return f"{mean:.3f}" if np.isnan(se) else f"{mean:.3f} ± {se:.3f}"
 
-    per_seed = {arm: {s: [float(np.mean(results[run_name(arm, seed)][s])) for seed in args.seeds] for s in SETS}
-                for arm in ARMS}
-    header = " | ".join(f"{name} ({len(sets[name])} levels)" for name in SETS)
-    lines = [f"| agent | {header} |", "|---|" + "---|" * len(SETS),
-             "| start (" + args.init_from + ") | " + " | ".join(cell([np.mean(results['start'][s])]) for s in SETS) + " |"]
-    lines += [f"| {arm} | " + " | ".join(cell(per_seed[arm][s]) for s in SETS) + " |" for arm in ARMS]
+    columns = {f"shown ({len(sets['shown'])} levels)": ("shown", None),
+               f"shown, never solved ({len(shown_never)})": ("shown", shown_never),
+               f"unseen, never solved ({len(sets['unseen'])})": ("unseen", None),
+               f"random ({len(sets['random'])} mazes)": ("random", None)}
+
+    def score(name: str, column: tuple[str, list[int] | None]) -> float:
+        rates = np.asarray(results[name][column[0]])
+        return float(np.mean(rates if column[1] is None else rates[column[1]]))
+
+    per_seed = {arm: {title: [score(run_name(arm, seed), column) for seed in args.seeds]
+                      for title, column in columns.items()} for arm in ARMS}
+    lines = [f"| agent | {' | '.join(columns)} |", "|---|" + "---|" * len(columns),
+             f"| start (`{args.init_from}`) | " + " | ".join(cell([score("start", c)]) for c in columns.values()) + " |"]
+    lines += [f"| {arm} | " + " | ".join(cell(per_seed[arm][title]) for title in columns) + " |" for arm in ARMS]
     lines.append("| mixed - plain (paired by seed) | " + " | ".join(
-        cell(list(np.subtract(per_seed["mixed"][s], per_seed["plain"][s]))) for s in SETS) + " |")
+        cell(list(np.subtract(per_seed["mixed"][title], per_seed["plain"][title]))) for title in columns) + " |")
     return "\n".join(lines)
 
 
@@ -190,8 +230,9 @@ def main(argv: list[str] | None = None) -> int:
                          f"budget or another seed")
     train_all(args, out)
     results = evaluate_all(args, out, sets)
-    table = summary_table(args, sets, results)
-    (out / "results.json").write_text(json.dumps({"args": vars(args), "results": results}, indent=1))
+    table = summary_table(args, sets, results, never_solved_shown(args))
+    (out / "results.json").write_text(json.dumps({"args": vars(args), "evaluation_key": evaluation_key(args, sets),
+                                                  "results": results}, indent=1))
     caption = (f"Continued from `{args.init_from}` for {args.env_steps:,} env steps, seeds "
                f"{', '.join(map(str, args.seeds))}; mixed: share {args.share} of the episodes on the levels of "
                f"`{args.collection}`; {args.episodes} episodes per level, the same seeds for every agent; success "

@@ -68,9 +68,20 @@ def test_the_table_pairs_the_arms_by_seed(script, tmp_path):
                "plain_s1": {"shown": [0.0, 1.0], "unseen": [0.2], "random": [1.0, 1.0, 1.0]},
                "mixed_s0": {"shown": [1.0, 1.0], "unseen": [0.4], "random": [1.0, 1.0, 0.4]},
                "mixed_s1": {"shown": [1.0, 0.0], "unseen": [0.4], "random": [1.0, 1.0, 1.0]}}
-    table = script.summary_table(args, sets, results).splitlines()
-    assert table[0] == "| agent | shown (2 levels) | unseen (1 levels) | random (3 levels) |"
-    assert table[2] == "| start (ppo_maze) | 0.500 | 0.000 | 1.000 |"
-    assert table[3] == "| plain | 0.250 ± 0.250 | 0.100 ± 0.100 | 1.000 ± 0.000 |"
-    assert table[4] == "| mixed | 0.750 ± 0.250 | 0.400 ± 0.000 | 0.900 ± 0.100 |"
-    assert table[5] == "| mixed - plain (paired by seed) | 0.500 ± 0.500 | 0.300 ± 0.100 | -0.100 ± 0.100 |"
+    table = script.summary_table(args, sets, results, shown_never=[0]).splitlines()
+    assert table[0] == ("| agent | shown (2 levels) | shown, never solved (1) | unseen, never solved (1) | "
+                        "random (3 mazes) |")
+    assert table[2] == "| start (`ppo_maze`) | 0.500 | 0.000 | 0.000 | 1.000 |"
+    assert table[3] == "| plain | 0.250 ± 0.250 | 0.000 ± 0.000 | 0.100 ± 0.100 | 1.000 ± 0.000 |"
+    assert table[4] == "| mixed | 0.750 ± 0.250 | 1.000 ± 0.000 | 0.400 ± 0.000 | 0.900 ± 0.100 |"
+    assert table[5] == ("| mixed - plain (paired by seed) | 0.500 ± 0.500 | 1.000 ± 0.000 | 0.300 ± 0.100 | "
+                        "-0.100 ± 0.100 |")
+
+
+def test_evaluations_are_reused_only_for_the_same_sets_and_settings(script, tmp_path):
+    argv = ["--collection", "c", "--fresh", "f", "--out", str(tmp_path)]
+    sets = {"shown": [("a", 1)], "unseen": [("b", 2)], "random": [("c", 0)]}
+    key = script.evaluation_key(script.parse_args(argv), sets)
+    assert key == script.evaluation_key(script.parse_args(argv + ["--jobs", "1"]), sets)
+    assert key != script.evaluation_key(script.parse_args(argv + ["--episodes", "50"]), sets)
+    assert key != script.evaluation_key(script.parse_args(argv), {**sets, "unseen": [("b", 3)]})
