@@ -141,7 +141,7 @@ def run_locally(
         raise InputError(f"{out_dir} already holds a run: pass --resume to continue it, or another --out")
     if resume and not checkpoint.exists():
         raise InputError(f"{out_dir} holds no run to resume ({CHECKPOINT_NAME} is missing){legacy_hint(out_dir)}")
-    progress = ConsoleProgress(budget=config.budget) if console else None
+    progress = ConsoleProgress(budget=config.budget, time_budget=config.time_budget) if console else None
     runner = DSAGE(config=config, domain=domain, evaluator=evaluator,
                    progress=progress.phase if progress is not None else None)
     callbacks: list[Any] = [RunTensorBoard(logdir=out_dir, image_every=config.image_every,

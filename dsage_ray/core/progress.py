@@ -23,28 +23,37 @@ def format_duration(seconds: float) -> str:
     return f"{hours}h{minutes:02d}m"
 
 
-def progress_line(metrics: Mapping[str, float], *, budget: int, elapsed_s: float, evals_per_s: float) -> str:
+def progress_line(metrics: Mapping[str, float], *, budget: int, elapsed_s: float, evals_per_s: float,
+                  time_budget: float = 0.0) -> str:
     """The progress line of one outer iteration.
 
     The iteration total is an estimate (``~``): later iterations are assumed to evaluate as many
-    levels as the last one, which holds once the random initial batch is past.
+    levels as the last one, which holds once the random initial batch is past. When the time budget
+    will end the run first, the line says so (``ETA 4m10s (time budget)``) and gives no iteration total.
 
     Args:
         metrics: The runner's metrics of the iteration just finished (``outer_iteration``, ``evals``,
-            ``evaluated_this_iteration``, ``qd_score``, ``coverage``).
+            ``evaluated_this_iteration``, ``qd_score``, ``coverage``; ``wall_time``, what the time budget
+            counts, else ``elapsed_s`` stands for it).
         budget: The run's evaluation budget.
         elapsed_s: Wall time shown as ``elapsed``.
         evals_per_s: Evaluation rate so far; the ETA is the remaining budget at this rate.
+        time_budget: The run's ``time_budget`` in seconds (0: none).
     """
     iteration = int(metrics["outer_iteration"])
     evals = int(metrics["evals"])
     remaining = max(budget - evals, 0)
-    if remaining == 0:
+    time_left = (time_budget - float(metrics.get("wall_time", elapsed_s))) if time_budget > 0 else math.inf
+    eval_eta = remaining / evals_per_s if evals_per_s > 0 else math.inf
+    if remaining == 0 or time_left <= 0:
         iterations, eta = f"{iteration}", "done"
+    elif time_left < eval_eta:
+        # The run ends after the iteration during which the time runs out: at least this long.
+        iterations, eta = f"{iteration}", f"{format_duration(time_left)} (time budget)"
     else:
         per_iteration = max(int(metrics.get("evaluated_this_iteration", 0)), 1)
         iterations = f"~{iteration + math.ceil(remaining / per_iteration)}"
-        eta = format_duration(remaining / evals_per_s) if evals_per_s > 0 else "?"
+        eta = format_duration(eval_eta)
     return (f"iter {iteration}/{iterations}  evals {evals}/{budget}  qd_score {metrics['qd_score']:.1f}  "
             f"coverage {metrics['coverage']:.3f}  elapsed {format_duration(elapsed_s)}  ETA {eta}")
 
@@ -77,10 +86,12 @@ class ConsoleProgress:
 
     Args:
         budget: The run's evaluation budget (for the ETA).
+        time_budget: The run's time budget in seconds, 0 for none (for the ETA).
     """
 
-    def __init__(self, *, budget: int) -> None:
+    def __init__(self, *, budget: int, time_budget: float = 0.0) -> None:
         self.budget = budget
+        self.time_budget = time_budget
         self._bars: dict = {}
         self._started: float | None = None
         self._evals_at_start = 0
@@ -117,7 +128,8 @@ class ConsoleProgress:
             self.on_start(run)
         elapsed = time.monotonic() - self._started
         evals_per_s = self._rate.update(evals=run.evals - self._evals_at_start, running_s=elapsed)
-        tqdm.write(progress_line(metrics, budget=self.budget, elapsed_s=elapsed, evals_per_s=evals_per_s))
+        tqdm.write(progress_line(metrics, budget=self.budget, elapsed_s=elapsed, evals_per_s=evals_per_s,
+                                 time_budget=self.time_budget))
 
     def close(self) -> None:
         for bar in self._bars.values():

@@ -75,7 +75,8 @@ class ProgressLines(tune.Callback):
         rate = self._rates.setdefault(trial.trial_id, EvaluationRate()).update(
             evals=evals, running_s=float(result.get("time_total_s") or 0.0))
         line = progress_line(result, budget=int(result.get("budget", evals)),
-                             elapsed_s=time.monotonic() - self._started, evals_per_s=rate)
+                             elapsed_s=time.monotonic() - self._started, evals_per_s=rate,
+                             time_budget=float(result.get("time_budget", 0.0)))
         if result.get("done"):
             self._finished.add(trial.trial_id)
         if len(trials) > 1:

@@ -82,6 +82,7 @@ class DSAGETrainable(tune.Trainable):
         result["done"] = self.runner.done
         # The driver's progress line needs it, and an ablation's flat config may leave it at its default.
         result["budget"] = self.run_config.budget
+        result["time_budget"] = self.run_config.time_budget
         if self.pool is not None:
             result["pool_actor_deaths"] = self.pool.stats.actor_deaths
             result["pool_resubmitted_chunks"] = self.pool.stats.resubmitted_chunks

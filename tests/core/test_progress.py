@@ -26,6 +26,18 @@ def test_progress_line_estimates_iterations_and_eta_from_the_evaluation_rate():
     assert line == "iter 3/~13  evals 400/2000  qd_score 812.0  coverage 0.031  elapsed 2m10s  ETA 6m30s"
 
 
+def test_progress_line_counts_down_the_time_budget_when_it_ends_the_run_first():
+    metrics = {"outer_iteration": 3.0, "evals": 108.0, "evaluated_this_iteration": 4.0, "qd_score": 4.6,
+               "coverage": 0.002, "wall_time": 30.0}
+    line = progress_line(metrics, budget=100_000, elapsed_s=27, evals_per_s=3.0, time_budget=420)
+    assert line == "iter 3/3  evals 108/100000  qd_score 4.6  coverage 0.002  elapsed 27s  ETA 6m30s (time budget)"
+    # The evaluation budget first: the usual estimate; past the time budget: done.
+    assert progress_line({**metrics, "evals": 1990.0}, budget=2000, elapsed_s=27, evals_per_s=3.0,
+                         time_budget=420).endswith("ETA 3s")
+    assert progress_line({**metrics, "wall_time": 421.0}, budget=100_000, elapsed_s=421, evals_per_s=3.0,
+                         time_budget=420).endswith("ETA done")
+
+
 def test_progress_line_of_a_finished_run_and_of_an_unknown_rate():
     metrics = {"outer_iteration": 7.0, "evals": 150.0, "evaluated_this_iteration": 23.0, "qd_score": 1.0,
                "coverage": 0.5}
