@@ -55,11 +55,11 @@ from dsage_ray.core.proposers import (DirectQD, EvaluatedBatch, ProgressCallback
                                       domain_archive)
 from dsage_ray.core.seeds import RunSeeds
 from dsage_ray.core.snapshot import RunSnapshot
+from dsage_ray.core.threads import torch_threads
 from dsage_ray.domains import build_domain
 from dsage_ray.errors import DsageError
 from dsage_ray.qd.archives import archive_stats
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
-from dsage_ray.core.threads import torch_threads
 
 __all__ = ["DSAGE", "EvaluationsFailed", "ProgressCallback", "torch_threads"]
 
