@@ -29,7 +29,8 @@ def progress_line(metrics: Mapping[str, float], *, budget: int, elapsed_s: float
 
     The iteration total is an estimate (``~``): later iterations are assumed to evaluate as many
     levels as the last one, which holds once the random initial batch is past. When the time budget
-    will end the run first, the line says so (``ETA 4m10s (time budget)``) and gives no iteration total.
+    will end the run first, the line says so (``ETA 4m10s (time budget)``) and the total counts the
+    iterations that fit in the time left at the evaluation rate so far.
 
     Args:
         metrics: The runner's metrics of the iteration just finished (``outer_iteration``, ``evals``,
@@ -45,13 +46,14 @@ def progress_line(metrics: Mapping[str, float], *, budget: int, elapsed_s: float
     remaining = max(budget - evals, 0)
     time_left = (time_budget - float(metrics.get("wall_time", elapsed_s))) if time_budget > 0 else math.inf
     eval_eta = remaining / evals_per_s if evals_per_s > 0 else math.inf
+    per_iteration = max(int(metrics.get("evaluated_this_iteration", 0)), 1)
     if remaining == 0 or time_left <= 0:
         iterations, eta = f"{iteration}", "done"
     elif time_left < eval_eta:
         # The run ends after the iteration during which the time runs out: at least this long.
-        iterations, eta = f"{iteration}", f"{format_duration(time_left)} (time budget)"
+        iterations = f"~{iteration + math.ceil(time_left * evals_per_s / per_iteration)}"
+        eta = f"{format_duration(time_left)} (time budget)"
     else:
-        per_iteration = max(int(metrics.get("evaluated_this_iteration", 0)), 1)
         iterations = f"~{iteration + math.ceil(remaining / per_iteration)}"
         eta = format_duration(eval_eta)
     return (f"iter {iteration}/{iterations}  evals {evals}/{budget}  qd_score {metrics['qd_score']:.1f}  "

@@ -30,7 +30,8 @@ def test_progress_line_counts_down_the_time_budget_when_it_ends_the_run_first():
     metrics = {"outer_iteration": 3.0, "evals": 108.0, "evaluated_this_iteration": 4.0, "qd_score": 4.6,
                "coverage": 0.002, "wall_time": 30.0}
     line = progress_line(metrics, budget=100_000, elapsed_s=27, evals_per_s=3.0, time_budget=420)
-    assert line == "iter 3/3  evals 108/100000  qd_score 4.6  coverage 0.002  elapsed 27s  ETA 6m30s (time budget)"
+    # 390 s left at 3 evaluations/s: 1,170 more, 293 iterations of 4.
+    assert line == "iter 3/~296  evals 108/100000  qd_score 4.6  coverage 0.002  elapsed 27s  ETA 6m30s (time budget)"
     # The evaluation budget first: the usual estimate; past the time budget: done.
     assert progress_line({**metrics, "evals": 1990.0}, budget=2000, elapsed_s=27, evals_per_s=3.0,
                          time_budget=420).endswith("ETA 3s")
