@@ -28,7 +28,7 @@ A finished training (its ``progress.json`` at ``--env-steps``) is not run again,
 
 from __future__ import annotations
 
-import argparse
+import dataclasses
 import json
 import subprocess
 import sys
@@ -37,26 +37,42 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
+import tyro
 
 TRAIN_SCRIPT = Path(__file__).resolve().parent / "train_maze_agent.py"
 ARMS = ("plain", "mixed")
 SETS = ("shown", "unseen", "random")
 
 
-def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--collection", required=True, help="the audit (or collection folder) to train on")
-    parser.add_argument("--fresh", required=True, help="a second audit of the starting module: its never-solved "
-                                                       "levels are the unseen test set")
-    parser.add_argument("--init-from", default="ppo_maze", help="rllib module both arms start from")
-    parser.add_argument("--env-steps", type=int, default=200_000, help="env steps each arm trains")
-    parser.add_argument("--share", type=float, default=0.25, help="--collection-share of the mixed arm")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    parser.add_argument("--episodes", type=int, default=20, help="episodes per level in every evaluation")
-    parser.add_argument("--mazes", type=int, default=100, help="random valid mazes of the random set")
-    parser.add_argument("--jobs", type=int, default=2, help="trainings and evaluations run side by side")
-    parser.add_argument("--out", required=True, help="experiment folder (trainings in OUT/tb_logs/)")
-    return parser.parse_args(argv)
+@dataclasses.dataclass
+class Args:
+    """The experiment's flags: ``--help`` prints each with the description under it."""
+
+    collection: str
+    """the audit (or its collection folder) whose levels the mixed arm trains on"""
+    fresh: str
+    """a second audit of the starting module: its never-solved levels are the unseen test set"""
+    out: str
+    """experiment folder (trainings in OUT/tb_logs/, results.json, summary.md)"""
+    init_from: str = "ppo_maze"
+    """rllib module both arms start from (train_maze_agent.py --init-from)"""
+    env_steps: int = 200_000
+    """env steps each arm trains"""
+    share: float = 0.25
+    """--collection-share of the mixed arm"""
+    seeds: tuple[int, ...] = (0, 1, 2)
+    """training seeds, one training per arm each"""
+    episodes: int = 20
+    """episodes per level in every evaluation"""
+    mazes: int = 100
+    """random valid mazes in the random set"""
+    jobs: int = 2
+    """trainings and evaluations run side by side"""
+
+
+def parse_args(argv: list[str] | None = None) -> Args:
+    """``Args`` from the command line (``--help`` lists every flag)."""
+    return tyro.cli(Args, args=argv, description=__doc__.split("\n\n")[0])
 
 
 # ------------------------------------------------------------------------------------------- 1. train
@@ -70,7 +86,7 @@ def trained(out: Path, name: str, env_steps: int) -> bool:
     return progress.is_file() and json.loads(progress.read_text())["env_steps"] >= env_steps
 
 
-def train_command(args: argparse.Namespace, arm: str, seed: int) -> list[str]:
+def train_command(args: Args, arm: str, seed: int) -> list[str]:
     command = [sys.executable, str(TRAIN_SCRIPT), "--run-name", run_name(arm, seed), "--seed", str(seed),
                "--init-from", args.init_from, "--curriculum-steps", "0", "--total-env-steps", str(args.env_steps),
                "--eval-every", "0"]
@@ -80,7 +96,7 @@ def train_command(args: argparse.Namespace, arm: str, seed: int) -> list[str]:
     return command
 
 
-def train_all(args: argparse.Namespace, out: Path) -> None:
+def train_all(args: Args, out: Path) -> None:
     """Runs the missing trainings, ``--jobs`` at a time (each one is a process with its own Ray)."""
     pending = [(arm, seed) for seed in args.seeds for arm in ARMS
                if not trained(out, run_name(arm, seed), args.env_steps)]
@@ -106,7 +122,7 @@ def train_all(args: argparse.Namespace, out: Path) -> None:
 
 # ---------------------------------------------------------------------------------------- 2. evaluate
 
-def test_sets(args: argparse.Namespace) -> dict[str, list[tuple[str, int]]]:
+def test_sets(args: Args) -> dict[str, list[tuple[str, int]]]:
     """``set name -> [(layout text, seed)]``: the shown, unseen and random levels (module docstring).
 
     The shown levels come worst first, as the collection lists them, so those the audit never saw solved
@@ -127,7 +143,7 @@ def test_sets(args: argparse.Namespace) -> dict[str, list[tuple[str, int]]]:
     return {"shown": shown, "unseen": unseen, "random": random}
 
 
-def never_solved_shown(args: argparse.Namespace) -> list[int]:
+def never_solved_shown(args: Args) -> list[int]:
     """Indices into the shown set of the levels the audit of ``--collection`` never saw solved."""
     from dsage_ray.audit.results import Collection
 
@@ -150,7 +166,7 @@ def success_rates(spec: str, levels: list[tuple[str, int]], episodes: int) -> li
             for text, seed in levels]
 
 
-def evaluation_key(args: argparse.Namespace, sets: dict[str, list[tuple[str, int]]]) -> str:
+def evaluation_key(args: Args, sets: dict[str, list[tuple[str, int]]]) -> str:
     """What an earlier ``results.json`` must share for its evaluations to be reused: the levels, seeds and
     episodes of every set, the starting module and the trainings' settings."""
     import hashlib
@@ -159,7 +175,7 @@ def evaluation_key(args: argparse.Namespace, sets: dict[str, list[tuple[str, int
     return digest.hexdigest()
 
 
-def evaluate_all(args: argparse.Namespace, out: Path, sets: dict[str, list[tuple[str, int]]]) -> dict[str, dict]:
+def evaluate_all(args: Args, out: Path, sets: dict[str, list[tuple[str, int]]]) -> dict[str, dict]:
     """``agent name -> set name -> per-level success rates``, for the starting module and every training
     (reusing those of an earlier ``results.json`` with the same :func:`evaluation_key`)."""
     from train_maze_agent import module_dir
@@ -191,7 +207,7 @@ def mean_se(values: list[float]) -> tuple[float, float]:
     return float(values.mean()), se
 
 
-def summary_table(args: argparse.Namespace, sets: dict[str, list], results: dict[str, dict],
+def summary_table(args: Args, sets: dict[str, list], results: dict[str, dict],
                   shown_never: list[int]) -> str:
     """The markdown table: one row per arm and the paired difference, one column per test set (and one for
     the shown levels at ``shown_never``, those the audit never saw solved)."""
@@ -231,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
     train_all(args, out)
     results = evaluate_all(args, out, sets)
     table = summary_table(args, sets, results, never_solved_shown(args))
-    (out / "results.json").write_text(json.dumps({"args": vars(args), "evaluation_key": evaluation_key(args, sets),
+    (out / "results.json").write_text(json.dumps({"args": dataclasses.asdict(args), "evaluation_key": evaluation_key(args, sets),
                                                   "results": results}, indent=1))
     caption = (f"Continued from `{args.init_from}` for {args.env_steps:,} env steps, seeds "
                f"{', '.join(map(str, args.seeds))}; mixed: share {args.share} of the episodes on the levels of "

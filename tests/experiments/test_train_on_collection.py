@@ -18,9 +18,11 @@ SCRIPT = Path(__file__).resolve().parents[2] / "experiments" / "train_on_collect
 
 
 @pytest.fixture
-def script():
+def script(monkeypatch):
+    """The script as a module, kept in ``sys.modules`` for the test (tyro resolves its annotations there)."""
     spec = importlib.util.spec_from_file_location("train_on_collection", SCRIPT)
     module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, module)
     spec.loader.exec_module(module)
     return module
 
