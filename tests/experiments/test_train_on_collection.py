@@ -3,7 +3,6 @@ are ``train_maze_agent.py``'s, tested in tests/integrations)."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import sys
 from pathlib import Path
@@ -13,18 +12,14 @@ import pytest
 from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.domains.maze.layout import format_layout
 from tests.integrations.conftest import write_collection
+from tests.scripts import import_script
 
 SCRIPT = Path(__file__).resolve().parents[2] / "experiments" / "train_on_collection.py"
 
 
 @pytest.fixture
 def script(monkeypatch):
-    """The script as a module, kept in ``sys.modules`` for the test (tyro resolves its annotations there)."""
-    spec = importlib.util.spec_from_file_location("train_on_collection", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, spec.name, module)
-    spec.loader.exec_module(module)
-    return module
+    return import_script(SCRIPT, monkeypatch)
 
 
 def test_the_unseen_set_is_the_fresh_audits_never_solved_levels_the_collection_lacks(tmp_path, script):

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
+
+from tests.scripts import import_script
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 SCRIPT = REPO_ROOT / "experiments" / "train_maze_agent.py"
@@ -71,11 +71,7 @@ class FakeWriter:
 @pytest.fixture
 def script(monkeypatch):
     """``experiments/train_maze_agent.py`` imported as a module (kept in ``sys.modules`` for tyro)."""
-    spec = importlib.util.spec_from_file_location("train_maze_agent", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, spec.name, module)
-    spec.loader.exec_module(module)
-    return module
+    return import_script(SCRIPT, monkeypatch)
 
 
 def write_collection(folder: Path, levels, *, domain: str = "maze", success: float = 0.0) -> Path:
