@@ -204,18 +204,12 @@ def build_config(args: Args, levels: list[str] | None = None):
     )
 
 
-def collection_levels(folder: str | Path, *, height: int = 16, width: int = 16) -> list[str]:
-    """The layout texts of an audit collection's levels, for ``--train-on-collection``.
-
-    ``folder`` is a collection folder (``collection.json`` and ``levels/``) or an audit folder holding one
-    in ``collection/``. Raises InputError, naming the folder and the problem, when it is not a Maze
-    collection with at least one readable level of the training size.
-    """
+def load_audit_collection(folder: str | Path, *, name: str):
+    """The :class:`~dsage_ray.audit.results.Collection` in ``folder``: a collection folder, or an audit folder
+    holding one in ``collection/``. InputError starting with ``name`` when there is none or it is unreadable."""
     from dsage_ray.audit.results import Collection
-    from dsage_ray.domains.maze.layout import format_layout, load_layout
     from dsage_ray.errors import InputError
 
-    name = f"--train-on-collection {folder}"
     path = Path(folder)
     if not path.is_dir():
         raise InputError(f"{name}: no such folder")
@@ -225,9 +219,23 @@ def collection_levels(folder: str | Path, *, height: int = 16, width: int = 16) 
         raise InputError(f"{name}: no collection.json (expected an audit's collection folder, or an audit folder "
                          f"holding collection/)")
     try:
-        collection = Collection.load(path)
+        return Collection.load(path)
     except (ValueError, KeyError, TypeError) as exc:
         raise InputError(f"{name}: {exc}") from None
+
+
+def collection_levels(folder: str | Path, *, height: int = 16, width: int = 16) -> list[str]:
+    """The layout texts of an audit collection's levels, for ``--train-on-collection``.
+
+    ``folder`` is a collection folder (``collection.json`` and ``levels/``) or an audit folder holding one
+    in ``collection/``. Raises InputError, naming the folder and the problem, when it is not a Maze
+    collection with at least one readable level of the training size.
+    """
+    from dsage_ray.domains.maze.layout import format_layout, load_layout
+    from dsage_ray.errors import InputError
+
+    name = f"--train-on-collection {folder}"
+    collection = load_audit_collection(folder, name=name)
     if collection.domain != "maze":
         raise InputError(f"{name}: a {collection.domain} collection; the maze agent trains on maze levels")
     if not collection.levels:

@@ -122,34 +122,31 @@ def train_all(args: Args, out: Path) -> None:
 
 # ---------------------------------------------------------------------------------------- 2. evaluate
 
-def test_sets(args: Args) -> dict[str, list[tuple[str, int]]]:
-    """``set name -> [(layout text, seed)]``: the shown, unseen and random levels (module docstring).
+def train_script():
+    """``experiments/train_maze_agent.py`` as a module: its run folders and its rule for collection folders."""
+    if str(TRAIN_SCRIPT.parent) not in sys.path:
+        sys.path.insert(0, str(TRAIN_SCRIPT.parent))
+    import train_maze_agent
 
-    The shown levels come worst first, as the collection lists them, so those the audit never saw solved
-    lead (:func:`never_solved_shown`)."""
-    from dsage_ray.audit.results import Collection
+    return train_maze_agent
+
+
+def test_sets(args: Args) -> tuple[dict[str, list[tuple[str, int]]], list[int]]:
+    """``set name -> [(layout text, seed)]`` of the shown, unseen and random levels (module docstring), and the
+    indices into the shown set of the levels the audit of ``--collection`` never saw solved."""
     from dsage_ray.domains.maze.generator import random_valid_levels
     from dsage_ray.domains.maze.layout import format_layout, load_layout
 
-    def collection(folder: str) -> Collection:
-        path = Path(folder)
-        return Collection.load(path / "collection" if (path / "collection").is_dir() else path)
-
-    shown = [(format_layout(load_layout(level.level_path)), level.seed) for level in collection(args.collection).levels]
+    load = train_script().load_audit_collection
+    trained_on = load(args.collection, name=f"--collection {args.collection}").levels
+    shown = [(format_layout(load_layout(level.level_path)), level.seed) for level in trained_on]
+    shown_never = [index for index, level in enumerate(trained_on) if level.success_rate == 0.0]
     seen = {text for text, _ in shown}
-    unseen = [(text, level.seed) for level in collection(args.fresh).levels if level.success_rate == 0.0
+    unseen = [(text, level.seed) for level in load(args.fresh, name=f"--fresh {args.fresh}").levels
+              if level.success_rate == 0.0
               for text in [format_layout(load_layout(level.level_path))] if text not in seen]
     random = [(format_layout(level), index) for index, level in enumerate(random_valid_levels(args.mazes, seed=2022))]
-    return {"shown": shown, "unseen": unseen, "random": random}
-
-
-def never_solved_shown(args: Args) -> list[int]:
-    """Indices into the shown set of the levels the audit of ``--collection`` never saw solved."""
-    from dsage_ray.audit.results import Collection
-
-    path = Path(args.collection)
-    levels = Collection.load(path / "collection" if (path / "collection").is_dir() else path).levels
-    return [index for index, level in enumerate(levels) if level.success_rate == 0.0]
+    return {"shown": shown, "unseen": unseen, "random": random}, shown_never
 
 
 def success_rates(spec: str, levels: list[tuple[str, int]], episodes: int) -> list[float]:
@@ -178,8 +175,7 @@ def evaluation_key(args: Args, sets: dict[str, list[tuple[str, int]]]) -> str:
 def evaluate_all(args: Args, out: Path, sets: dict[str, list[tuple[str, int]]]) -> dict[str, dict]:
     """``agent name -> set name -> per-level success rates``, for the starting module and every training
     (reusing those of an earlier ``results.json`` with the same :func:`evaluation_key`)."""
-    from train_maze_agent import module_dir
-
+    module_dir = train_script().module_dir
     agents = {"start": f"rllib:{args.init_from}"} | {
         run_name(arm, seed): f"rllib:{module_dir(out / 'tb_logs' / run_name(arm, seed) / 'checkpoint')}"
         for seed in args.seeds for arm in ARMS}
@@ -236,19 +232,24 @@ def summary_table(args: Args, sets: dict[str, list], results: dict[str, dict],
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    from dsage_ray.errors import InputError
+
+    try:
+        sets, shown_never = test_sets(args)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     out = Path(args.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
-    sys.path.insert(0, str(TRAIN_SCRIPT.parent))
-    sets = test_sets(args)
     print(f"test sets: {', '.join(f'{name} {len(levels)} levels' for name, levels in sets.items())}", flush=True)
     if not sets["unseen"]:
         raise SystemExit(f"--fresh {args.fresh}: no never-solved level that --collection lacks; audit with a larger "
                          f"budget or another seed")
     train_all(args, out)
     results = evaluate_all(args, out, sets)
-    table = summary_table(args, sets, results, never_solved_shown(args))
-    (out / "results.json").write_text(json.dumps({"args": dataclasses.asdict(args), "evaluation_key": evaluation_key(args, sets),
-                                                  "results": results}, indent=1))
+    table = summary_table(args, sets, results, shown_never)
+    record = {"args": dataclasses.asdict(args), "evaluation_key": evaluation_key(args, sets), "results": results}
+    (out / "results.json").write_text(json.dumps(record, indent=1))
     caption = (f"Continued from `{args.init_from}` for {args.env_steps:,} env steps, seeds "
                f"{', '.join(map(str, args.seeds))}; mixed: share {args.share} of the episodes on the levels of "
                f"`{args.collection}`; {args.episodes} episodes per level, the same seeds for every agent; success "

@@ -39,7 +39,8 @@ def test_the_unseen_set_is_the_fresh_audits_never_solved_levels_the_collection_l
 
     args = script.parse_args(["--collection", str(tmp_path / "train"), "--fresh", str(tmp_path / "fresh"),
                               "--mazes", "4", "--out", str(tmp_path / "out")])
-    sets = script.test_sets(args)
+    sets, shown_never = script.test_sets(args)
+    assert shown_never == [0, 1, 2]                                # the shown levels were never solved
     assert [text for text, _ in sets["shown"]] == [format_layout(level) for level in levels[:3]]
     assert sets["unseen"] == [(format_layout(levels[3]), 101)]    # never solved, not shown, its recorded seed
     assert [seed for _, seed in sets["random"]] == [0, 1, 2, 3]
@@ -82,3 +83,14 @@ def test_evaluations_are_reused_only_for_the_same_sets_and_settings(script, tmp_
     assert key == script.evaluation_key(script.parse_args(argv + ["--jobs", "1"]), sets)
     assert key != script.evaluation_key(script.parse_args(argv + ["--episodes", "50"]), sets)
     assert key != script.evaluation_key(script.parse_args(argv), {**sets, "unseen": [("b", 3)]})
+
+
+def test_a_folder_without_a_collection_stops_with_one_line_and_writes_nothing(script, tmp_path, capsys):
+    (tmp_path / "empty").mkdir()
+    out = tmp_path / "out"
+    assert script.main(["--collection", str(tmp_path / "empty"), "--fresh", str(tmp_path / "empty"),
+                        "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"error: --collection {tmp_path / 'empty'}: no collection.json (expected an audit's collection "
+                   f"folder, or an audit folder holding collection/)"]
+    assert not out.exists()
