@@ -234,6 +234,12 @@ def spearman(a: np.ndarray, b: np.ndarray) -> float:
     return float(stats.spearmanr(a, b).statistic)
 
 
+def rankdata(values: np.ndarray) -> np.ndarray:
+    from scipy import stats
+
+    return stats.rankdata(values)
+
+
 def make_gbm(seed: int):
     try:
         from sklearn.ensemble import HistGradientBoostingRegressor
@@ -355,6 +361,9 @@ def main(argv: list[str] | None = None) -> dict:
     mae: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
     held_rho: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
     train_s: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
+    # The inits' mean prediction (an ensemble of --inits models), alone and rank-averaged with the GBM.
+    ensemble_rho: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
+    with_gbm_rho: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
     gbm_rho: dict[int, list[float]] = {n: [] for n in sizes}
     gbm_held: dict[int, list[float]] = {n: [] for n in sizes}
     optimal_rho: list[float] = []
@@ -371,22 +380,27 @@ def main(argv: list[str] | None = None) -> dict:
         for n in sizes:
             train = np.sort(pool[:n])
             gbm = make_gbm(args.seed).fit(features[train], values[train])
-            gbm_rho[n].append(spearman(gbm.predict(features[test]), values[test]))
+            gbm_test = gbm.predict(features[test])
+            gbm_rho[n].append(spearman(gbm_test, values[test]))
             if held is not None:
                 gbm_held[n].append(spearman(gbm.predict(held_features), held_values))
             if not gbm_rate:
                 gbm_rate = throughput(lambda: gbm.predict(bfs_features(batch_walls)), args.batch, repeats=3)
             for setting in settings:
-                per_init, per_init_mae, per_init_held, seconds = [], [], [], []
+                per_init, per_init_mae, per_init_held, seconds, predictions = [], [], [], [], []
                 for init in range(args.inits):
                     model = Model(setting, data, train_size=n, seed=1000 * split + init)
                     seconds.append(model.train(train, encoded[setting.name]))
                     predicted = model.predict(encoded[setting.name][test], column)
+                    predictions.append(predicted)
                     per_init.append(spearman(predicted, values[test]))
                     per_init_mae.append(float(np.abs(predicted - values[test]).mean()))
                     if held is not None:
                         per_init_held.append(spearman(model.predict(held_encoded[setting.name], column), held_values))
                 rho[setting.name][n].append(float(np.mean(per_init)))
+                ensemble = np.mean(predictions, axis=0)
+                ensemble_rho[setting.name][n].append(spearman(ensemble, values[test]))
+                with_gbm_rho[setting.name][n].append(spearman(rankdata(ensemble) + rankdata(gbm_test), values[test]))
                 mae[setting.name][n].append(float(np.mean(per_init_mae)))
                 train_s[setting.name][n].append(float(np.mean(seconds)))
                 if held is not None:
@@ -444,6 +458,12 @@ def main(argv: list[str] | None = None) -> dict:
             if held is not None:
                 row.append(summary(held_rho[setting.name][n]))
             rows.append(row)
+            if args.inits > 1:
+                for label, combined in ((f"mean of {args.inits}", ensemble_rho), (f"mean of {args.inits} + GBM ranks",
+                                                                                   with_gbm_rho)):
+                    r = combined[setting.name][n]
+                    rows.append([f"{setting.name}, {label}", str(n), summary(r), summary(np.subtract(r, optimal_rho)),
+                                 summary(np.subtract(r, gbm_rho[n])), "", ""] + ([""] if held is not None else []))
     for n in sizes:
         row = ["GBM", str(n), summary(gbm_rho[n]), summary(np.subtract(gbm_rho[n], optimal_rho)), "", "", ""]
         if held is not None:
@@ -460,7 +480,8 @@ def main(argv: list[str] | None = None) -> dict:
     for n in sizes:
         print(f"N={n}: surrogate ρ {summary(rho[primary][n])} | optimal path ρ {summary(optimal_rho)} | "
               f"GBM ρ {summary(gbm_rho[n])}")
-    return {"rho": rho, "optimal": optimal_rho, "gbm": gbm_rho, "cost": cost, "future": future}
+    return {"rho": rho, "optimal": optimal_rho, "gbm": gbm_rho, "cost": cost, "future": future,
+            "ensemble": ensemble_rho, "with_gbm": with_gbm_rho}
 
 
 if __name__ == "__main__":

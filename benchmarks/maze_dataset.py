@@ -208,11 +208,14 @@ def load(path: str | Path) -> MazeData:
 
 
 def save(data: MazeData, path: str | Path) -> Path:
-    """Writes ``data`` atomically (a partial file never replaces a complete one)."""
+    """Writes ``data`` atomically (a partial file never replaces a complete one); data that breaks the format
+    (e.g. a run without the agent's path length) is refused before anything is written."""
     path = Path(path)
+    arrays = data.arrays()
+    validate(arrays, str(path))
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(path.name + ".partial.npz")
-    np.savez(partial, **data.arrays())
+    np.savez(partial, **arrays)
     os.replace(partial, path)
     return path
 

@@ -184,3 +184,23 @@ def test_concatenated_datasets_keep_each_level_once_in_order():
         maze_dataset.concatenate([first, MazeData(walls=second.walls, measures=second.measures[:, :1],
                                                   measure_names=("other",))])
     assert maze_dataset.concatenate([]) is None
+
+
+def test_data_without_the_path_length_is_refused_and_nothing_is_written(tmp_path):
+    # An audit search's measures are the level's own (walls, optimal path), not the agent's path length.
+    data = synthetic(6)
+    data.measure_names = ("num_walls", "optimal_path_length")
+    with pytest.raises(MazeDatasetError, match="mean_path_length"):
+        maze_dataset.save(data, tmp_path / "audit.npz")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_with_several_inits_the_ensemble_and_its_gbm_blend_are_scored(tmp_path):
+    import bench_surrogate_ceiling
+
+    path = maze_dataset.save(synthetic(48), tmp_path / "d.npz")
+    result = bench_surrogate_ceiling.main(["--data", str(path), "--sizes", "16", "--test", "20", "--splits", "2",
+                                           "--inits", "2", "--epochs", "1", "--batch", "8", "--no-future"])
+    for key in ("ensemble", "with_gbm"):
+        scores = result[key]["cpu"][16]
+        assert len(scores) == 2 and all(-1.0 <= r <= 1.0 for r in scores)
