@@ -29,7 +29,7 @@ from ray.tune.logger import CSVLoggerCallback, JsonLoggerCallback
 from dsage_ray.config import ConfigError, RunConfig, key_hint, paper_comparison, parse_override
 from dsage_ray.core.checkpoint import CHECKPOINT_NAME
 from dsage_ray.domains import build_domain
-from dsage_ray.errors import Interrupted, TrialFailed
+from dsage_ray.errors import InputError, Interrupted, TrialFailed
 from dsage_ray.results import ExperimentResult, RunResult
 from dsage_ray.ray.pool import DomainFactory, check_cluster_fits
 from dsage_ray.ray.progress import ProgressLines, quiet_tune_output
@@ -259,6 +259,8 @@ def run_experiment(
     """
     storage_path = str(Path(storage_path).expanduser().resolve())
     experiment_path = Path(storage_path) / name
+    if resume:
+        refuse_changed_budgets(experiment_path, param_space)
     trainable = tune.with_parameters(DSAGETrainable, domain_factory=domain_factory)
     # Tune checkpoints at the end too, so a finished trial's last state is always on disk.
     checkpoint_config = tune.CheckpointConfig(checkpoint_frequency=checkpoint_every, checkpoint_at_end=True,
@@ -305,6 +307,31 @@ def run_experiment(
     _check_finished(name, [result.metrics for result in results])
     return ExperimentResult(path=Path(results.experiment_path), trials=tuple(
         _run_result(result.config, result.path, result.checkpoint) for result in results))
+
+
+def refuse_changed_budgets(experiment_path: Path, param_space: Mapping[str, Any]) -> None:
+    """Refuses a ``--resume`` that asks for another ``budget`` or ``time_budget`` than the stored trials have.
+
+    Tune restores each trial with the config it was started with and never reopens a finished one, so a
+    new budget would be ignored without a word (a trial its time budget ended would "resume" by ending at
+    once). A ``time_budget`` of 0 (none asked) keeps the trials' own. In-process runs (``--local``) do
+    take a new time budget on resume: it decides only when a run stops, never what it computes.
+
+    Raises:
+        InputError: Naming the key, the trials' value and the one asked for.
+    """
+    stored = [json.loads(path.read_text()) for path in sorted(experiment_path.glob("*/params.json"))]
+    for key, unset in (("budget", None), ("time_budget", 0)):
+        asked = param_space.get(key)
+        if not isinstance(asked, (int, float)) or asked == unset:
+            continue  # a grid axis, or nothing asked
+        differing = sorted({trial[key] for trial in stored if key in trial and trial[key] != asked})
+        if differing:
+            raise InputError(
+                f"--resume continues {experiment_path.name!r} as its trials were started: {key} = "
+                f"{', '.join(f'{value:g}' for value in differing)}, not {asked:g} (Tune restores a trial with its "
+                f"own config and never reopens a finished one). Resume without changing {key}, start a new "
+                f"experiment (another --out), or run in-process (--local), where --resume takes a new time budget")
 
 
 def _run_result(config: dict[str, Any], path: str, checkpoint: tune.Checkpoint | None) -> RunResult:

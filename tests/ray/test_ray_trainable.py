@@ -11,6 +11,7 @@ from ray import tune
 
 from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint
 from dsage_ray.core.runner import DSAGE
+from dsage_ray.errors import InputError
 from dsage_ray.ray.experiment import check_resources, run_experiment
 from dsage_ray.ray.pool import PoolResourceError
 from dsage_ray.ray.trainable import DSAGETrainable
@@ -128,3 +129,24 @@ def test_tune_run_grid_writes_tensorboard_scalars_and_images(tmp_path, capsys):
             assert "ETA done" in progress[-1]
             finals.append(progress[-1].rsplit("trials done ", 1)[1])
         assert sorted(finals) == ["1/2", "2/2"]  # a trial counts as done with its last result
+
+
+def test_a_resume_asking_for_another_budget_is_refused_before_tune_starts(tmp_path):
+    # Tune restores each trial with its own config: a new budget would be ignored without a word.
+    experiment = tmp_path / "exp"
+    for index, seed in enumerate((0, 1)):
+        trial = experiment / f"DSAGETrainable_{index}"
+        trial.mkdir(parents=True)
+        (trial / "params.json").write_text(json.dumps({**small_config(time_budget=600.0, seed=seed).to_flat()}))
+    space = small_config(time_budget=1200.0).to_flat()
+    with pytest.raises(InputError, match=r"time_budget = 600, not 1200 .*--local"):
+        run_experiment({**space, "seed": tune.grid_search([0, 1])}, name="exp", storage_path=tmp_path, resume=True,
+                       domain_factory=bitmap_domain)
+    with pytest.raises(InputError, match=r"budget = 120, not 90"):
+        run_experiment(small_config(budget=90, time_budget=600.0).to_flat(), name="exp", storage_path=tmp_path,
+                       resume=True, domain_factory=bitmap_domain)
+    # Nothing asked (time_budget 0) keeps the trials' own; the same budgets pass the check.
+    from dsage_ray.ray.experiment import refuse_changed_budgets
+
+    refuse_changed_budgets(experiment, small_config(time_budget=0.0).to_flat())
+    refuse_changed_budgets(experiment, small_config(time_budget=600.0).to_flat())
