@@ -260,7 +260,7 @@ def run_experiment(
     storage_path = str(Path(storage_path).expanduser().resolve())
     experiment_path = Path(storage_path) / name
     if resume:
-        refuse_changed_budgets(experiment_path, param_space)
+        refuse_changed_config(experiment_path, param_space)
     trainable = tune.with_parameters(DSAGETrainable, domain_factory=domain_factory)
     # Tune checkpoints at the end too, so a finished trial's last state is always on disk.
     checkpoint_config = tune.CheckpointConfig(checkpoint_frequency=checkpoint_every, checkpoint_at_end=True,
@@ -309,29 +309,42 @@ def run_experiment(
         _run_result(result.config, result.path, result.checkpoint) for result in results))
 
 
-def refuse_changed_budgets(experiment_path: Path, param_space: Mapping[str, Any]) -> None:
-    """Refuses a ``--resume`` that asks for another ``budget`` or ``time_budget`` than the stored trials have.
+def refuse_changed_config(experiment_path: Path, param_space: Mapping[str, Any]) -> None:
+    """Refuses a ``--resume`` whose config differs from the one the stored trials were started with.
 
-    Tune restores each trial with the config it was started with and never reopens a finished one, so a
-    new budget would be ignored without a word (a trial its time budget ended would "resume" by ending at
-    once). A ``time_budget`` of 0 (none asked) keeps the trials' own. In-process runs (``--local``) do
-    take a new time budget on resume: it decides only when a run stops, never what it computes.
+    Tune restores each trial with its own config and never reopens a finished one, so a changed key (a
+    larger ``budget``, another ``surrogate.epochs``) would be ignored without a word. This is the in-process
+    rule too (a checkpoint only continues the config that wrote it), with the same one exception: a
+    ``time_budget`` of 0 (none asked) keeps the trials' own. Grid axes are not compared (each trial holds one
+    of their values).
 
     Raises:
-        InputError: Naming the key, the trials' value and the one asked for.
+        InputError: Naming each differing key, the trials' values and the one asked for.
     """
     stored = [json.loads(path.read_text()) for path in sorted(experiment_path.glob("*/params.json"))]
-    for key, unset in (("budget", None), ("time_budget", 0)):
-        asked = param_space.get(key)
-        if not isinstance(asked, (int, float)) or asked == unset:
-            continue  # a grid axis, or nothing asked
-        differing = sorted({trial[key] for trial in stored if key in trial and trial[key] != asked})
+    changes = []
+    for key, asked in param_space.items():
+        if isinstance(asked, Mapping) or (key == "time_budget" and asked == 0):
+            continue  # a grid axis (or another Tune search space), or no time budget asked
+        try:
+            asked = json.loads(json.dumps(asked))  # tuples read back from params.json as lists
+        except TypeError:
+            continue  # a Tune sampler object
+        differing = sorted({_shown(trial[key]) for trial in stored if key in trial and trial[key] != asked})
         if differing:
-            raise InputError(
-                f"--resume continues {experiment_path.name!r} as its trials were started: {key} = "
-                f"{', '.join(f'{value:g}' for value in differing)}, not {asked:g} (Tune restores a trial with its "
-                f"own config and never reopens a finished one). Resume without changing {key}, start a new "
-                f"experiment (another --out), or run in-process (--local), where --resume takes a new time budget")
+            changes.append(f"{key} = {', '.join(differing)}, not {_shown(asked)}")
+    if changes:
+        raise InputError(
+            f"--resume continues {experiment_path.name!r} as its trials were started: {'; '.join(changes)} (Tune "
+            f"restores a trial with its own config and never reopens a finished one). Resume without changing "
+            f"them, start a new experiment (another --out), or run in-process (--local), where --resume takes a "
+            f"new time budget")
+
+
+def _shown(value: Any) -> str:
+    """A config value as a message shows it: numbers plainly (600, not 600.0), the rest as JSON."""
+    is_number = isinstance(value, (int, float)) and not isinstance(value, bool)
+    return f"{value:g}" if is_number else json.dumps(value)
 
 
 def _run_result(config: dict[str, Any], path: str, checkpoint: tune.Checkpoint | None) -> RunResult:

@@ -129,10 +129,14 @@ def test_tune_run_grid_writes_tensorboard_scalars_and_images(tmp_path, capsys):
             assert "ETA done" in progress[-1]
             finals.append(progress[-1].rsplit("trials done ", 1)[1])
         assert sorted(finals) == ["1/2", "2/2"]  # a trial counts as done with its last result
+        # What Tune stored is what was asked: resuming with the same config passes the resume check.
+        from dsage_ray.ray.experiment import refuse_changed_config
+
+        refuse_changed_config(experiment.path, space)
 
 
-def test_a_resume_asking_for_another_budget_is_refused_before_tune_starts(tmp_path):
-    # Tune restores each trial with its own config: a new budget would be ignored without a word.
+def test_a_resume_asking_for_another_config_is_refused_before_tune_starts(tmp_path):
+    # Tune restores each trial with its own config: a new budget or key would be ignored without a word.
     experiment = tmp_path / "exp"
     for index, seed in enumerate((0, 1)):
         trial = experiment / f"DSAGETrainable_{index}"
@@ -145,8 +149,11 @@ def test_a_resume_asking_for_another_budget_is_refused_before_tune_starts(tmp_pa
     with pytest.raises(InputError, match=r"budget = 120, not 90"):
         run_experiment(small_config(budget=90, time_budget=600.0).to_flat(), name="exp", storage_path=tmp_path,
                        resume=True, domain_factory=bitmap_domain)
-    # Nothing asked (time_budget 0) keeps the trials' own; the same budgets pass the check.
-    from dsage_ray.ray.experiment import refuse_changed_budgets
+    from dsage_ray.ray.experiment import refuse_changed_config
 
-    refuse_changed_budgets(experiment, small_config(time_budget=0.0).to_flat())
-    refuse_changed_budgets(experiment, small_config(time_budget=600.0).to_flat())
+    seeds = {"seed": tune.grid_search([0, 1])}
+    with pytest.raises(InputError, match=r"surrogate.epochs = 2, not 3"):
+        refuse_changed_config(experiment, {**small_config(time_budget=600.0, surrogate__epochs=3).to_flat(), **seeds})
+    # Nothing asked (time_budget 0) keeps the trials' own; the same config passes the check.
+    refuse_changed_config(experiment, {**small_config(time_budget=0.0).to_flat(), **seeds})
+    refuse_changed_config(experiment, {**small_config(time_budget=600.0).to_flat(), **seeds})
