@@ -234,12 +234,6 @@ def spearman(a: np.ndarray, b: np.ndarray) -> float:
     return float(stats.spearmanr(a, b).statistic)
 
 
-def rankdata(values: np.ndarray) -> np.ndarray:
-    from scipy import stats
-
-    return stats.rankdata(values)
-
-
 def make_gbm(seed: int):
     try:
         from sklearn.ensemble import HistGradientBoostingRegressor
@@ -309,6 +303,7 @@ def main(argv: list[str] | None = None) -> dict:
     args = parser.parse_args(argv)
 
     import torch
+    from scipy import stats
 
     from dsage_ray.config import parse_override
 
@@ -400,7 +395,8 @@ def main(argv: list[str] | None = None) -> dict:
                 rho[setting.name][n].append(float(np.mean(per_init)))
                 ensemble = np.mean(predictions, axis=0)
                 ensemble_rho[setting.name][n].append(spearman(ensemble, values[test]))
-                with_gbm_rho[setting.name][n].append(spearman(rankdata(ensemble) + rankdata(gbm_test), values[test]))
+                with_gbm_rho[setting.name][n].append(spearman(stats.rankdata(ensemble) + stats.rankdata(gbm_test),
+                                                              values[test]))
                 mae[setting.name][n].append(float(np.mean(per_init_mae)))
                 train_s[setting.name][n].append(float(np.mean(seconds)))
                 if held is not None:
