@@ -52,7 +52,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from maze_dataset import PATH_LENGTH, MazeData, MazeDatasetError  # noqa: E402
 
 #: Benchmark-only setting keys (not run config keys).
-BENCH_KEYS = ("bench.distance_fields",)
+BENCH_KEYS = ("bench.distance_fields", "bench.level_statistics", "bench.sum_residual")
 
 
 # ------------------------------------------------------------------------------------------- features
@@ -127,6 +127,8 @@ class Setting:
     name: str
     config: object  # RunConfig
     distance_fields: bool = False
+    level_statistics: bool = False
+    sum_residual: bool = False
 
     @classmethod
     def parse(cls, text: str, *, epochs: int | None, extra: dict) -> "Setting":
@@ -144,7 +146,9 @@ class Setting:
         if epochs is not None:
             values["surrogate.epochs"] = epochs
         config = RunConfig.build({**values, **overrides})
-        return cls(name=name, config=config, distance_fields=bool(bench.get("bench.distance_fields", False)))
+        return cls(name=name, config=config, distance_fields=bool(bench.get("bench.distance_fields", False)),
+                   level_statistics=bool(bench.get("bench.level_statistics", False)),
+                   sum_residual=bool(bench.get("bench.sum_residual", False)))
 
     def describe(self) -> str:
         s = self.config.surrogate
@@ -154,6 +158,10 @@ class Setting:
             parts.append(f"{s.occupancy_sum_measure} = occupancy sum")
         if self.distance_fields:
             parts.append("distance fields")
+        if self.level_statistics:
+            parts.append("level statistics into the heads")
+        if self.sum_residual:
+            parts.append("occupancy sum + its head's output")
         return ", ".join(parts)
 
 
@@ -163,7 +171,7 @@ class Model:
     def __init__(self, setting: Setting, data: MazeData, *, train_size: int, seed: int) -> None:
         from dsage_ray.domains.maze.encoding import EMPTY, GOAL, SPARE, START
         from dsage_ray.surrogate import Surrogate
-        from dsage_ray.surrogate.models import DistanceFields, WithDistanceFields
+        from dsage_ray.surrogate.models import DistanceFields, LevelStatistics, WithDistanceFields
 
         self.setting = setting
         self.data = data
@@ -185,16 +193,44 @@ class Model:
                                    occupancy_shape=(height, width), num_measures=len(data.measure_names),
                                    config=config, seed=seed, measure_ranges=ranges, measure_names=data.measure_names)
         self.input_channels = channels
+        fields = DistanceFields(free_channels=(EMPTY, START, GOAL), start_channel=START, goal_channel=GOAL,
+                                norm=height * width / 2)
+        if setting.level_statistics:
+            import torch
+
+            from dsage_ray.surrogate.surrogate import MODELS
+
+            statistics = LevelStatistics(fields=fields, norm=height * width / 2)
+            with torch.random.fork_rng(devices=[]):
+                torch.manual_seed(seed)
+                self.surrogate.model = MODELS[kind](
+                    input_channels=channels + extra, input_size=sample.shape[2], occupancy_shape=(height, width),
+                    num_measures=len(data.measure_names), config=config, statistics=statistics)
+            self.surrogate.optimizer = torch.optim.Adam(self.surrogate.model.parameters(), lr=config.lr,
+                                                        betas=tuple(config.betas))
+        if setting.sum_residual:
+            self.surrogate._sum_occupancy = self._sum_plus_head
         if setting.distance_fields:
             import torch
 
-            fields = DistanceFields(free_channels=(EMPTY, START, GOAL), start_channel=START, goal_channel=GOAL,
-                                    norm=height * width / 2)
             self.surrogate.model = WithDistanceFields(fields, self.surrogate.model)
             self.surrogate.input_channels = channels  # what predict() and the dataset see: the one-hot level
             self.surrogate.optimizer = torch.optim.Adam(self.surrogate.model.parameters(), lr=config.lr,
                                                         betas=tuple(config.betas))
         self.pad_channel = SPARE
+
+    def _sum_plus_head(self, output):
+        """The occupancy-sum measure plus its own head's output (which then learns the sum's residual)."""
+        import torch
+
+        surrogate = self.surrogate
+        i = surrogate._sum_index
+        if i is None:
+            return output
+        total = (output.occupancy.float().sum(dim=(1, 2)) - surrogate._measure_offset[i]) / surrogate._measure_scale[i]
+        measures = output.measures.clone()
+        measures[:, i] = measures[:, i] + total
+        return output._replace(measures=measures)
 
     def encode(self, walls: np.ndarray) -> np.ndarray:
         from dsage_ray.domains.maze.encoding import SPARE, encode_levels

@@ -27,6 +27,8 @@ BASE_CHANNELS = 64
 BASE_DILATIONS = (1, 1)
 #: The measure predictor downsamples until this spatial size, then flattens.
 FINAL_SIZE = 4
+#: Width of the MLP that feeds per-level scalars (:class:`LevelStatistics`) to the measure heads.
+SCALAR_WIDTH = 64
 
 
 class ModelOutput(NamedTuple):
@@ -147,10 +149,12 @@ class MeasurePredictor(nn.Module):
 
     Conv4×4 stride 2 (→64, ``base_channels``) + LeakyReLU(0.2), then Conv4×4 stride 2 doubling the
     channels, each with BatchNorm + LeakyReLU, until the grid is 4×4; flatten; one linear head per output.
+    With ``num_scalars`` > 0 (not in the paper) the heads also read per-level scalars
+    (:class:`LevelStatistics`) through a small MLP, BatchNorm first since their scales differ.
     """
 
     def __init__(self, *, input_channels: int, input_size: int, num_measures: int,
-                 base_channels: int = BASE_CHANNELS) -> None:
+                 base_channels: int = BASE_CHANNELS, num_scalars: int = 0) -> None:
         super().__init__()
         _check_input_size(input_size)
         layers: list[nn.Module] = [
@@ -167,13 +171,24 @@ class MeasurePredictor(nn.Module):
             channels, size = 2 * channels, size // 2
         layers.append(nn.Flatten())
         self.features = nn.Sequential(*layers)
+        self.scalar_branch = None
+        if num_scalars > 0:
+            self.scalar_branch = nn.Sequential(
+                nn.BatchNorm1d(num_scalars), nn.Linear(num_scalars, SCALAR_WIDTH), nn.LeakyReLU(LEAKY_SLOPE),
+                nn.Linear(SCALAR_WIDTH, SCALAR_WIDTH), nn.LeakyReLU(LEAKY_SLOPE))
         # Row i of this weight is head i (objective, then each measure): the same parameters and
         # initialisation as 1 + num_measures separate nn.Linear(features, 1), in one matmul.
-        self.heads = nn.Linear(channels * FINAL_SIZE * FINAL_SIZE, 1 + num_measures)
+        width = channels * FINAL_SIZE * FINAL_SIZE + (SCALAR_WIDTH if num_scalars > 0 else 0)
+        self.heads = nn.Linear(width, 1 + num_measures)
 
-    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Returns objective ``(n,)`` and measures ``(n, num_measures)``."""
-        out = self.heads(self.features(x))
+    def forward(self, x: torch.Tensor, scalars: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """Returns objective ``(n,)`` and measures ``(n, num_measures)``; ``scalars`` ``(n, num_scalars)``."""
+        features = self.features(x)
+        if self.scalar_branch is not None:
+            if scalars is None:
+                raise ValueError("this measure predictor reads per-level scalars; none were given")
+            features = torch.cat([features, self.scalar_branch(scalars)], dim=1)
+        out = self.heads(features)
         return out[:, 0], out[:, 1:]
 
 
@@ -187,11 +202,13 @@ class TwoStageModel(nn.Module):
         num_measures: Number of measure heads.
         channels: Width of both predictors (:data:`BASE_CHANNELS`, the paper's 64).
         dilations: The occupancy predictor's residual blocks (:class:`OccupancyPredictor`).
+        statistics: Per-level scalars computed from the level and fed to the measure heads (not in the
+            paper); ``None``: the paper's model.
     """
 
     def __init__(self, *, input_channels: int, input_size: int, occupancy_shape: tuple[int, int],
                  num_measures: int, channels: int = BASE_CHANNELS,
-                 dilations: tuple[int, ...] = BASE_DILATIONS) -> None:
+                 dilations: tuple[int, ...] = BASE_DILATIONS, statistics: "LevelStatistics | None" = None) -> None:
         super().__init__()
         _check_input_size(input_size)
         height, width = occupancy_shape
@@ -201,8 +218,10 @@ class TwoStageModel(nn.Module):
         self.input_size = input_size
         self.occupancy_predictor = OccupancyPredictor(input_channels=input_channels, hidden_channels=channels,
                                                       dilations=tuple(dilations))
+        self.statistics = statistics
         self.measure_predictor = MeasurePredictor(input_channels=input_channels + 1, input_size=input_size,
-                                                  num_measures=num_measures, base_channels=channels)
+                                                  num_measures=num_measures, base_channels=channels,
+                                                  num_scalars=statistics.size if statistics is not None else 0)
 
     def forward(self, levels: torch.Tensor, *, bf16_blocks: bool = False) -> ModelOutput:
         """``bf16_blocks``: see :meth:`OccupancyPredictor.forward`; the measure predictor is float32 always."""
@@ -211,7 +230,8 @@ class TwoStageModel(nn.Module):
         # The measure predictor sees exactly the supervised occupancy, with zeros on the padding
         # (whose predictions are never trained and would only add noise).
         full = F.pad(occupancy, (0, self.input_size - width, 0, self.input_size - height))
-        objective, measures = self.measure_predictor(torch.cat([levels, full.unsqueeze(1)], dim=1))
+        scalars = self.statistics(levels) if self.statistics is not None else None
+        objective, measures = self.measure_predictor(torch.cat([levels, full.unsqueeze(1)], dim=1), scalars)
         return ModelOutput(objective, measures, occupancy)
 
 
@@ -219,15 +239,38 @@ class OneStageModel(nn.Module):
     """The ablation without ancillary data: the measure predictor on the one-hot level alone."""
 
     def __init__(self, *, input_channels: int, input_size: int, num_measures: int,
-                 channels: int = BASE_CHANNELS) -> None:
+                 channels: int = BASE_CHANNELS, statistics: "LevelStatistics | None" = None) -> None:
         super().__init__()
+        self.statistics = statistics
         self.measure_predictor = MeasurePredictor(input_channels=input_channels, input_size=input_size,
-                                                  num_measures=num_measures, base_channels=channels)
+                                                  num_measures=num_measures, base_channels=channels,
+                                                  num_scalars=statistics.size if statistics is not None else 0)
 
     def forward(self, levels: torch.Tensor, *, bf16_blocks: bool = False) -> ModelOutput:
         """``bf16_blocks`` is accepted for a uniform interface; this model has no residual blocks."""
-        objective, measures = self.measure_predictor(levels)
+        scalars = self.statistics(levels) if self.statistics is not None else None
+        objective, measures = self.measure_predictor(levels, scalars)
         return ModelOutput(objective, measures, None)
+
+
+class Distances(NamedTuple):
+    """BFS distances on a batch of ``n`` grid levels (:meth:`DistanceFields.distances`).
+
+    Attributes:
+        free: Bool ``(n, S, S)``, the cells an agent can stand on.
+        from_start: ``(n, S, S)`` float steps from the start cell, -1 where not reached.
+        to_goal: ``(n, S, S)`` float steps to the goal cell, -1 where not reached.
+        length: ``(n,)`` the shortest start-goal distance (0 when the goal is not reached).
+        start: Bool ``(n, S, S)``, the start cell.
+        goal: Bool ``(n, S, S)``, the goal cell.
+    """
+
+    free: torch.Tensor
+    from_start: torch.Tensor
+    to_goal: torch.Tensor
+    length: torch.Tensor
+    start: torch.Tensor
+    goal: torch.Tensor
 
 
 class DistanceFields(nn.Module):
@@ -279,8 +322,8 @@ class DistanceFields(nn.Module):
             distance[frontier] = float(step)
             reached = reached | frontier
 
-    def forward(self, levels: torch.Tensor) -> torch.Tensor:
-        """``(n, C, S, S)`` one-hot levels → ``(n, C + 3, S, S)``: the levels, then the three fields."""
+    def distances(self, levels: torch.Tensor) -> "Distances":
+        """The free cells and the BFS distances of ``(n, C, S, S)`` one-hot levels (:class:`Distances`)."""
         with torch.no_grad():
             cells = levels > 0.5
             free = cells[:, list(self.free_channels)].any(dim=1)
@@ -288,10 +331,16 @@ class DistanceFields(nn.Module):
             from_start, to_goal = self.bfs(torch.cat([free, free]),
                                            torch.cat([cells[:, self.start_channel], cells[:, self.goal_channel]])
                                            ).chunk(2)
-            reachable = (from_start >= 0) & (to_goal >= 0)
-            length = (from_start * cells[:, self.goal_channel]).sum(dim=(1, 2), keepdim=True)
-            detour = from_start + to_goal - length
-            stacked = torch.stack([from_start, to_goal, detour], dim=1) * reachable[:, None] / self.norm
+            length = (from_start * cells[:, self.goal_channel]).sum(dim=(1, 2))
+        return Distances(free=free, from_start=from_start, to_goal=to_goal, length=length,
+                         start=cells[:, self.start_channel], goal=cells[:, self.goal_channel])
+
+    def forward(self, levels: torch.Tensor) -> torch.Tensor:
+        """``(n, C, S, S)`` one-hot levels → ``(n, C + 3, S, S)``: the levels, then the three fields."""
+        d = self.distances(levels)
+        reachable = (d.from_start >= 0) & (d.to_goal >= 0)
+        detour = d.from_start + d.to_goal - d.length[:, None, None]
+        stacked = torch.stack([d.from_start, d.to_goal, detour], dim=1) * reachable[:, None] / self.norm
         return torch.cat([levels, stacked.to(levels.dtype)], dim=1)
 
 
@@ -306,3 +355,73 @@ class WithDistanceFields(nn.Module):
 
     def forward(self, levels: torch.Tensor, *, bf16_blocks: bool = False) -> ModelOutput:
         return self.model(self.fields(levels), bf16_blocks=bf16_blocks)
+
+
+class LevelStatistics(nn.Module):
+    """Parameter-free per-level scalars of a grid level's connectivity, for the measure heads (not in the paper).
+
+    A convolutional network reads local patterns; these are the whole-maze facts a gradient-boosted model
+    on hand-made BFS features ranks ACCEL's path lengths with (``benchmarks/bench_surrogate_ceiling.py``):
+    the shortest start-goal distance, the reachable area and the cells on a shortest path, dead ends and
+    junctions (all, and on a shortest path), the distances from the start and the detours through cells
+    (mean and max), the cells within 2, 6 and 12 steps of a shortest path, the walls, the start-goal
+    Manhattan distance and the path's ratio to it. Distances are divided by ``norm``, counts by the area.
+
+    Args:
+        fields: The BFS on the level's one-hot cells (its ``free_channels``, start and goal).
+        norm: Divisor of distances (e.g. ``H·W / 2``).
+    """
+
+    names = ("optimal_path", "reachable", "on_shortest_paths", "dead_ends", "junctions", "shortest_path_junctions",
+             "mean_from_start", "max_from_start", "mean_detour", "max_detour", "detour<=2", "detour<=6",
+             "detour<=12", "walls", "manhattan", "path/manhattan")
+    size = len(names)
+
+    def __init__(self, *, fields: DistanceFields, norm: float) -> None:
+        super().__init__()
+        self.fields = fields
+        self.norm = float(norm)
+
+    def forward(self, levels: torch.Tensor) -> torch.Tensor:
+        """``(n, C, S, S)`` one-hot levels → ``(n, size)`` float32 scalars."""
+        with torch.no_grad():
+            d = self.fields.distances(levels)
+            n, size = levels.shape[0], levels.shape[-1]
+            area = float(size * size)
+            reach = d.from_start >= 0
+            both = reach & (d.to_goal >= 0)
+            detour = torch.where(both, d.from_start + d.to_goal - d.length[:, None, None], torch.zeros_like(d.to_goal))
+            on_path = both & (detour == 0)
+            free = d.free.float()
+            degree = F.conv2d(free[:, None], torch.tensor([[[[0.0, 1, 0], [1, 0, 1], [0, 1, 0]]]], device=levels.device),
+                              padding=1)[:, 0]
+            reach_count = reach.sum(dim=(1, 2)).clamp(min=1).float()
+            both_count = both.sum(dim=(1, 2)).clamp(min=1).float()
+            coords = torch.arange(size, device=levels.device, dtype=torch.float32)
+
+            def position(mask: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+                mask = mask.float()
+                return (mask.sum(dim=2) * coords).sum(dim=1), (mask.sum(dim=1) * coords).sum(dim=1)
+
+            (start_row, start_col), (goal_row, goal_col) = position(d.start), position(d.goal)
+            manhattan = (start_row - goal_row).abs() + (start_col - goal_col).abs()
+            count = lambda mask: mask.sum(dim=(1, 2)).float()  # noqa: E731
+            scalars = torch.stack([
+                d.length / self.norm,
+                count(reach) / area,
+                count(on_path) / area,
+                count(reach & (degree == 1)) / area,
+                count(reach & (degree >= 3)) / area,
+                count(on_path & (degree >= 3)) / area,
+                (d.from_start * reach).sum(dim=(1, 2)) / reach_count / self.norm,
+                d.from_start.amax(dim=(1, 2)).clamp(min=0) / self.norm,
+                (detour * both).sum(dim=(1, 2)) / both_count / self.norm,
+                detour.amax(dim=(1, 2)) / self.norm,
+                count(both & (detour <= 2)) / area,
+                count(both & (detour <= 6)) / area,
+                count(both & (detour <= 12)) / area,
+                1.0 - free.sum(dim=(1, 2)) / area,
+                manhattan / (2 * size),
+                d.length / manhattan.clamp(min=1) / 4,
+            ], dim=1)
+        return scalars.reshape(n, self.size).to(levels.dtype)

@@ -34,11 +34,13 @@ from dsage_ray.types import EncodedLevels, EvaluationResult
 #: With ``"none"`` (plain QD, no surrogate) these are the config's ``surrogate.kind`` names. Each is
 #: built from the input's shape and the config's architecture keys (``channels``, ``dilations``).
 MODELS: dict[str, Callable[..., nn.Module]] = {
-    "two_stage": lambda *, input_channels, input_size, occupancy_shape, num_measures, config: TwoStageModel(
-        input_channels=input_channels, input_size=input_size, occupancy_shape=occupancy_shape,
-        num_measures=num_measures, channels=config.channels, dilations=tuple(config.dilations)),
-    "one_stage": lambda *, input_channels, input_size, occupancy_shape, num_measures, config: OneStageModel(
-        input_channels=input_channels, input_size=input_size, num_measures=num_measures, channels=config.channels),
+    "two_stage": lambda *, input_channels, input_size, occupancy_shape, num_measures, config, statistics=None:
+        TwoStageModel(input_channels=input_channels, input_size=input_size, occupancy_shape=occupancy_shape,
+                      num_measures=num_measures, channels=config.channels, dilations=tuple(config.dilations),
+                      statistics=statistics),
+    "one_stage": lambda *, input_channels, input_size, occupancy_shape, num_measures, config, statistics=None:
+        OneStageModel(input_channels=input_channels, input_size=input_size, num_measures=num_measures,
+                      channels=config.channels, statistics=statistics),
 }
 KINDS = tuple(MODELS)
 PRECISIONS = ("auto", "fp32", "bf16")

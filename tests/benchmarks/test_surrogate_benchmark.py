@@ -204,3 +204,43 @@ def test_with_several_inits_the_ensemble_and_its_gbm_blend_are_scored(tmp_path):
     for key in ("ensemble", "with_gbm"):
         scores = result[key]["cpu"][16]
         assert len(scores) == 2 and all(-1.0 <= r <= 1.0 for r in scores)
+
+
+def test_the_networks_level_statistics_are_the_gbms_features():
+    # models.LevelStatistics (torch, fed to a network's heads) must compute what the GBM reads (numpy), in its units.
+    import bench_surrogate_ceiling
+    import torch
+
+    from dsage_ray.domains.maze.encoding import EMPTY, GOAL, SPARE, START, encode_levels
+    from dsage_ray.surrogate.models import DistanceFields, LevelStatistics, pad_to_power_of_two
+
+    walls = np.stack([level.walls for level in random_valid_levels(10, seed=4, height=10, width=12,
+                                                                  density_range=(0.0, 0.7))])
+    encoded = pad_to_power_of_two(encode_levels(walls.reshape(10, -1).astype(np.int8), 10, 12), SPARE)
+    fields = DistanceFields(free_channels=(EMPTY, START, GOAL), start_channel=START, goal_channel=GOAL, norm=60)
+    statistics = LevelStatistics(fields=fields, norm=60)(torch.from_numpy(encoded)).numpy().astype(np.float64)
+    expected = bench_surrogate_ceiling.bfs_features(walls)
+    area, size = 16 * 16, 16
+    units = {"optimal_path": 60, "reachable": area, "on_shortest_paths": area, "dead_ends": area, "junctions": area,
+             "shortest_path_junctions": area, "mean_from_start": 60, "max_from_start": 60, "mean_detour": 60,
+             "max_detour": 60, "detour<=2": area, "detour<=6": area, "detour<=12": area, "manhattan": 2 * size,
+             "path/manhattan": 4}
+    for name, unit in units.items():
+        np.testing.assert_allclose(statistics[:, LevelStatistics.names.index(name)] * unit,
+                                   expected[:, bench_surrogate_ceiling.FEATURE_NAMES.index(name)], rtol=1e-5,
+                                   atol=1e-4, err_msg=name)
+    # "walls" counts every cell an agent cannot stand on, the padding included.
+    np.testing.assert_allclose(statistics[:, LevelStatistics.names.index("walls")] * area - (area - 120),
+                               expected[:, bench_surrogate_ceiling.FEATURE_NAMES.index("walls")], atol=1e-3)
+
+
+def test_a_level_statistics_setting_trains_and_is_described(tmp_path):
+    import bench_surrogate_ceiling
+
+    path = maze_dataset.save(synthetic(48), tmp_path / "d.npz")
+    result = bench_surrogate_ceiling.main(["--data", str(path), "--sizes", "16", "--test", "20", "--splits", "1",
+                                           "--inits", "1", "--epochs", "1", "--batch", "8", "--no-future",
+                                           "--setting", "hybrid:occupancy_sum_measure=,bench.level_statistics=true",
+                                           "--setting", "residual:bench.level_statistics=true,bench.sum_residual=true"])
+    for name in ("hybrid", "residual"):
+        assert -1.0 <= result["rho"][name][16][0] <= 1.0

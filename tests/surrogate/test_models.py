@@ -116,3 +116,28 @@ def test_width_and_blocks_are_configurable_and_default_to_the_paper():
     assert out.occupancy.shape == (2, 16, 16)
     with pytest.raises(ValueError, match="dilation"):
         ResidualBlock(channels=4, dilation=0)
+
+
+def test_a_model_with_level_statistics_feeds_them_to_its_heads_and_needs_them():
+    from dsage_ray.domains.maze.encoding import EMPTY, GOAL, START
+    from dsage_ray.surrogate.models import DistanceFields, LevelStatistics, MeasurePredictor, TwoStageModel
+
+    fields = DistanceFields(free_channels=(EMPTY, START, GOAL), start_channel=START, goal_channel=GOAL, norm=32)
+    statistics = LevelStatistics(fields=fields, norm=32)
+    torch.manual_seed(0)
+    model = TwoStageModel(input_channels=5, input_size=8, occupancy_shape=(8, 8), num_measures=2, channels=8,
+                          statistics=statistics)
+    levels = torch.zeros(4, 5, 8, 8)
+    levels[:, EMPTY] = 1
+    levels[:, EMPTY, 0, 0], levels[:, START, 0, 0] = 0, 1
+    levels[:, EMPTY, 7, 7], levels[:, GOAL, 7, 7] = 0, 1
+    levels[1:, EMPTY, 3, :6], levels[1:, 1, 3, :6] = 0, 1  # a wall across three of them
+    out = model(levels)
+    assert out.measures.shape == (4, 2) and out.objective.shape == (4,)
+    out.measures.sum().backward()
+    assert model.measure_predictor.scalar_branch[1].weight.grad.abs().sum() > 0
+    # The statistics differ with the wall, and so does the prediction.
+    assert not torch.allclose(out.measures[0], out.measures[1])
+    predictor = MeasurePredictor(input_channels=6, input_size=8, num_measures=2, num_scalars=LevelStatistics.size)
+    with pytest.raises(ValueError, match="scalars"):
+        predictor(torch.zeros(2, 6, 8, 8))
