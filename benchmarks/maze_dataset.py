@@ -324,16 +324,19 @@ class Evaluator:
     def __init__(self, config, workers: int) -> None:
         self.config = config
         self.pool = None
-        self.domain = None
         if workers > 0:
             from dsage_ray.ray.pool import SimulatorPool
 
             self.pool = SimulatorPool(config=config, num_workers=workers, cpus_per_worker=1.0)
+            self.evaluator = self.pool
             self.step = max(workers * 8, 16)
         else:
+            from dsage_ray.core.evaluation import InProcessEvaluator
             from dsage_ray.domains import build_domain
 
-            self.domain = build_domain(config)
+            # The run's torch threads (one): torch's default of one per core slows an agent's small batches
+            # several-fold when other processes share the cores.
+            self.evaluator = InProcessEvaluator(domain=build_domain(config), threads=config.torch_threads)
             self.step = 1
 
     def __enter__(self) -> "Evaluator":
@@ -351,10 +354,7 @@ class Evaluator:
         results = []
         for start in range(0, len(solutions), self.step):
             chunk, chunk_seeds = solutions[start:start + self.step], seeds[start:start + self.step]
-            if self.pool is not None:
-                results += evaluate_with_retry(self.pool, chunk, chunk_seeds)
-            else:
-                results += [self.domain.evaluate(s, seed=k) for s, k in zip(chunk, chunk_seeds)]
+            results += evaluate_with_retry(self.evaluator, chunk, chunk_seeds)
             bar.update(len(chunk))
         failed = np.array([r.failed for r in results], dtype=bool)
         height, width = self.config.maze.height, self.config.maze.width

@@ -116,8 +116,12 @@ def test_a_run_folder_round_trips_through_the_file_into_the_benchmark_data(tmp_p
                               "qd.exploit_iterations": 2, "selection.count": 10, "surrogate.holdout_levels": 4,
                               "image_every": 1000})
     run = run_locally(config, out_dir=tmp_path / "run", console=False)
+    import torch
+
+    threads = torch.get_num_threads()
     maze_dataset.main(["from-run", str(run), "--out", str(tmp_path / "run.npz"),
-                       "--holdout-out", str(tmp_path / "held.npz")])
+                       "--holdout-out", str(tmp_path / "held.npz"), "--retest", "5"])
+    assert torch.get_num_threads() == threads  # the in-process retest pinned the run's threads, then gave them back
     data, held = maze_dataset.load(tmp_path / "run.npz"), maze_dataset.load(tmp_path / "held.npz")
 
     state = load_checkpoint(Path(run) / CHECKPOINT_NAME)
@@ -130,6 +134,10 @@ def test_a_run_folder_round_trips_through_the_file_into_the_benchmark_data(tmp_p
     assert data.measure_names == ("num_walls", "mean_path_length")
     # Each level's wall count is its num_walls measure: walls and measures stayed aligned.
     np.testing.assert_array_equal(data.walls.reshape(40, -1).sum(axis=1), data.measures[:, 0])
+    # The retest evaluated 5 of the levels again, each against its own row (num_walls is the level's own).
+    retested = np.isfinite(data.retest).all(axis=1)
+    assert retested.sum() == 5 and np.isnan(data.retest[~retested]).all()
+    np.testing.assert_array_equal(data.retest[retested, 0], data.measures[retested, 0])
     assert data.iteration[0] == 0 and data.iteration[-1] == len(state["history"]) - 1
     assert np.all(np.diff(data.iteration) >= 0)
     np.testing.assert_array_equal(held.walls.reshape(len(held), -1), np.asarray(state["holdout"]["solutions"]) > 0)
@@ -244,3 +252,12 @@ def test_a_level_statistics_setting_trains_and_is_described(tmp_path):
                                            "--setting", "residual:bench.level_statistics=true,bench.sum_residual=true"])
     for name in ("hybrid", "residual"):
         assert -1.0 <= result["rho"][name][16][0] <= 1.0
+
+
+def test_the_in_process_evaluator_pins_the_runs_torch_threads():
+    # Torch's default (one thread per core) made the in-process retest several times slower beside other jobs.
+    from dsage_ray.config import RunConfig
+
+    config = RunConfig.build({"domain": "maze", "preset": "tiny", "maze.agent": "builtin:wall_follower"})
+    with maze_dataset.Evaluator(config, workers=0) as evaluator:
+        assert evaluator.evaluator.threads == config.torch_threads == 1
