@@ -268,6 +268,9 @@ def from_run(run: str | Path, *, retest: int = 0, seed: int = 0) -> tuple[MazeDa
     state, config, domain = _run_state(run)
     if state.get("dataset") is None:
         raise MazeDatasetError(f"{run}: holds no surrogate dataset (a surrogate.kind = 'none' run?)")
+    if PATH_LENGTH not in domain.measure_names:
+        raise MazeDatasetError(f"{run}: its measures {list(domain.measure_names)} do not include the agent's path "
+                               f"length {PATH_LENGTH!r} (an audit search measures the level itself); nothing written")
     stored = SurrogateDataset(level_shape=tuple(state["dataset"]["level_shape"]),
                               num_measures=len(domain.measure_names), occupancy_shape=domain.occupancy_shape)
     stored.load_state_dict(state["dataset"])

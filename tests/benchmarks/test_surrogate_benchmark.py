@@ -261,3 +261,16 @@ def test_the_in_process_evaluator_pins_the_runs_torch_threads():
     config = RunConfig.build({"domain": "maze", "preset": "tiny", "maze.agent": "builtin:wall_follower"})
     with maze_dataset.Evaluator(config, workers=0) as evaluator:
         assert evaluator.evaluator.threads == config.torch_threads == 1
+
+
+def test_a_run_without_the_path_length_is_refused_naming_the_run_before_any_retest(tmp_path):
+    from dsage_ray.config import RunConfig
+    from dsage_ray.core.loop import run_locally
+
+    config = RunConfig.build({"domain": "maze", "preset": "tiny", "maze.agent": "builtin:wall_follower",
+                              "maze.episodes": 1, "budget": 20, "n_rand": 20, "surrogate.epochs": 1,
+                              "maze.measures": ["num_walls", "optimal_path_length"], "image_every": 1000})
+    run = run_locally(config, out_dir=tmp_path / "audit_like", console=False)
+    with pytest.raises(SystemExit, match=r"audit_like: its measures \['num_walls', 'optimal_path_length'\]"):
+        maze_dataset.main(["from-run", str(run), "--out", str(tmp_path / "out.npz"), "--retest", "5"])
+    assert not (tmp_path / "out.npz").exists()
