@@ -30,9 +30,14 @@ Usage:
     python benchmarks/bench_surrogate_ceiling.py --data FILE.npz --setting cpu: \\
         --setting dist:bench.distance_fields=true --setting dil:dilations=[1,2,4]
 
-``bench.distance_fields=true`` in a setting (benchmark only) wraps the network with
-``dsage_ray.surrogate.models.DistanceFields`` (BFS distance from the start, to the goal, and the detour, as
-three more input channels); other keys are the run config's (``surrogate.`` may be left out).
+Benchmark-only keys of a setting (other keys are the run config's; ``surrogate.`` may be left out):
+
+* ``bench.distance_fields=true`` wraps the network with ``dsage_ray.surrogate.models.DistanceFields`` (BFS
+  distance from the start, to the goal, and the detour, as three more input channels);
+* ``bench.level_statistics=true`` builds the network with ``dsage_ray.surrogate.models.LevelStatistics``: the
+  GBM's BFS features, computed inside the network, fed to its measure heads. The path length then needs a head
+  (``occupancy_sum_measure=``), or:
+* ``bench.sum_residual=true`` keeps the occupancy-sum path length and adds its head's output to it.
 """
 
 from __future__ import annotations
