@@ -357,6 +357,11 @@ class WithDistanceFields(nn.Module):
         return self.model(self.fields(levels), bf16_blocks=bf16_blocks)
 
 
+def _count(mask: torch.Tensor) -> torch.Tensor:
+    """``(n, S, S)`` bool → ``(n,)`` float: the true cells of each level."""
+    return mask.sum(dim=(1, 2)).float()
+
+
 class LevelStatistics(nn.Module):
     """Parameter-free per-level scalars of a grid level's connectivity, for the measure heads (not in the paper).
 
@@ -393,10 +398,10 @@ class LevelStatistics(nn.Module):
             detour = torch.where(both, d.from_start + d.to_goal - d.length[:, None, None], torch.zeros_like(d.to_goal))
             on_path = both & (detour == 0)
             free = d.free.float()
-            degree = F.conv2d(free[:, None], torch.tensor([[[[0.0, 1, 0], [1, 0, 1], [0, 1, 0]]]], device=levels.device),
-                              padding=1)[:, 0]
-            reach_count = reach.sum(dim=(1, 2)).clamp(min=1).float()
-            both_count = both.sum(dim=(1, 2)).clamp(min=1).float()
+            neighbours = torch.tensor([[[[0.0, 1, 0], [1, 0, 1], [0, 1, 0]]]], device=levels.device)
+            degree = F.conv2d(free[:, None], neighbours, padding=1)[:, 0]  # free 4-neighbours of each cell
+            reach_count = _count(reach).clamp(min=1)
+            both_count = _count(both).clamp(min=1)
             coords = torch.arange(size, device=levels.device, dtype=torch.float32)
 
             def position(mask: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -405,21 +410,20 @@ class LevelStatistics(nn.Module):
 
             (start_row, start_col), (goal_row, goal_col) = position(d.start), position(d.goal)
             manhattan = (start_row - goal_row).abs() + (start_col - goal_col).abs()
-            count = lambda mask: mask.sum(dim=(1, 2)).float()  # noqa: E731
             scalars = torch.stack([
                 d.length / self.norm,
-                count(reach) / area,
-                count(on_path) / area,
-                count(reach & (degree == 1)) / area,
-                count(reach & (degree >= 3)) / area,
-                count(on_path & (degree >= 3)) / area,
+                _count(reach) / area,
+                _count(on_path) / area,
+                _count(reach & (degree == 1)) / area,
+                _count(reach & (degree >= 3)) / area,
+                _count(on_path & (degree >= 3)) / area,
                 (d.from_start * reach).sum(dim=(1, 2)) / reach_count / self.norm,
                 d.from_start.amax(dim=(1, 2)).clamp(min=0) / self.norm,
                 (detour * both).sum(dim=(1, 2)) / both_count / self.norm,
                 detour.amax(dim=(1, 2)) / self.norm,
-                count(both & (detour <= 2)) / area,
-                count(both & (detour <= 6)) / area,
-                count(both & (detour <= 12)) / area,
+                _count(both & (detour <= 2)) / area,
+                _count(both & (detour <= 6)) / area,
+                _count(both & (detour <= 12)) / area,
                 1.0 - free.sum(dim=(1, 2)) / area,
                 manhattan / (2 * size),
                 d.length / manhattan.clamp(min=1) / 4,
