@@ -194,27 +194,14 @@ class Model:
         channels = sample.shape[1]
         extra = DistanceFields.fields if setting.distance_fields else 0
         ranges = [(float(lo), float(hi)) for lo, hi in zip(data.measures.min(axis=0), data.measures.max(axis=0) + 1)]
-        self.surrogate = Surrogate(kind=kind, input_channels=channels + extra, input_shape=tuple(sample.shape[2:]),
-                                   occupancy_shape=(height, width), num_measures=len(data.measure_names),
-                                   config=config, seed=seed, measure_ranges=ranges, measure_names=data.measure_names)
-        self.input_channels = channels
         fields = DistanceFields(free_channels=(EMPTY, START, GOAL), start_channel=START, goal_channel=GOAL,
                                 norm=height * width / 2)
-        if setting.level_statistics:
-            import torch
-
-            from dsage_ray.surrogate.surrogate import MODELS
-
-            statistics = LevelStatistics(fields=fields, norm=height * width / 2)
-            with torch.random.fork_rng(devices=[]):
-                torch.manual_seed(seed)
-                self.surrogate.model = MODELS[kind](
-                    input_channels=channels + extra, input_size=sample.shape[2], occupancy_shape=(height, width),
-                    num_measures=len(data.measure_names), config=config, statistics=statistics)
-            self.surrogate.optimizer = torch.optim.Adam(self.surrogate.model.parameters(), lr=config.lr,
-                                                        betas=tuple(config.betas))
-        if setting.sum_residual:
-            self.surrogate._sum_occupancy = self._sum_plus_head
+        statistics = LevelStatistics(fields=fields, norm=height * width / 2) if setting.level_statistics else None
+        self.surrogate = Surrogate(kind=kind, input_channels=channels + extra, input_shape=tuple(sample.shape[2:]),
+                                   occupancy_shape=(height, width), num_measures=len(data.measure_names),
+                                   config=config, seed=seed, measure_ranges=ranges, measure_names=data.measure_names,
+                                   statistics=statistics, sum_residual=setting.sum_residual)
+        self.input_channels = channels
         if setting.distance_fields:
             import torch
 
@@ -223,19 +210,6 @@ class Model:
             self.surrogate.optimizer = torch.optim.Adam(self.surrogate.model.parameters(), lr=config.lr,
                                                         betas=tuple(config.betas))
         self.pad_channel = SPARE
-
-    def _sum_plus_head(self, output):
-        """The occupancy-sum measure plus its own head's output (which then learns the sum's residual)."""
-        import torch
-
-        surrogate = self.surrogate
-        i = surrogate._sum_index
-        if i is None:
-            return output
-        total = (output.occupancy.float().sum(dim=(1, 2)) - surrogate._measure_offset[i]) / surrogate._measure_scale[i]
-        measures = output.measures.clone()
-        measures[:, i] = measures[:, i] + total
-        return output._replace(measures=measures)
 
     def encode(self, walls: np.ndarray) -> np.ndarray:
         from dsage_ray.domains.maze.encoding import SPARE, encode_levels

@@ -391,7 +391,7 @@ class LevelStatistics(nn.Module):
         """``(n, C, S, S)`` one-hot levels → ``(n, size)`` float32 scalars."""
         with torch.no_grad():
             d = self.fields.distances(levels)
-            n, size = levels.shape[0], levels.shape[-1]
+            size = levels.shape[-1]
             area = float(size * size)
             reach = d.from_start >= 0
             both = reach & (d.to_goal >= 0)
@@ -428,4 +428,4 @@ class LevelStatistics(nn.Module):
                 manhattan / (2 * size),
                 d.length / manhattan.clamp(min=1) / 4,
             ], dim=1)
-        return scalars.reshape(n, self.size).to(levels.dtype)
+        return scalars.to(levels.dtype)

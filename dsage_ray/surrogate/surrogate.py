@@ -27,7 +27,7 @@ from torch.nn import functional as F
 
 from dsage_ray.config import SurrogateConfig
 from dsage_ray.surrogate.dataset import SurrogateDataset, Targets
-from dsage_ray.surrogate.models import ModelOutput, OneStageModel, TwoStageModel
+from dsage_ray.surrogate.models import LevelStatistics, ModelOutput, OneStageModel, TwoStageModel
 from dsage_ray.types import EncodedLevels, EvaluationResult
 
 #: Surrogate kinds by name: ``two_stage`` predicts occupancy first (DSAGE), ``one_stage`` does not.
@@ -125,12 +125,19 @@ class Surrogate:
         seed: Seeds the initial weights and the minibatch order.
         measure_ranges: ``(low, high)`` per measure; required by ``config.target_scaling = "range"``.
         measure_names: The measures' names; required by ``config.occupancy_sum_measure``, which names one.
+        statistics: Per-level scalars fed to the measure heads (:class:`~dsage_ray.surrogate.models.LevelStatistics`).
+        sum_residual: The ``occupancy_sum_measure`` is the occupancy sum *plus* its head's output, which then
+            learns the sum's error, instead of the sum alone.
+
+    ``statistics`` and ``sum_residual`` are not in the paper and no config key sets them:
+    ``benchmarks/bench_surrogate_ceiling.py`` judges them (neither predicts a search's own levels better).
     """
 
     def __init__(self, *, kind: str, input_channels: int, input_shape: tuple[int, int],
                  occupancy_shape: tuple[int, int], num_measures: int, config: SurrogateConfig, seed: int,
                  measure_ranges: Sequence[tuple[float, float]] | None = None,
-                 measure_names: Sequence[str] | None = None) -> None:
+                 measure_names: Sequence[str] | None = None, statistics: LevelStatistics | None = None,
+                 sum_residual: bool = False) -> None:
         if kind not in KINDS:
             raise ValueError(f"surrogate kind must be one of {KINDS}, got {kind!r}")
         size, width = input_shape
@@ -146,6 +153,7 @@ class Surrogate:
         self._measure_offset, self._measure_scale = _target_scaling(config.target_scaling, measure_ranges,
                                                                     num_measures, self.device)
         self._sum_index = _occupancy_sum_index(config.occupancy_sum_measure, kind, measure_names, num_measures)
+        self._sum_residual = sum_residual
         #: ``"fp32"`` or ``"bf16"``: what ``config.precision`` resolved to on this machine.
         self.precision = resolve_precision(config.precision, self.device)
         # Weights are drawn on the CPU inside a forked RNG: the same seed gives the same network on
@@ -153,7 +161,8 @@ class Surrogate:
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(seed)
             model = MODELS[kind](input_channels=input_channels, input_size=size,
-                                 occupancy_shape=self.occupancy_shape, num_measures=num_measures, config=config)
+                                 occupancy_shape=self.occupancy_shape, num_measures=num_measures, config=config,
+                                 statistics=statistics)
         self.model = model.to(self.device)
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr, betas=tuple(config.betas))
         self._shuffle_rng = torch.Generator().manual_seed(seed)
@@ -265,12 +274,15 @@ class Surrogate:
         """Replaces the ``occupancy_sum_measure`` head's output by the sum of the predicted occupancy.
 
         The loss on that measure then trains the occupancy predictor directly, and its prediction
-        is consistent with the predicted occupancy by construction.
+        is consistent with the predicted occupancy by construction. With ``sum_residual`` the head's
+        output is added to the sum instead.
         """
         if self._sum_index is None:
             return output
         i = self._sum_index
         total = (output.occupancy.float().sum(dim=(1, 2)) - self._measure_offset[i]) / self._measure_scale[i]
+        if self._sum_residual:
+            total = total + output.measures[:, i]
         measures = torch.cat([output.measures[:, :i], total[:, None], output.measures[:, i + 1:]], dim=1)
         return output._replace(measures=measures)
 
