@@ -326,12 +326,10 @@ class Evaluator:
 
     def __init__(self, config, workers: int) -> None:
         self.config = config
-        self.pool = None
         if workers > 0:
             from dsage_ray.ray.pool import SimulatorPool
 
-            self.pool = SimulatorPool(config=config, num_workers=workers, cpus_per_worker=1.0)
-            self.evaluator = self.pool
+            self.evaluator = SimulatorPool(config=config, num_workers=workers, cpus_per_worker=1.0)
             self.step = max(workers * 8, 16)
         else:
             from dsage_ray.core.evaluation import InProcessEvaluator
@@ -346,8 +344,9 @@ class Evaluator:
         return self
 
     def __exit__(self, *exc_info) -> None:
-        if self.pool is not None:
-            self.pool.close()
+        close = getattr(self.evaluator, "close", None)  # the Ray pool's; in-process evaluation holds nothing
+        if close is not None:
+            close()
 
     def __call__(self, solutions: np.ndarray, *, seed: int, bar) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Measures, occupancy and a failure mask of ``solutions`` (seed ``seed + i`` for level i)."""
