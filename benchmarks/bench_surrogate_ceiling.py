@@ -9,6 +9,8 @@ Every predictor is scored by its Spearman ρ with the agent's path length on the
 
 * **surrogate**: the Maze ``cpu`` preset's surrogate (``--set`` / ``--setting`` change it), ``--epochs`` epochs;
 * **optimal path**: the BFS shortest start-goal distance alone (no training);
+* **random walk**: the expected steps of a uniform random walker from the start to the goal, its hitting time
+  (no training; ``dsage_ray.surrogate.models.RandomWalkFields``);
 * **GBM**: scikit-learn's HistGradientBoostingRegressor on BFS features of the level (distances, dead ends,
   junctions, detours; trained on the same N levels);
 * **test-retest**: the agent's second evaluation (other seeds) where the data has one (``measures_retest``).
@@ -16,9 +18,10 @@ Every predictor is scored by its Spearman ρ with the agent's path length on the
 mean ± s.e. are over the splits, each split's value being the mean over its initialisations (the splits
 are the independent repeats; initialisations of one split share its test levels). Also printed: each
 setting's FLOPs and predictions/s (encoding included, as in the inner loop) and the GBM's, the difference
-surrogate − baseline per split, the held-out levels' ρ (``--holdout FILE.npz``, or a run's own), and with an
-``iteration`` column the search's own next levels: the last ``--test`` levels in evaluation order, trained on
-the N levels evaluated just before them.
+surrogate − baseline per split, with ``--inits`` > 1 the initialisations' mean prediction alone and
+rank-averaged with the GBM's and with the random walker's, the held-out levels' ρ (``--holdout FILE.npz``, or
+a run's own), and with an ``iteration`` column the search's own next levels: the last ``--test`` levels in
+evaluation order, trained on the N levels evaluated just before them.
 
 The last lines, one per N, are exactly (the first setting's surrogate)::
 
@@ -37,7 +40,9 @@ Benchmark-only keys of a setting (other keys are the run config's; ``surrogate.`
 * ``bench.level_statistics=true`` builds the network with ``dsage_ray.surrogate.models.LevelStatistics``: the
   GBM's BFS features, computed inside the network, fed to its measure heads. The path length then needs a head
   (``occupancy_sum_measure=``), or:
-* ``bench.sum_residual=true`` keeps the occupancy-sum path length and adds its head's output to it.
+* ``bench.sum_residual=true`` keeps the occupancy-sum path length and adds its head's output to it;
+* ``bench.random_walk=true`` wraps the network with ``dsage_ray.surrogate.models.RandomWalkFields`` (the random
+  walker's log expected visits per cell as one more input channel; after the distance fields when both are on).
 """
 
 from __future__ import annotations
@@ -57,7 +62,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from maze_dataset import PATH_LENGTH, MazeData, MazeDatasetError  # noqa: E402
 
 #: Benchmark-only setting keys (not run config keys).
-BENCH_KEYS = ("bench.distance_fields", "bench.level_statistics", "bench.sum_residual")
+BENCH_KEYS = ("bench.distance_fields", "bench.level_statistics", "bench.sum_residual", "bench.random_walk")
 
 
 # ------------------------------------------------------------------------------------------- features
@@ -122,6 +127,27 @@ def bfs_features(walls: np.ndarray) -> np.ndarray:
     return out
 
 
+def hitting_times(walls: np.ndarray, *, chunk: int = 250) -> np.ndarray:
+    """``(n,)`` float64: the expected steps of a uniform random walker from the start to the goal of each level
+    (:class:`dsage_ray.surrogate.models.RandomWalkFields`; 0 without a start-goal pair). A parameter-free
+    baseline: how hard the maze is for an agent that explores blindly."""
+    import torch
+
+    from dsage_ray.domains.maze.encoding import EMPTY, GOAL, SPARE, START, encode_levels
+    from dsage_ray.surrogate.models import DistanceFields, RandomWalkFields, pad_to_power_of_two
+
+    n, height, width = walls.shape
+    walker = RandomWalkFields(fields=DistanceFields(free_channels=(EMPTY, START, GOAL), start_channel=START,
+                                                    goal_channel=GOAL, norm=1.0), norm=1.0)
+    out = np.zeros(n)
+    for first in range(0, n, chunk):
+        part = walls[first:first + chunk]
+        encoded = pad_to_power_of_two(encode_levels(part.reshape(len(part), -1).astype(np.int8), height, width),
+                                      pad_channel=SPARE)
+        out[first:first + chunk] = walker.visits(torch.from_numpy(encoded)).sum(dim=(1, 2)).numpy()
+    return out
+
+
 # ------------------------------------------------------------------------------------------- settings
 
 
@@ -134,6 +160,7 @@ class Setting:
     distance_fields: bool = False
     level_statistics: bool = False
     sum_residual: bool = False
+    random_walk: bool = False
 
     @classmethod
     def parse(cls, text: str, *, epochs: int | None, extra: dict) -> "Setting":
@@ -153,7 +180,8 @@ class Setting:
         config = RunConfig.build({**values, **overrides})
         return cls(name=name, config=config, distance_fields=bool(bench.get("bench.distance_fields", False)),
                    level_statistics=bool(bench.get("bench.level_statistics", False)),
-                   sum_residual=bool(bench.get("bench.sum_residual", False)))
+                   sum_residual=bool(bench.get("bench.sum_residual", False)),
+                   random_walk=bool(bench.get("bench.random_walk", False)))
 
     def describe(self) -> str:
         s = self.config.surrogate
@@ -167,6 +195,8 @@ class Setting:
             parts.append("level statistics into the heads")
         if self.sum_residual:
             parts.append("occupancy sum + its head's output")
+        if self.random_walk:
+            parts.append("random-walk visits")
         return ", ".join(parts)
 
 
@@ -176,7 +206,7 @@ class Model:
     def __init__(self, setting: Setting, data: MazeData, *, train_size: int, seed: int) -> None:
         from dsage_ray.domains.maze.encoding import EMPTY, GOAL, SPARE, START
         from dsage_ray.surrogate import Surrogate
-        from dsage_ray.surrogate.models import DistanceFields, LevelStatistics, WithDistanceFields
+        from dsage_ray.surrogate.models import DistanceFields, LevelStatistics, RandomWalkFields, WithInputFields
 
         self.setting = setting
         self.data = data
@@ -192,20 +222,23 @@ class Model:
                                      occupancy_sum_measure=sum_measure)
         sample = self.encode(data.walls[:1])
         channels = sample.shape[1]
-        extra = DistanceFields.fields if setting.distance_fields else 0
         ranges = [(float(lo), float(hi)) for lo, hi in zip(data.measures.min(axis=0), data.measures.max(axis=0) + 1)]
         fields = DistanceFields(free_channels=(EMPTY, START, GOAL), start_channel=START, goal_channel=GOAL,
                                 norm=height * width / 2)
         statistics = LevelStatistics(fields=fields, norm=height * width / 2) if setting.level_statistics else None
+        inputs = [fields] if setting.distance_fields else []
+        if setting.random_walk:
+            inputs.append(RandomWalkFields(fields=fields, norm=math.log1p(height * width)))
+        extra = sum(module.fields for module in inputs)
         self.surrogate = Surrogate(kind=kind, input_channels=channels + extra, input_shape=tuple(sample.shape[2:]),
                                    occupancy_shape=(height, width), num_measures=len(data.measure_names),
                                    config=config, seed=seed, measure_ranges=ranges, measure_names=data.measure_names,
                                    statistics=statistics, sum_residual=setting.sum_residual)
         self.input_channels = channels
-        if setting.distance_fields:
+        if inputs:
             import torch
 
-            self.surrogate.model = WithDistanceFields(fields, self.surrogate.model)
+            self.surrogate.model = WithInputFields(inputs, self.surrogate.model)
             self.surrogate.input_channels = channels  # what predict() and the dataset see: the one-hot level
             self.surrogate.optimizer = torch.optim.Adam(self.surrogate.model.parameters(), lr=config.lr,
                                                         betas=tuple(config.betas))
@@ -349,6 +382,7 @@ def main(argv: list[str] | None = None) -> dict:
 
     features = bfs_features(data.walls)
     optimal = features[:, FEATURE_NAMES.index("optimal_path")]
+    walker = hitting_times(data.walls)
     held_features = bfs_features(held.walls) if held is not None else None
     encoded = {s.name: Model(s, data, train_size=1, seed=0).encode(data.walls) for s in settings}
     held_encoded = ({s.name: Model(s, data, train_size=1, seed=0).encode(held.walls) for s in settings}
@@ -374,15 +408,18 @@ def main(argv: list[str] | None = None) -> dict:
     # The inits' mean prediction (an ensemble of --inits models), alone and rank-averaged with the GBM.
     ensemble_rho: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
     with_gbm_rho: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
+    with_walker_rho: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
     gbm_rho: dict[int, list[float]] = {n: [] for n in sizes}
     gbm_held: dict[int, list[float]] = {n: [] for n in sizes}
     optimal_rho: list[float] = []
+    walker_rho: list[float] = []
     retest_rho: list[tuple[float, int]] = []
     gbm_rate = 0.0
     for split in range(args.splits):
         order = np.random.default_rng([args.seed, split]).permutation(len(data))
         test, pool = order[:args.test], order[args.test:]
         optimal_rho.append(spearman(optimal[test], values[test]))
+        walker_rho.append(spearman(walker[test], values[test]))
         if data.retest is not None:
             twice = test[np.isfinite(data.retest[test, column])]
             if len(twice) >= 3:
@@ -410,8 +447,9 @@ def main(argv: list[str] | None = None) -> dict:
                 rho[setting.name][n].append(float(np.mean(per_init)))
                 ensemble = np.mean(predictions, axis=0)
                 ensemble_rho[setting.name][n].append(spearman(ensemble, values[test]))
-                with_gbm_rho[setting.name][n].append(spearman(stats.rankdata(ensemble) + stats.rankdata(gbm_test),
-                                                              values[test]))
+                for blend, other in ((with_gbm_rho, gbm_test), (with_walker_rho, walker[test])):
+                    blend[setting.name][n].append(spearman(stats.rankdata(ensemble) + stats.rankdata(other),
+                                                           values[test]))
                 mae[setting.name][n].append(float(np.mean(per_init_mae)))
                 train_s[setting.name][n].append(float(np.mean(seconds)))
                 if held is not None:
@@ -419,7 +457,7 @@ def main(argv: list[str] | None = None) -> dict:
                 print(f"  split {split} N={n:>5} {setting.name}: surrogate ρ {np.mean(per_init):.3f} "
                       f"(inits {', '.join(f'{r:.3f}' for r in per_init)}), MAE {np.mean(per_init_mae):.1f}, "
                       f"train {np.mean(seconds):.1f} s | optimal path ρ {optimal_rho[-1]:.3f} | "
-                      f"GBM ρ {gbm_rho[n][-1]:.3f}", flush=True)
+                      f"random walk ρ {walker_rho[-1]:.3f} | GBM ρ {gbm_rho[n][-1]:.3f}", flush=True)
 
     # The search's own next levels: the last --test levels in evaluation order, trained on the N before them.
     future: dict[str, dict[int, list[float]]] = {s.name: {} for s in settings}
@@ -450,6 +488,7 @@ def main(argv: list[str] | None = None) -> dict:
     print(f"Spearman ρ with the agent's {PATH_LENGTH} on the test levels, mean ± s.e. over {args.splits} splits "
           f"(each the mean of {args.inits} initialisations):")
     print(f"  optimal path length alone: ρ {summary(optimal_rho)}")
+    print(f"  random walker's hitting time alone: ρ {summary(walker_rho)}")
     if retest_rho:
         print(f"  the agent against itself (measures_retest): ρ {summary([r for r, _ in retest_rho])} "
               f"({', '.join(str(k) for _, k in retest_rho)} test levels evaluated twice)")
@@ -470,8 +509,9 @@ def main(argv: list[str] | None = None) -> dict:
                 row.append(summary(held_rho[setting.name][n]))
             rows.append(row)
             if args.inits > 1:
-                for label, combined in ((f"mean of {args.inits}", ensemble_rho), (f"mean of {args.inits} + GBM ranks",
-                                                                                   with_gbm_rho)):
+                for label, combined in ((f"mean of {args.inits}", ensemble_rho),
+                                        (f"mean of {args.inits} + GBM ranks", with_gbm_rho),
+                                        (f"mean of {args.inits} + random-walk ranks", with_walker_rho)):
                     r = combined[setting.name][n]
                     rows.append([f"{setting.name}, {label}", str(n), summary(r), summary(np.subtract(r, optimal_rho)),
                                  summary(np.subtract(r, gbm_rho[n])), "", ""] + ([""] if held is not None else []))
@@ -480,6 +520,8 @@ def main(argv: list[str] | None = None) -> dict:
         if held is not None:
             row.append(summary(gbm_held[n]))
         rows.append(row)
+    rows.append(["random walk", "", summary(walker_rho), summary(np.subtract(walker_rho, optimal_rho)), "", "", ""]
+                + ([f"{spearman(hitting_times(held.walls), held_values):.3f}"] if held is not None else []))
     if held is not None:
         rows.append(["optimal path", "", summary(optimal_rho), "", "", "", "",
                      f"{spearman(held_features[:, FEATURE_NAMES.index('optimal_path')], held_values):.3f}"])
@@ -492,7 +534,7 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"N={n}: surrogate ρ {summary(rho[primary][n])} | optimal path ρ {summary(optimal_rho)} | "
               f"GBM ρ {summary(gbm_rho[n])}")
     return {"rho": rho, "optimal": optimal_rho, "gbm": gbm_rho, "cost": cost, "future": future,
-            "ensemble": ensemble_rho, "with_gbm": with_gbm_rho}
+            "ensemble": ensemble_rho, "with_gbm": with_gbm_rho, "walker": walker_rho, "with_walker": with_walker_rho}
 
 
 if __name__ == "__main__":

@@ -344,17 +344,22 @@ class DistanceFields(nn.Module):
         return torch.cat([levels, stacked.to(levels.dtype)], dim=1)
 
 
-class WithDistanceFields(nn.Module):
-    """A surrogate network that reads its level plus :class:`DistanceFields` (build ``model`` with 3 more
-    input channels). Same outputs and ``bf16_blocks`` argument as the wrapped model."""
+class WithInputFields(nn.Module):
+    """A surrogate network that reads its level plus parameter-free input fields (:class:`DistanceFields`,
+    :class:`RandomWalkFields`), appended in order; build ``model`` with their ``fields`` more input channels.
+    Same outputs and ``bf16_blocks`` argument as the wrapped model."""
 
-    def __init__(self, fields: DistanceFields, model: nn.Module) -> None:
+    def __init__(self, inputs: "list[nn.Module] | tuple[nn.Module, ...]", model: nn.Module) -> None:
         super().__init__()
-        self.fields = fields
+        self.inputs = nn.ModuleList(inputs)
         self.model = model
 
     def forward(self, levels: torch.Tensor, *, bf16_blocks: bool = False) -> ModelOutput:
-        return self.model(self.fields(levels), bf16_blocks=bf16_blocks)
+        channels = levels.shape[1]
+        extended = levels
+        for module in self.inputs:
+            extended = torch.cat([extended, module(levels)[:, channels:]], dim=1)
+        return self.model(extended, bf16_blocks=bf16_blocks)
 
 
 def _count(mask: torch.Tensor) -> torch.Tensor:
@@ -429,3 +434,56 @@ class LevelStatistics(nn.Module):
                 d.length / manhattan.clamp(min=1) / 4,
             ], dim=1)
         return scalars.to(levels.dtype)
+
+
+class RandomWalkFields(nn.Module):
+    """Parameter-free input channel: where a uniform random walker goes on the level before it finds the goal.
+
+    Not in the paper, and off in runs (``benchmarks/bench_surrogate_ceiling.py`` judges it). A walker starts
+    on the start cell and moves to one of its free 4-neighbours uniformly each step until it enters the goal.
+    Its expected number of visits to each cell is the Green's function of the grid's random walk with the goal
+    absorbing: ``v_j = deg_j · x_j`` with ``L x = e_start``, ``L`` the graph Laplacian of the cells reachable
+    from the start, less the goal (symmetric, so one solve per level). The visits sum to the walker's
+    expected steps to the goal, its hitting time, which ranks ACCEL's mean path length better than the
+    shortest path does. The channel is ``log1p(visits) / norm``; :meth:`visits` gives the raw field.
+
+    Args:
+        fields: The BFS on the level's one-hot cells (free cells, start, goal, reachability).
+        norm: Divisor of the log visits (e.g. ``log1p(H·W)``, so most values lie in [0, 1]).
+    """
+
+    fields = 1
+
+    def __init__(self, *, fields: DistanceFields, norm: float) -> None:
+        super().__init__()
+        self.distance_fields = fields
+        self.norm = float(norm)
+
+    def visits(self, levels: torch.Tensor) -> torch.Tensor:
+        """``(n, C, S, S)`` one-hot levels → ``(n, S, S)`` float64 expected visits (0 off the walker's cells)."""
+        with torch.no_grad():
+            d = self.distance_fields.distances(levels)
+            n, size, _ = d.free.shape
+            cells = size * size
+            active = ((d.from_start >= 0) & ~d.goal).reshape(n, cells)
+            free = d.free.double()
+            neighbours = torch.tensor([[[[0.0, 1, 0], [1, 0, 1], [0, 1, 0]]]], device=levels.device,
+                                      dtype=torch.float64)
+            degree = F.conv2d(free[:, None], neighbours, padding=1)[:, 0].reshape(n, cells)
+            laplacian = torch.diag_embed(torch.where(active, degree, torch.ones_like(degree)))
+            flat = torch.arange(cells, device=levels.device).reshape(size, size)
+            for source, target in ((flat[:, :-1], flat[:, 1:]), (flat[:-1, :], flat[1:, :])):
+                source, target = source.reshape(-1), target.reshape(-1)
+                link = -(active[:, source] & active[:, target]).double()
+                laplacian[:, source, target] = link
+                laplacian[:, target, source] = link
+            start = (d.start.reshape(n, cells) & active).double()
+            # Symmetric positive definite (inactive cells are identity rows): Cholesky, not a pivoted LU.
+            solved = torch.cholesky_solve(start.unsqueeze(-1), torch.linalg.cholesky(laplacian)).squeeze(-1)
+            visits = torch.where(active, degree * solved, torch.zeros_like(solved))
+        return visits.reshape(n, size, size)
+
+    def forward(self, levels: torch.Tensor) -> torch.Tensor:
+        """``(n, C, S, S)`` one-hot levels → ``(n, C + 1, S, S)``: the levels, then the log visits."""
+        field = torch.log1p(self.visits(levels)) / self.norm
+        return torch.cat([levels, field.unsqueeze(1).to(levels.dtype)], dim=1)

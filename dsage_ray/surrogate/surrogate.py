@@ -172,7 +172,7 @@ class Surrogate:
         """Names of the predicted quantities, as used in :meth:`train` and :meth:`mae` results."""
         names = ("objective", *(f"measure_{i}" for i in range(self.num_measures)))
         model = self.model
-        # A wrapper (models.WithDistanceFields) predicts what the network it wraps predicts.
+        # A wrapper (models.WithInputFields) predicts what the network it wraps predicts.
         while not isinstance(model, TwoStageModel) and hasattr(model, "model"):
             model = model.model
         return (*names, "occupancy") if isinstance(model, TwoStageModel) else names

@@ -209,9 +209,27 @@ def test_with_several_inits_the_ensemble_and_its_gbm_blend_are_scored(tmp_path):
     path = maze_dataset.save(synthetic(48), tmp_path / "d.npz")
     result = bench_surrogate_ceiling.main(["--data", str(path), "--sizes", "16", "--test", "20", "--splits", "2",
                                            "--inits", "2", "--epochs", "1", "--batch", "8", "--no-future"])
-    for key in ("ensemble", "with_gbm"):
+    for key in ("ensemble", "with_gbm", "with_walker"):
         scores = result[key]["cpu"][16]
         assert len(scores) == 2 and all(-1.0 <= r <= 1.0 for r in scores)
+    assert len(result["walker"]) == 2 and all(-1.0 <= r <= 1.0 for r in result["walker"])
+
+
+def test_the_random_walk_baseline_is_the_walkers_hitting_time_and_a_setting_can_read_its_visits(tmp_path):
+    import bench_surrogate_ceiling
+
+    data = synthetic(30, seed=5)
+    hitting = bench_surrogate_ceiling.hitting_times(data.walls, chunk=7)  # chunks must not change the answer
+    np.testing.assert_allclose(hitting, bench_surrogate_ceiling.hitting_times(data.walls))
+    optimal = bench_surrogate_ceiling.bfs_features(data.walls)[:, bench_surrogate_ceiling.FEATURE_NAMES.index(
+        "optimal_path")]
+    # A walker needs at least the shortest path, and exactly it only in a corridor without side cells.
+    assert np.all(hitting >= optimal - 1e-9) and np.all(hitting > 0)
+    path = maze_dataset.save(data, tmp_path / "d.npz")
+    result = bench_surrogate_ceiling.main(["--data", str(path), "--sizes", "8", "--test", "20", "--splits", "1",
+                                           "--inits", "1", "--epochs", "1", "--batch", "8", "--no-future",
+                                           "--setting", "walk:bench.random_walk=true"])
+    assert -1.0 <= result["rho"]["walk"][8][0] <= 1.0
 
 
 def test_the_networks_level_statistics_are_the_gbms_features():

@@ -9,7 +9,7 @@ from dsage_ray.domains.maze.encoding import EMPTY, GOAL, SPARE, START, encode_le
 from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.domains.maze.level import path_distances
 from dsage_ray.surrogate import Surrogate, pad_to_power_of_two
-from dsage_ray.surrogate.models import DistanceFields, WithDistanceFields
+from dsage_ray.surrogate.models import DistanceFields, WithInputFields
 from dsage_ray.config import SurrogateConfig
 
 
@@ -43,7 +43,7 @@ def test_a_wrapped_two_stage_surrogate_trains_and_keeps_its_occupancy_head():
     surrogate = Surrogate(kind="two_stage", input_channels=5 + DistanceFields.fields, input_shape=(16, 16),
                           occupancy_shape=(10, 12), num_measures=1, config=config, seed=0)
     fields = DistanceFields(free_channels=(EMPTY, START, GOAL), start_channel=START, goal_channel=GOAL, norm=60)
-    surrogate.model = WithDistanceFields(fields, surrogate.model)
+    surrogate.model = WithInputFields([fields], surrogate.model)
     surrogate.input_channels = 5
     surrogate.optimizer = torch.optim.Adam(surrogate.model.parameters())
     assert surrogate.head_names[-1] == "occupancy"
