@@ -134,11 +134,10 @@ def hitting_times(walls: np.ndarray, *, chunk: int = 250) -> np.ndarray:
     import torch
 
     from dsage_ray.domains.maze.encoding import EMPTY, GOAL, SPARE, START, encode_levels
-    from dsage_ray.surrogate.models import DistanceFields, RandomWalkFields, pad_to_power_of_two
+    from dsage_ray.surrogate.models import RandomWalkFields, pad_to_power_of_two
 
     n, height, width = walls.shape
-    walker = RandomWalkFields(fields=DistanceFields(free_channels=(EMPTY, START, GOAL), start_channel=START,
-                                                    goal_channel=GOAL, norm=1.0), norm=1.0)
+    walker = RandomWalkFields(free_channels=(EMPTY, START, GOAL), start_channel=START, goal_channel=GOAL, norm=1.0)
     out = np.zeros(n)
     for first in range(0, n, chunk):
         part = walls[first:first + chunk]
@@ -228,7 +227,8 @@ class Model:
         statistics = LevelStatistics(fields=fields, norm=height * width / 2) if setting.level_statistics else None
         inputs = [fields] if setting.distance_fields else []
         if setting.random_walk:
-            inputs.append(RandomWalkFields(fields=fields, norm=math.log1p(height * width)))
+            inputs.append(RandomWalkFields(free_channels=(EMPTY, START, GOAL), start_channel=START, goal_channel=GOAL,
+                                           norm=math.log1p(height * width)))
         extra = sum(module.fields for module in inputs)
         self.surrogate = Surrogate(kind=kind, input_channels=channels + extra, input_shape=tuple(sample.shape[2:]),
                                    occupancy_shape=(height, width), num_measures=len(data.measure_names),

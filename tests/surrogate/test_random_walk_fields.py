@@ -5,15 +5,14 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from dsage_ray.domains.maze.encoding import EMPTY, GOAL, SPARE, START, encode_levels
+from dsage_ray.domains.maze.encoding import EMPTY, GOAL, SPARE, START, WALL, encode_levels
 from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.surrogate import pad_to_power_of_two
 from dsage_ray.surrogate.models import DistanceFields, RandomWalkFields, WithInputFields
 
 
 def walker(norm: float = 1.0) -> RandomWalkFields:
-    return RandomWalkFields(fields=DistanceFields(free_channels=(EMPTY, START, GOAL), start_channel=START,
-                                                  goal_channel=GOAL, norm=1.0), norm=norm)
+    return RandomWalkFields(free_channels=(EMPTY, START, GOAL), start_channel=START, goal_channel=GOAL, norm=norm)
 
 
 def encode(walls: np.ndarray) -> torch.Tensor:
@@ -31,6 +30,19 @@ def test_a_corridor_takes_the_square_of_its_length_and_visits_the_start_end_most
     # Expected visits fall linearly towards the goal (2·(7 − k) on inner cells, 7 on the reflecting end).
     np.testing.assert_allclose(row, [7, 12, 10, 8, 6, 4, 2, 0], atol=1e-9)
     assert (np.delete(visits, 3, axis=0) == 0).all()
+
+
+def test_cells_the_walker_cannot_reach_and_levels_without_a_start_get_no_visits():
+    walls = np.ones((2, 8, 8), dtype=bool)
+    walls[0, 3, :] = False
+    walls[0, 6, 1:4] = False  # a pocket the walker cannot reach: its own Laplacian block would be singular
+    walls[1] = True  # no free cell, no start
+    encoded = encode(walls)
+    encoded[1] = 0
+    encoded[1, WALL] = 1  # every cell a wall
+    visits = walker().visits(encoded).numpy()
+    assert np.isclose(visits[0].sum(), 49.0) and (visits[0, 6] == 0).all()
+    assert (visits[1] == 0).all()
 
 
 def test_hitting_times_match_a_monte_carlo_walker():
@@ -63,7 +75,7 @@ def test_the_channel_is_the_scaled_log_of_the_visits_and_the_wrapper_appends_eve
     seen = []
     inner = torch.nn.Module()
     inner.forward = lambda levels, bf16_blocks=False: seen.append(levels) or levels  # type: ignore[method-assign]
-    fields = walk.distance_fields
+    fields = DistanceFields(free_channels=(EMPTY, START, GOAL), start_channel=START, goal_channel=GOAL, norm=1.0)
     WithInputFields([fields, walk], inner)(encoded)
     assert seen[0].shape == (5, 5 + DistanceFields.fields + RandomWalkFields.fields, 16, 16)
     np.testing.assert_allclose(seen[0][:, :8].numpy(), fields(encoded).numpy())
