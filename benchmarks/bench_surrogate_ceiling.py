@@ -196,6 +196,8 @@ class Setting:
             parts.append("occupancy sum + its head's output")
         if self.random_walk:
             parts.append("random-walk visits")
+        if s.prior_measure:
+            parts.append(f"{s.prior_measure} blended with the random walker's hitting time")
         return ", ".join(parts)
 
 
@@ -205,6 +207,7 @@ class Model:
     def __init__(self, setting: Setting, data: MazeData, *, train_size: int, seed: int) -> None:
         from dsage_ray.domains.maze.encoding import EMPTY, GOAL, SPARE, START
         from dsage_ray.surrogate import Surrogate
+        from dsage_ray.domains.maze.prior import walker_prior
         from dsage_ray.surrogate.models import DistanceFields, LevelStatistics, RandomWalkFields, WithInputFields
 
         self.setting = setting
@@ -233,7 +236,8 @@ class Model:
         self.surrogate = Surrogate(kind=kind, input_channels=channels + extra, input_shape=tuple(sample.shape[2:]),
                                    occupancy_shape=(height, width), num_measures=len(data.measure_names),
                                    config=config, seed=seed, measure_ranges=ranges, measure_names=data.measure_names,
-                                   statistics=statistics, sum_residual=setting.sum_residual)
+                                   statistics=statistics, sum_residual=setting.sum_residual,
+                                   prior=walker_prior(config.prior_measure) if config.prior_measure else None)
         self.input_channels = channels
         if inputs:
             import torch

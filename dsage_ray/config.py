@@ -85,6 +85,11 @@ class SurrogateConfig:
     #: the grid counts the agent's steps); a two-stage surrogate then predicts it as the sum of its
     #: predicted occupancy instead of with its own head. Empty (the paper): every measure has a head.
     occupancy_sum_measure: str = ""
+    #: Name of a measure the domain has a parameter-free prior for (Maze: ``mean_path_length``, the expected
+    #: steps of a uniform random walker from the start to the goal). Its prediction is then the mean of the
+    #: network's and the prior's, the prior mapped to the measure by a least-squares line on
+    #: ``log(1 + prior)`` fitted to the training window after each training. Empty (the paper): the network alone.
+    prior_measure: str = ""
     #: Width of the networks (the first convolution of both predictors); 64 is the paper's. The residual
     #: blocks' cost grows as its square (benchmarks/bench_surrogate.py prints FLOPs and predictions/s).
     channels: int = 64
@@ -342,6 +347,9 @@ class RunConfig:
         need(not self.surrogate.occupancy_sum_measure or measure_names is None
              or self.surrogate.occupancy_sum_measure in measure_names, "surrogate.occupancy_sum_measure",
              f"{self.surrogate.occupancy_sum_measure!r} is not one of the measures {list(measure_names or [])}")
+        need(not self.surrogate.prior_measure or measure_names is None
+             or self.surrogate.prior_measure in measure_names, "surrogate.prior_measure",
+             f"{self.surrogate.prior_measure!r} is not one of the measures {list(measure_names or [])}")
         for key in ("num_emitters", "batch_size", "exploit_iterations", "mutation_cells"):
             need(getattr(self.qd, key) >= 1, f"qd.{key}", "must be positive")
         need(self.qd.sigma0 > 0, "qd.sigma0", "must be positive")

@@ -61,6 +61,10 @@ class Domain(Protocol):
     actor, or the test process) can build its own copy and load its agent once. These are the
     members the runner, the Ray pool and the run folder's pictures use; :class:`AuditableDomain`
     adds what ``dsage-ray audit`` and ``dsage-ray compare`` use.
+
+    Optional: ``surrogate_prior(measure) -> Callable | None``, a parameter-free prior of a measure from the
+    encoded levels ``(n, C, S, S)`` → ``(n,)``, which ``surrogate.prior_measure`` blends into the surrogate's
+    prediction (:func:`dsage_ray.surrogate.surrogate.domain_prior`; Maze has one for ``mean_path_length``).
     """
 
     name: str

@@ -43,6 +43,9 @@ MODELS: dict[str, Callable[..., nn.Module]] = {
                       channels=config.channels, statistics=statistics),
 }
 KINDS = tuple(MODELS)
+#: With ``prior_measure``: the prior's share of that measure's prediction (the network has the rest). An even
+#: blend is what the fair benchmark scored (rank-averaging the networks with the random walker).
+PRIOR_WEIGHT = 0.5
 PRECISIONS = ("auto", "fp32", "bf16")
 #: x86 CPU flags of native bf16 arithmetic. Without them bf16 is emulated and slower than float32.
 #: (ARM's bf16 extensions are left out: never measured here, so ``auto`` keeps float32 there.)
@@ -126,6 +129,8 @@ class Surrogate:
         measure_ranges: ``(low, high)`` per measure; required by ``config.target_scaling = "range"``.
         measure_names: The measures' names; required by ``config.occupancy_sum_measure``, which names one.
         statistics: Per-level scalars fed to the measure heads (:class:`~dsage_ray.surrogate.models.LevelStatistics`).
+        prior: With ``config.prior_measure``: the domain's parameter-free prior of that measure, encoded levels
+            ``(n, C, S, S)`` → ``(n,)`` (Maze: :func:`~dsage_ray.domains.maze.prior.walker_prior`).
         sum_residual: The ``occupancy_sum_measure`` is the occupancy sum *plus* its head's output, which then
             learns the sum's error, instead of the sum alone.
 
@@ -137,7 +142,7 @@ class Surrogate:
                  occupancy_shape: tuple[int, int], num_measures: int, config: SurrogateConfig, seed: int,
                  measure_ranges: Sequence[tuple[float, float]] | None = None,
                  measure_names: Sequence[str] | None = None, statistics: LevelStatistics | None = None,
-                 sum_residual: bool = False) -> None:
+                 sum_residual: bool = False, prior: Callable[[torch.Tensor], torch.Tensor] | None = None) -> None:
         if kind not in KINDS:
             raise ValueError(f"surrogate kind must be one of {KINDS}, got {kind!r}")
         size, width = input_shape
@@ -154,6 +159,12 @@ class Surrogate:
                                                                     num_measures, self.device)
         self._sum_index = _occupancy_sum_index(config.occupancy_sum_measure, kind, measure_names, num_measures)
         self._sum_residual = sum_residual
+        self._prior_index = _measure_index("prior_measure", config.prior_measure, measure_names, num_measures)
+        if self._prior_index is not None and prior is None:
+            raise ValueError(f"prior_measure {config.prior_measure!r} needs the domain's prior (none was given)")
+        self._prior = prior
+        #: ``(intercept, slope)`` of the measure on ``log(1 + prior)``, fitted by :meth:`train`; None before.
+        self._prior_fit: tuple[float, float] | None = None
         #: ``"fp32"`` or ``"bf16"``: what ``config.precision`` resolved to on this machine.
         self.precision = resolve_precision(config.precision, self.device)
         # Weights are drawn on the CPU inside a forked RNG: the same seed gives the same network on
@@ -256,7 +267,26 @@ class Surrogate:
         if best_weights is not None:
             self.model.load_state_dict(best_weights)
             losses["validation"] = best_loss
+        if self._prior_index is not None:
+            self._prior_fit = self._fit_prior(window)
         return losses
+
+    def _log_prior(self, encoded: np.ndarray) -> np.ndarray:
+        """``log(1 + prior)`` of ``(n, C, S, S)`` float32 levels, float64, in chunks of ``predict_batch_size``."""
+        step = self.config.predict_batch_size
+        parts = [self._prior(torch.from_numpy(encoded[start:start + step])).double().cpu().numpy()
+                 for start in range(0, len(encoded), step)]
+        return np.log1p(np.concatenate(parts)) if parts else np.zeros(0)
+
+    def _fit_prior(self, window) -> tuple[float, float] | None:
+        """The least-squares line of the prior measure on ``log(1 + prior)`` over the window's levels."""
+        target = np.asarray(window.measures[:, self._prior_index], dtype=np.float64)
+        log_prior = self._log_prior(window.batch(np.arange(len(window)), torch.device("cpu"))[0].numpy())
+        finite = np.isfinite(target) & np.isfinite(log_prior)
+        if finite.sum() < 2 or np.ptp(log_prior[finite]) == 0:
+            return None
+        slope, intercept = np.polyfit(log_prior[finite], target[finite], 1)
+        return float(intercept), float(slope)
 
     def _validation_loss(self, window, indices: np.ndarray) -> float:
         """The training loss on held-out samples, in ``eval()`` mode (BatchNorm's running statistics)."""
@@ -310,8 +340,13 @@ class Surrogate:
                               occupancy=np.zeros((0, height, width), np.float32) if "occupancy" in self.head_names else None)
         objective, measures, occupancy = (None if parts[0] is None else torch.cat(parts)
                                           for parts in zip(*map(self._sum_occupancy, chunks)))
-        measures = measures * self._measure_scale + self._measure_offset
-        return Prediction(objective.cpu().numpy(), measures.cpu().numpy(),
+        measures = (measures * self._measure_scale + self._measure_offset).cpu().numpy()
+        if self._prior_fit is not None:
+            intercept, slope = self._prior_fit
+            i = self._prior_index
+            from_prior = intercept + slope * self._log_prior(encoded)
+            measures[:, i] = (PRIOR_WEIGHT * from_prior + (1.0 - PRIOR_WEIGHT) * measures[:, i]).astype(np.float32)
+        return Prediction(objective.cpu().numpy(), measures,
                           None if occupancy is None else occupancy.cpu().numpy())
 
     def mae(self, encoded: EncodedLevels, results: Sequence[EvaluationResult],
@@ -353,6 +388,7 @@ class Surrogate:
             "model": _cpu_copy(self.model.state_dict()),
             "optimizer": _cpu_copy(self.optimizer.state_dict()),
             "shuffle_rng": self._shuffle_rng.get_state(),
+            "prior_fit": self._prior_fit,
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -363,18 +399,41 @@ class Surrogate:
         # only if needed) and updates them in place: copy, so the checkpoint itself never changes.
         self.optimizer.load_state_dict(_cpu_copy(state["optimizer"]))
         self._shuffle_rng.set_state(state["shuffle_rng"])
+        # Checkpoints from before prior_measure existed hold no fit: the next training fits one.
+        self._prior_fit = state.get("prior_fit")
+
+
+def domain_prior(domain: Any, measure: str) -> Callable[[torch.Tensor], torch.Tensor] | None:
+    """The ``Surrogate(prior=...)`` of ``config.prior_measure``: the domain's ``surrogate_prior(measure)``.
+
+    Raises:
+        ValueError: A measure is named and the domain has no prior for it.
+    """
+    if not measure:
+        return None
+    hook = getattr(domain, "surrogate_prior", None)
+    prior = hook(measure) if hook is not None else None
+    if prior is None:
+        raise ValueError(f"surrogate.prior_measure {measure!r}: the {getattr(domain, 'name', '?')} domain has no "
+                         "prior for it")
+    return prior
 
 
 def _occupancy_sum_index(name: str, kind: str, measure_names: Sequence[str] | None,
                          num_measures: int) -> int | None:
     """The index of ``config.occupancy_sum_measure`` among the measures, or None when it is unset."""
+    if name and kind != "two_stage":
+        raise ValueError(f"occupancy_sum_measure {name!r} needs the two_stage surrogate, not {kind!r}")
+    return _measure_index("occupancy_sum_measure", name, measure_names, num_measures)
+
+
+def _measure_index(key: str, name: str, measure_names: Sequence[str] | None, num_measures: int) -> int | None:
+    """The index of the measure ``name`` that config ``key`` names, or None when it is unset."""
     if not name:
         return None
-    if kind != "two_stage":
-        raise ValueError(f"occupancy_sum_measure {name!r} needs the two_stage surrogate, not {kind!r}")
     names = list(measure_names or ())
     if len(names) != num_measures or name not in names:
-        raise ValueError(f"occupancy_sum_measure {name!r} is not one of the measures {names}")
+        raise ValueError(f"{key} {name!r} is not one of the measures {names}")
     return names.index(name)
 
 

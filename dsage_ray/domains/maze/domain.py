@@ -199,6 +199,12 @@ class MazeDomain:
             values["surrogate.occupancy_sum_measure"] = ""
         return values
 
+    def surrogate_prior(self, measure: str):
+        """The random walker's hitting time for ``mean_path_length`` (:mod:`dsage_ray.domains.maze.prior`)."""
+        from dsage_ray.domains.maze.prior import walker_prior
+
+        return walker_prior(measure)
+
     def preflight(self) -> None:
         """Loads the agent (and the reference) now, so a bad spec fails in one line before any search.
 
