@@ -175,6 +175,19 @@ def print_time_to_reach(variant: str, group: list[dict], baseline: list[dict], c
               f"{mean_pm(speedups, '.2f')}x over {len(speedups)} seeds")
 
 
+def selected_batch_errors(run: dict, *, first_iteration: int = 3) -> dict[str, float]:
+    """Per measure, the median over outer iterations ``first_iteration``+ of the surrogate's MAE on the levels
+    it picked (the rows' ``mae_<measure>``, measured when the batch was evaluated); empty without any."""
+    errors: dict[str, list[float]] = defaultdict(list)
+    for row in run["history"]:
+        if row.get("outer_iteration", 0) < first_iteration:
+            continue
+        for key, value in row.items():
+            if key.startswith("mae_") and key not in ("mae_objective", "mae_occupancy") and value is not None:
+                errors[key.removeprefix("mae_")].append(float(value))
+    return {measure: float(np.median(values)) for measure, values in sorted(errors.items())}
+
+
 def counting_bound(run: dict, baseline_run: dict, clock: str) -> dict[str, float]:
     """How far ``run`` could get at equal time if every evaluation it made had filled a new archive cell.
 
@@ -312,6 +325,15 @@ def main(argv: list[str] | None = None) -> int:
         surrogate = sum(totals[phase] for phase in ("train", "exploit", "select")) / max(total, 1e-9)
         print(f"| {variant} | " + " | ".join(f"{s:.1%}" for s in shares) + f" | {1 - sum(shares):.1%} | "
               f"{surrogate:.1%} | {eval_cost[variant]:.3f} |")
+
+    print("\nselected-batch error: the surrogate's MAE on the levels it picked, median over outer iterations 3+ "
+          "per run, mean ± s.e. over runs")
+    for variant in surrogate_variants:
+        per_run = [(run["seed"], selected_batch_errors(run)) for run in by_variant[variant]]
+        for measure in sorted({m for _, errors in per_run for m in errors}):
+            values = [(seed, errors[measure]) for seed, errors in per_run if measure in errors]
+            print(f"  {variant} {measure}: {mean_pm([v for _, v in values])} ("
+                  + ", ".join(f"seed {seed}: {v:,.1f}" for seed, v in values) + ")")
 
     print("\n4. Why: the surrogate free, and the simulator cost at which it pays for itself")
     baseline = by_variant[args.baseline]

@@ -89,3 +89,15 @@ def test_evaluation_seconds_follow_the_chosen_clock_on_a_shared_machine():
     assert list(bench.evaluation_ends(history, "cpu")) == [30.0, 60.0]
     assert list(bench.evaluation_ends(history, "wall")) == [60.0, 120.0]
     assert bench.evals_and_time_to(history, 1.5, "cpu") == (15.0, 45.0)
+
+
+def test_the_selected_batch_error_is_the_median_from_outer_iteration_three_per_measure():
+    rows = [{"outer_iteration": 1}, {"outer_iteration": 2, "mae_path": 500.0},
+            {"outer_iteration": 3, "mae_path": 90.0, "mae_walls": 4.0, "mae_objective": 1.0, "mae_occupancy": 2.0},
+            {"outer_iteration": 4, "mae_path": 30.0, "mae_walls": 6.0},
+            {"outer_iteration": 5, "mae_path": 60.0, "mae_walls": None}]
+    errors = bench.selected_batch_errors({"history": rows})
+    # Iteration 2's batch (the first picks, from a model trained on random levels) is left out, as are the
+    # objective and the occupancy, which are not measures.
+    assert errors == {"path": 60.0, "walls": 5.0}
+    assert bench.selected_batch_errors({"history": rows[:2]}) == {}
