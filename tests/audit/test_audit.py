@@ -160,9 +160,11 @@ def test_v1_collections_still_load_and_compare(collection, tmp_path, capsys):
 
 def test_a_cpu_audit_predicts_the_path_length_as_the_occupancy_sum_only_when_it_is_a_measure():
     # The Maze cpu preset turns the occupancy sum on; the default audit measures have no path length.
-    assert audit_config(agent=AUDITED, preset="cpu").surrogate.occupancy_sum_measure == ""
+    default = audit_config(agent=AUDITED, preset="cpu").surrogate
+    assert (default.occupancy_sum_measure, default.prior_measure) == ("", "")
     with_path = audit_config(agent=AUDITED, preset="cpu", measures=("num_walls", "mean_path_length"))
     assert with_path.surrogate.occupancy_sum_measure == "mean_path_length"
+    assert with_path.surrogate.prior_measure == "mean_path_length"
     assert audit_config(agent=AUDITED, preset="cpu", variant="map_elites").surrogate.kind == "none"
 
 

@@ -195,8 +195,10 @@ class MazeDomain:
         values = {"maze.agent": agent, "maze.reference": reference or "", "maze.objective": objective,
                   "maze.measures": measures, "maze.archive_dims": tuple(cells(m) for m in measures)}
         if "mean_path_length" not in measures:
-            # The cpu preset predicts the path length as the occupancy sum; without that measure there is none.
+            # The cpu preset predicts the path length as the occupancy sum, blended with the random walker's
+            # prior; without that measure there is neither.
             values["surrogate.occupancy_sum_measure"] = ""
+            values["surrogate.prior_measure"] = ""
         return values
 
     def surrogate_prior(self, measure: str):
