@@ -273,7 +273,19 @@ class Distances(NamedTuple):
     goal: torch.Tensor
 
 
-class DistanceFields(nn.Module):
+class _GridChannels(nn.Module):
+    """Parameter-free fields of a grid level, read from its one-hot channels (free cells, start, goal)."""
+
+    def __init__(self, *, free_channels: tuple[int, ...], start_channel: int, goal_channel: int,
+                 norm: float) -> None:
+        super().__init__()
+        self.free_channels = tuple(free_channels)
+        self.start_channel = start_channel
+        self.goal_channel = goal_channel
+        self.norm = float(norm)
+
+
+class DistanceFields(_GridChannels):
     """Parameter-free input channels: shortest-path distances on the level's grid, computed from its one-hot cells.
 
     Not in the paper, and not used by any run unless a caller wraps a model with it (off by default;
@@ -292,14 +304,6 @@ class DistanceFields(nn.Module):
     """
 
     fields = 3
-
-    def __init__(self, *, free_channels: tuple[int, ...], start_channel: int, goal_channel: int,
-                 norm: float) -> None:
-        super().__init__()
-        self.free_channels = tuple(free_channels)
-        self.start_channel = start_channel
-        self.goal_channel = goal_channel
-        self.norm = float(norm)
 
     @staticmethod
     def bfs(free: torch.Tensor, source: torch.Tensor) -> torch.Tensor:
@@ -436,7 +440,7 @@ class LevelStatistics(nn.Module):
         return scalars.to(levels.dtype)
 
 
-class RandomWalkFields(nn.Module):
+class RandomWalkFields(_GridChannels):
     """Parameter-free input channel: where a uniform random walker goes on the level before it finds the goal.
 
     Not in the paper, and off in runs (``benchmarks/bench_surrogate_ceiling.py`` judges it). A walker starts
@@ -455,14 +459,6 @@ class RandomWalkFields(nn.Module):
     """
 
     fields = 1
-
-    def __init__(self, *, free_channels: tuple[int, ...], start_channel: int, goal_channel: int,
-                 norm: float) -> None:
-        super().__init__()
-        self.free_channels = tuple(free_channels)
-        self.start_channel = start_channel
-        self.goal_channel = goal_channel
-        self.norm = float(norm)
 
     def visits(self, levels: torch.Tensor) -> torch.Tensor:
         """``(n, C, S, S)`` one-hot levels → ``(n, S, S)`` float64 expected visits (0 off the walker's cells)."""
