@@ -443,13 +443,15 @@ class LevelStatistics(nn.Module):
 class RandomWalkFields(_GridChannels):
     """Parameter-free input channel: where a uniform random walker goes on the level before it finds the goal.
 
-    Not in the paper, and off in runs (``benchmarks/bench_surrogate_ceiling.py`` judges it). A walker starts
-    on the start cell and moves to one of its free 4-neighbours uniformly each step until it enters the goal.
-    Its expected number of visits to each cell is the Green's function of the grid's random walk with the goal
-    absorbing: ``v_j = deg_j · x_j`` with ``L x = e_start``, ``L`` the graph Laplacian of the cells reachable
-    from the start, less the goal (symmetric, so one banded Cholesky solve per level, on the CPU). The visits sum to the walker's
-    expected steps to the goal, its hitting time, which ranks ACCEL's mean path length better than the
-    shortest path does. The channel is ``log1p(visits) / norm``; :meth:`visits` gives the raw field.
+    Not in the paper. A walker starts on the start cell and moves to one of its free 4-neighbours uniformly
+    each step until it enters the goal. Its expected number of visits to each cell is the Green's function of
+    the grid's random walk with the goal absorbing: ``v_j = deg_j · x_j`` with ``L x = e_start``, ``L`` the
+    graph Laplacian of the cells reachable from the start, less the goal (symmetric, so one banded Cholesky
+    solve per level, on the CPU). The visits sum to the walker's expected steps to the goal, its hitting time,
+    which ranks ACCEL's mean path length better than the shortest path does: the Maze's
+    ``surrogate.prior_measure`` (:mod:`dsage_ray.domains.maze.prior`) blends it into the surrogate's path
+    length. As an input channel, ``log1p(visits) / norm``, it is a benchmark setting only
+    (``benchmarks/bench_surrogate_ceiling.py``); :meth:`visits` gives the raw field.
 
     Args:
         free_channels: One-hot channels of the cells an agent can stand on (floor, start, goal).
@@ -477,20 +479,22 @@ class RandomWalkFields(_GridChannels):
         active = (labels == start_label[:, None, None]) & (start_label[:, None, None] > 0) & ~goal
         start = start & active
         n, size, _ = active.shape
-        cells = size * size
+        area = size * size
         # Row-major cells make the Laplacian a band matrix of half-width ``size`` (a neighbour is at most a row
-        # away), so LAPACK's banded Cholesky solves it in O(cells · size²) instead of O(cells³).
+        # away), so LAPACK's banded Cholesky solves it in O(area · size²) instead of O(area³).
         padded = np.pad(active, ((0, 0), (1, 1), (1, 1)))
         free = np.pad(free_cells, ((0, 0), (1, 1), (1, 1)))
         degree = (free[:, :-2, 1:-1].astype(np.float64) + free[:, 2:, 1:-1] + free[:, 1:-1, :-2]
-                  + free[:, 1:-1, 2:]).reshape(n, cells)
-        flat = active.reshape(n, cells)
-        band = np.zeros((n, size + 1, cells))  # LAPACK's upper band storage: band[size + i - j, j] = L[i, j]
+                  + free[:, 1:-1, 2:]).reshape(n, area)
+        flat = active.reshape(n, area)
+        left_link = (padded[:, 1:-1, 1:-1] & padded[:, 1:-1, :-2]).reshape(n, area)
+        up_link = (padded[:, 1:-1, 1:-1] & padded[:, :-2, 1:-1]).reshape(n, area)
+        band = np.zeros((n, size + 1, area))  # LAPACK's upper band storage: band[size + i - j, j] = L[i, j]
         band[:, size] = np.where(flat, degree, 1.0)
-        band[:, size - 1, 1:] = -(padded[:, 1:-1, 1:-1] & padded[:, 1:-1, :-2]).reshape(n, cells)[:, 1:].astype(float)
-        band[:, 0, size:] = -(padded[:, 1:-1, 1:-1] & padded[:, :-2, 1:-1]).reshape(n, cells)[:, size:].astype(float)
-        rhs = start.reshape(n, cells).astype(np.float64)
-        visits = np.zeros((n, cells))
+        band[:, size - 1, 1:] = -left_link[:, 1:].astype(np.float64)
+        band[:, 0, size:] = -up_link[:, size:].astype(np.float64)
+        rhs = start.reshape(n, area).astype(np.float64)
+        visits = np.zeros((n, area))
         for m in np.flatnonzero(rhs.any(axis=1)):
             _, solved, info = dpbsv(band[m], rhs[m])
             if info != 0:
