@@ -76,7 +76,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         # head per measure (README, "Does the surrogate predict the agent?").
         "surrogate.occupancy_sum_measure": "mean_path_length",
         # Blended half-and-half with a uniform random walker's hitting time (surrogate.prior_measure): fresh
-        # seeds 11-14 of ACCEL ended at a higher QD-score on every seed, with a lower selected-batch error
+        # seeds 11-15 of ACCEL ended at a higher QD-score on every seed, with a lower selected-batch error
         # (docs/results/surrogate_accuracy, "A random walker").
         "surrogate.prior_measure": "mean_path_length",
     },
