@@ -52,7 +52,7 @@ from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.domains.maze.plugin import MazeConfig
 from dsage_ray.qd.archives import make_archive
 from dsage_ray.surrogate import Surrogate
-from dsage_ray.surrogate.surrogate import domain_prior, native_cpu_bf16
+from dsage_ray.surrogate.surrogate import native_cpu_bf16
 from dsage_ray.surrogate.models import pad_to_power_of_two
 from dsage_ray.types import EvaluationResult
 
@@ -227,11 +227,7 @@ def bench_run_precision(run, *, levels: int) -> None:
         return pad_to_power_of_two(domain.encode(solutions), domain.encoding_pad_channel)
 
     names = domain.measure_names
-    sample = encode(domain.random_solutions(1, np.random.default_rng(0)))
-    surrogate = Surrogate(kind=config.surrogate.kind, input_channels=sample.shape[1], input_shape=sample.shape[2:],
-                          occupancy_shape=domain.occupancy_shape, num_measures=len(names), config=config.surrogate,
-                          seed=0, measure_ranges=domain.measure_ranges, measure_names=names,
-                          prior=domain_prior(domain, config.surrogate.prior_measure))
+    surrogate = Surrogate.for_domain(domain, config=config.surrogate, seed=0)
     surrogate.load_state_dict(state["surrogate"])
     archive = make_archive(solution_dim=domain.solution_dim, dims=domain.archive_dims, ranges=domain.measure_ranges)
     rng = np.random.default_rng(0)
@@ -299,11 +295,7 @@ def setting_table(settings: list[str], *, threads: int, batch: int, repeats: int
         # One epoch per train() call; the epoch count and window are the replay's business.
         train_config = dataclasses.replace(config.surrogate, device="cpu", epochs=1, incremental_epochs=0,
                                            train_window=train_samples)
-        surrogate = Surrogate(kind=config.surrogate.kind, input_channels=encoded.shape[1],
-                              input_shape=encoded.shape[2:], occupancy_shape=domain.occupancy_shape,
-                              num_measures=len(domain.measure_names), config=train_config, seed=0,
-                              measure_ranges=domain.measure_ranges, measure_names=domain.measure_names,
-                              prior=domain_prior(domain, train_config.prior_measure))
+        surrogate = Surrogate.for_domain(domain, config=train_config, seed=0)
         dataset = surrogate.make_dataset()
         dataset.append(encoded=encoded[:train_samples], results=[
             EvaluationResult(objective=1.0, measures=rng.random(len(domain.measure_names)) * 100,

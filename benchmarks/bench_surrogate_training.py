@@ -60,7 +60,6 @@ def main(argv: list[str] | None = None) -> dict:
     from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint
     from dsage_ray.domains import build_domain
     from dsage_ray.surrogate import Surrogate, SurrogateDataset
-    from dsage_ray.surrogate.surrogate import domain_prior
     from dsage_ray.surrogate.dataset import Targets
     from dsage_ray.surrogate.models import pad_to_power_of_two
 
@@ -104,11 +103,7 @@ def main(argv: list[str] | None = None) -> dict:
                                      "occupancy": stored.occupancy[:end], "level_shape": levels.shape[1:]})
             return dataset
 
-        surrogate = Surrogate(kind=setting.surrogate.kind, input_channels=levels.shape[1],
-                              input_shape=tuple(levels.shape[2:]), occupancy_shape=domain.occupancy_shape,
-                              num_measures=num_measures, config=setting.surrogate, seed=setting.seed,
-                              measure_ranges=domain.measure_ranges, measure_names=domain.measure_names,
-                              prior=domain_prior(domain, setting.surrogate.prior_measure))
+        surrogate = Surrogate.for_domain(setting_domain, config=setting.surrogate, seed=setting.seed)
         rows = []
         for k in range(1, len(ends)):
             tic = time.perf_counter()

@@ -165,7 +165,6 @@ class SurrogateAssisted:
     def __init__(self, *, config: RunConfig, domain: Domain, archive: "GridArchive", seeds: "RunSeeds",
                  evaluator: Evaluator, progress: ProgressCallback | None = None) -> None:
         from dsage_ray.surrogate import Surrogate
-        from dsage_ray.surrogate.surrogate import domain_prior
 
         self.config = config
         self.domain = domain
@@ -173,12 +172,7 @@ class SurrogateAssisted:
         self.seeds = seeds
         self.evaluator = evaluator
         self.progress = progress
-        sample = encode_solutions(domain, domain.random_solutions(1, np.random.default_rng(0)))
-        self.surrogate = Surrogate(
-            kind=config.surrogate.kind, input_channels=sample.shape[1], input_shape=tuple(sample.shape[2:]),
-            occupancy_shape=domain.occupancy_shape, num_measures=len(domain.measure_names), config=config.surrogate,
-            seed=seeds.next_qd_seed(), measure_ranges=domain.measure_ranges, measure_names=domain.measure_names,
-            prior=domain_prior(domain, config.surrogate.prior_measure))
+        self.surrogate = Surrogate.for_domain(domain, config=config.surrogate, seed=seeds.next_qd_seed())
         self.dataset = self.surrogate.make_dataset()
         self.holdout = HeldOutLevels(count=config.surrogate.holdout_levels, domain=domain, seeds=seeds)
         self.last_predictions: tuple[np.ndarray, np.ndarray] | None = None

@@ -205,7 +205,7 @@ def pretrain(*, sources: Sequence[WarmStart], config: RunConfig, out: str | Path
     from dsage_ray.core.runner import torch_threads
     from dsage_ray.domains import build_domain
     from dsage_ray.surrogate.models import encode_solutions
-    from dsage_ray.surrogate.surrogate import Surrogate, domain_prior
+    from dsage_ray.surrogate.surrogate import Surrogate
 
     if not sources:
         raise SurrogateInitError("surrogate pretrain: no source runs or files to train on")
@@ -217,11 +217,7 @@ def pretrain(*, sources: Sequence[WarmStart], config: RunConfig, out: str | Path
     started = time.perf_counter()
     pooled = config.replace(**{"surrogate.epochs": 1, "surrogate.incremental_epochs": 0,
                                "surrogate.validation_fraction": 0.0})
-    surrogate = Surrogate(kind=config.surrogate.kind, input_channels=sample.shape[1],
-                          input_shape=tuple(sample.shape[2:]), occupancy_shape=domain.occupancy_shape,
-                          num_measures=len(domain.measure_names), config=pooled.surrogate, seed=seed,
-                          measure_ranges=domain.measure_ranges, measure_names=domain.measure_names,
-                          prior=domain_prior(domain, config.surrogate.prior_measure))
+    surrogate = Surrogate.for_domain(domain, config=pooled.surrogate, seed=seed)
     dataset = concatenate_datasets(surrogate, [source.dataset for source in sources])
     rng = np.random.default_rng(seed)
     held = np.sort(rng.permutation(len(dataset))[:int(len(dataset) * validation_fraction)])

@@ -27,7 +27,7 @@ from torch.nn import functional as F
 
 from dsage_ray.config import SurrogateConfig
 from dsage_ray.surrogate.dataset import SurrogateDataset, Targets
-from dsage_ray.surrogate.models import LevelStatistics, ModelOutput, OneStageModel, TwoStageModel
+from dsage_ray.surrogate.models import LevelStatistics, ModelOutput, OneStageModel, TwoStageModel, encode_solutions
 from dsage_ray.types import EncodedLevels, EvaluationResult
 
 #: Surrogate kinds by name: ``two_stage`` predicts occupancy first (DSAGE), ``one_stage`` does not.
@@ -177,6 +177,22 @@ class Surrogate:
         self.model = model.to(self.device)
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr, betas=tuple(config.betas))
         self._shuffle_rng = torch.Generator().manual_seed(seed)
+
+    @classmethod
+    def for_domain(cls, domain: Any, *, config: SurrogateConfig, seed: int) -> "Surrogate":
+        """A ``config.kind`` surrogate shaped for ``domain``: its encoded levels, measures and prior.
+
+        Every caller that builds the surrogate of a run (the proposer, ``surrogate pretrain``, the benchmarks'
+        replays) goes through here, so a run's surrogate and theirs cannot differ in what they are given.
+
+        Raises:
+            ValueError: ``config`` names a measure the domain lacks, or a ``prior_measure`` it has no prior for.
+        """
+        sample = encode_solutions(domain, domain.random_solutions(1, np.random.default_rng(0)))
+        return cls(kind=config.kind, input_channels=sample.shape[1], input_shape=tuple(sample.shape[2:]),
+                   occupancy_shape=domain.occupancy_shape, num_measures=len(domain.measure_names), config=config,
+                   seed=seed, measure_ranges=domain.measure_ranges, measure_names=domain.measure_names,
+                   prior=domain_prior(domain, config.prior_measure))
 
     @property
     def head_names(self) -> tuple[str, ...]:
