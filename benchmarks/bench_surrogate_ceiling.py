@@ -129,21 +129,22 @@ def bfs_features(walls: np.ndarray) -> np.ndarray:
 
 def hitting_times(walls: np.ndarray, *, chunk: int = 250) -> np.ndarray:
     """``(n,)`` float64: the expected steps of a uniform random walker from the start to the goal of each level
-    (:class:`dsage_ray.surrogate.models.RandomWalkFields`; 0 without a start-goal pair). A parameter-free
-    baseline: how hard the maze is for an agent that explores blindly."""
+    (the Maze's ``surrogate.prior_measure`` prior, :func:`dsage_ray.domains.maze.prior.walker_prior`; 0 without a
+    start-goal pair). A parameter-free baseline: how hard the maze is for an agent that explores blindly."""
     import torch
 
-    from dsage_ray.domains.maze.encoding import EMPTY, GOAL, SPARE, START, encode_levels
-    from dsage_ray.surrogate.models import RandomWalkFields, pad_to_power_of_two
+    from dsage_ray.domains.maze.encoding import SPARE, encode_levels
+    from dsage_ray.domains.maze.prior import walker_prior
+    from dsage_ray.surrogate.models import pad_to_power_of_two
 
     n, height, width = walls.shape
-    walker = RandomWalkFields(free_channels=(EMPTY, START, GOAL), start_channel=START, goal_channel=GOAL, norm=1.0)
+    hitting_time = walker_prior(PATH_LENGTH)
     out = np.zeros(n)
     for first in range(0, n, chunk):
         part = walls[first:first + chunk]
         encoded = pad_to_power_of_two(encode_levels(part.reshape(len(part), -1).astype(np.int8), height, width),
                                       pad_channel=SPARE)
-        out[first:first + chunk] = walker.visits(torch.from_numpy(encoded)).sum(dim=(1, 2)).numpy()
+        out[first:first + chunk] = hitting_time(torch.from_numpy(encoded)).numpy()
     return out
 
 
