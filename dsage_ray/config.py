@@ -194,6 +194,13 @@ class RunConfig:
     #: config, never taken from the machine. A lone Tune trial may use every CPU of its placement
     #: group: its surrogate phases never overlap its simulators' evaluations.
     torch_threads: int = 1
+    #: Pipelined outer loop (DSAGE only): while iteration k's picks are evaluated, the surrogate trains on
+    #: the evaluations up to iteration k-1 and picks iteration k+1's levels. With simulators in other
+    #: processes (the Ray pool) the two overlap, so the surrogate's time hides behind the simulators'; in
+    #: one process they run one after the other. Either way a run computes the same thing, so a seed
+    #: gives the same archive in-process and through Tune. The price: each selection is made by a
+    #: surrogate one batch behind.
+    pipeline: bool = False
     surrogate: SurrogateConfig = dataclasses.field(default_factory=SurrogateConfig)
     qd: QDConfig = dataclasses.field(default_factory=QDConfig)
     selection: SelectionConfig = dataclasses.field(default_factory=SelectionConfig)
@@ -354,6 +361,8 @@ class RunConfig:
             need(getattr(self.qd, key) >= 1, f"qd.{key}", "must be positive")
         need(self.qd.sigma0 > 0, "qd.sigma0", "must be positive")
         need(self.selection.count >= 1, "selection.count", "must be positive")
+        need(self.uses_surrogate or not self.pipeline, "pipeline",
+             "pipelines the surrogate's phases with the evaluations; this variant has no surrogate")
         need(self.uses_surrogate or not self.selection.skip_filled, "selection.skip_filled",
              "needs a surrogate (surrogate.kind = 'none' selects nothing)")
         need(self.ray.num_workers >= 0, "ray.num_workers", "must be >= 0")

@@ -1,8 +1,10 @@
-"""Real evaluations: an in-process evaluator and the retry policy every evaluator shares."""
+"""Real evaluations: an in-process evaluator, the retry policy every evaluator shares, and evaluations
+that run while the driver does something else."""
 
 from __future__ import annotations
 
 import logging
+import threading
 import traceback
 from typing import Sequence
 
@@ -71,3 +73,48 @@ def evaluate_with_retry(evaluator: Evaluator, solutions: Solutions, seeds: Seque
         for i, result in zip(failed, retried):
             results[i] = result
     return results
+
+
+class PendingEvaluation:
+    """A batch's evaluation (with :func:`evaluate_with_retry`), started now and collected by :meth:`result`.
+
+    An evaluator whose simulators run in other processes says so with a true ``runs_elsewhere``
+    attribute (the Ray pool does); its batch is then submitted from a background thread at once, and
+    the caller's own work overlaps it. Any other evaluator (the in-process one shares the caller's
+    CPU and torch's thread settings) runs inside :meth:`result`, after the caller's work. The results
+    are the same either way: an evaluation's seed is fixed by its index, never by when it runs.
+
+    The thread is a daemon, so an interrupted run exits without waiting for the batch; its
+    evaluations are lost with the rest of the unfinished outer iteration, and a resume redoes it.
+    """
+
+    def __init__(self, evaluator: Evaluator, solutions: Solutions, seeds: Sequence[int]) -> None:
+        self._call = (evaluator, solutions, list(seeds))
+        self._results: list[EvaluationResult] | None = None
+        self._error: BaseException | None = None
+        self._thread: threading.Thread | None = None
+        if getattr(evaluator, "runs_elsewhere", False) and len(solutions):
+            self._thread = threading.Thread(target=self._run, name="dsage-evaluate", daemon=True)
+            self._thread.start()
+
+    @property
+    def overlapped(self) -> bool:
+        """Whether the batch is being evaluated in the background while the caller works."""
+        return self._thread is not None
+
+    def _run(self) -> None:
+        try:
+            self._results = evaluate_with_retry(*self._call)
+        except BaseException as exc:  # noqa: BLE001 - re-raised in the caller's thread by result()
+            self._error = exc
+
+    def result(self) -> list[EvaluationResult]:
+        """Waits for (or runs) the evaluation; re-raises what the evaluator raised."""
+        if self._thread is None:
+            self._run()
+        else:
+            self._thread.join()
+        if self._error is not None:
+            raise self._error
+        assert self._results is not None
+        return self._results

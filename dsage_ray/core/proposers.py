@@ -31,6 +31,8 @@ from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
 if TYPE_CHECKING:
     from ribs.archives import GridArchive
 
+    from dsage_ray.surrogate.surrogate import Prediction
+
     from dsage_ray.core.seeds import RunSeeds
 
 #: Called with (phase, done, total) while a step runs; the CLI turns it into progress bars.
@@ -52,6 +54,22 @@ class Proposal:
     metrics: dict[str, float] = dataclasses.field(default_factory=dict)
     #: Seconds per phase (``train``, ``exploit``, ``select``, ``holdout``).
     times: dict[str, float] = dataclasses.field(default_factory=dict)
+    #: What the surrogate that chose the solutions predicted for them (None: chosen without one). Kept
+    #: with the proposal because in a pipelined run the surrogate has trained again by the time the
+    #: results arrive, and the selected batch's error is that of the model that selected it.
+    predicted: "Prediction | None" = None
+
+    def state_dict(self) -> dict[str, Any]:
+        """Plain arrays and dicts, for a checkpoint."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_state_dict(cls, state: dict[str, Any]) -> "Proposal":
+        from dsage_ray.surrogate.surrogate import Prediction
+
+        predicted = state.get("predicted")
+        return cls(solutions=state["solutions"], metrics=dict(state["metrics"]), times=dict(state["times"]),
+                   predicted=None if predicted is None else Prediction(**predicted))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,6 +83,7 @@ class EvaluatedBatch:
         objective, measures, occupancy: Of the successful results, stacked.
         complete: Every proposed solution was evaluated and succeeded (what a QD scheduler's ``tell`` needs).
         outer_iteration: The iteration that proposed them (0 is the first).
+        predicted: The proposal's predictions for ``solutions`` (see :attr:`Proposal.predicted`).
     """
 
     solutions: Solutions
@@ -75,10 +94,18 @@ class EvaluatedBatch:
     occupancy: np.ndarray
     complete: bool
     outer_iteration: int
+    predicted: "Prediction | None" = None
 
     @classmethod
-    def collect(cls, solutions: Solutions, results: list[EvaluationResult], *, domain: Domain, proposed: int,
+    def collect(cls, proposal: Proposal, results: list[EvaluationResult], *, domain: Domain,
                 outer_iteration: int) -> "EvaluatedBatch":
+        """The evaluated part of ``proposal``: its first ``len(results)`` solutions (a budget may cut it)."""
+        n = len(results)
+        solutions = proposal.solutions[:n]
+        predicted = proposal.predicted
+        if predicted is not None:
+            predicted = dataclasses.replace(predicted, **{
+                name: None if value is None else value[:n] for name, value in dataclasses.asdict(predicted).items()})
         ok = [i for i, r in enumerate(results) if not r.failed]
         return cls(
             solutions=solutions, results=results, ok=ok,
@@ -87,7 +114,7 @@ class EvaluatedBatch:
                 len(ok), len(domain.measure_names)),
             occupancy=np.array([results[i].occupancy for i in ok], dtype=np.float32).reshape(
                 (len(ok),) + tuple(domain.occupancy_shape)),
-            complete=len(ok) == proposed, outer_iteration=outer_iteration)
+            complete=len(ok) == len(proposal.solutions), outer_iteration=outer_iteration, predicted=predicted)
 
 
 class Proposer(Protocol):
@@ -210,6 +237,7 @@ class SurrogateAssisted:
             keep = np.sort(self.seeds.rng.choice(len(proposal.solutions), size=cap, replace=False))
             proposal.solutions = proposal.solutions[keep]
             proposal.metrics["selection_capped"] = float(cap)
+        proposal.predicted = self.surrogate.predict(encode_solutions(self.domain, proposal.solutions))
         proposal.times["select"] = time.perf_counter() - tic
         proposal.metrics["surrogate_archive_size"] = float(len(surrogate_archive))
         return proposal
@@ -221,11 +249,10 @@ class SurrogateAssisted:
             self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures, occupancy=batch.occupancy)
             self.dataset.append(encoded=encoded, results=batch.results)
             # A cold start's first batch is random: nothing was predicted for it.
-            if batch.outer_iteration > 0 or self.config.surrogate.init:
-                predicted = self.surrogate.predict(encoded)
-                errors = self.surrogate.mae(encoded, batch.results, prediction=predicted)
+            if batch.predicted is not None:
+                errors = self.surrogate.mae(encoded, batch.results, prediction=batch.predicted)
                 metrics.update({f"mae_{self._label(k)}": v for k, v in errors.items()})
-                self.last_predictions = (predicted.measures[batch.ok], batch.measures)
+                self.last_predictions = (batch.predicted.measures[batch.ok], batch.measures)
         return metrics
 
     # ---------------------------------------------------------------------------------- phases

@@ -27,6 +27,16 @@ surrogate nothing is held out (:mod:`dsage_ray.core.holdout`). Without a surroga
 ground-truth archive (:class:`~dsage_ray.core.proposers.DirectQD`): MAP-Elites, CMA-ME or, with the
 random emitter, domain randomisation.
 
+*Pipelined* (``pipeline = true``, DSAGE only): steps 1–3 of iteration k+1 run while iteration k's picks
+are evaluated, so the surrogate that picks them has trained on the evaluations up to iteration k−1 only.
+With simulators in other processes (an evaluator with ``runs_elsewhere``, such as the Ray pool) the
+batch is submitted first and the driver trains and exploits while it runs; in one process the two run
+one after the other. The data each phase sees is the same either way, so a seed gives the same run
+in both, and a checkpoint holds the next iteration's picks (:attr:`DSAGE.pending`). The first
+iteration cannot overlap: nothing is known until its random batch is back. A step's ``time_*``
+entries are the phases that ran during it, so a pipelined step's ``time_train`` is the next picks'
+training; ``time_overlapped`` is how long the driver worked while the batch was being evaluated.
+
 *Budgets and cost*: a run ends when ``budget`` evaluations are spent or, with ``time_budget > 0``,
 after the outer iteration during which its wall time reached ``time_budget`` seconds, whichever
 comes first. Wall time is the time spent inside :meth:`DSAGE.step`, cumulative across resumes (it is
@@ -49,10 +59,10 @@ from typing import Any
 import numpy as np
 
 from dsage_ray.config import RunConfig
-from dsage_ray.core.evaluation import InProcessEvaluator, evaluate_with_retry
+from dsage_ray.core.evaluation import InProcessEvaluator, PendingEvaluation
 from dsage_ray.core.outputs import write_outputs
-from dsage_ray.core.proposers import (DirectQD, EvaluatedBatch, ProgressCallback, Proposer, SurrogateAssisted,
-                                      domain_archive)
+from dsage_ray.core.proposers import (DirectQD, EvaluatedBatch, ProgressCallback, Proposal, Proposer,
+                                      SurrogateAssisted, domain_archive)
 from dsage_ray.core.seeds import RunSeeds
 from dsage_ray.core.snapshot import RunSnapshot
 from dsage_ray.core.threads import torch_threads
@@ -110,6 +120,8 @@ class DSAGE:
         self.cpu_time = 0.0
         self.history: list[dict[str, float]] = []
         self.failures: list[dict[str, Any]] = []
+        #: A pipelined run's next proposal, chosen while the last batch was evaluated.
+        self.pending: Proposal | None = None
         self.proposer: Proposer
         if config.uses_surrogate:
             self.proposer = SurrogateAssisted(config=config, domain=self.domain, archive=self.archive, seeds=self.seeds,
@@ -157,14 +169,28 @@ class DSAGE:
 
     def _step(self) -> dict[str, float]:
         started = time.perf_counter()
-        proposal = self.proposer.propose(outer_iteration=self.outer_iteration)
+        if self.pending is not None:  # chosen during the previous step (pipelined)
+            proposal, times = self.pending, {}
+            self.pending = None
+        else:
+            proposal = self.proposer.propose(outer_iteration=self.outer_iteration)
+            times = dict(proposal.times)
         solutions = proposal.solutions[: self.config.budget - self.evals]
+        seeds = [self.seeds.evaluation(self.evals + i) for i in range(len(solutions))]
 
         tic = time.perf_counter()
-        results = self._evaluate(solutions)
-        proposal.times["evaluate"] = time.perf_counter() - tic
-        batch = EvaluatedBatch.collect(solutions, results, domain=self.domain, proposed=len(proposal.solutions),
-                                       outer_iteration=self.outer_iteration)
+        evaluation = PendingEvaluation(self.evaluator, solutions, seeds)
+        # The next iteration's picks, chosen while this batch is evaluated, by a surrogate that has not
+        # seen it. Not in the first iteration: the surrogate has nothing to train on until its random batch is back.
+        if self.config.pipeline and self.outer_iteration > 0 and self.evals + len(solutions) < self.config.budget:
+            overlap = time.perf_counter()
+            self.pending = self._propose(self.outer_iteration + 1, times)
+            if evaluation.overlapped:
+                times["overlapped"] = time.perf_counter() - overlap
+        results = evaluation.result()
+        times["evaluate"] = time.perf_counter() - tic
+        self._record_failures(solutions, seeds, results)
+        batch = EvaluatedBatch.collect(proposal, results, domain=self.domain, outer_iteration=self.outer_iteration)
         if results and not batch.ok:
             # Nothing was learned and nothing would be: a broken agent or simulator fails every batch.
             raise EvaluationsFailed(f"every evaluation of outer iteration {self.outer_iteration} failed "
@@ -174,7 +200,10 @@ class DSAGE:
 
         self.evals += len(solutions)
         self.outer_iteration += 1
-        proposal.times["total"] = time.perf_counter() - started
+        if (self.config.pipeline and self.pending is None and self.evals < self.config.budget
+                and not 0 < self.config.time_budget <= self.wall_time + time.perf_counter() - started):
+            self.pending = self._propose(self.outer_iteration, times)
+        times["total"] = time.perf_counter() - started
         metrics.update(archive_stats(self.archive))
         metrics.update(
             archive_size=float(len(self.archive)),
@@ -185,19 +214,23 @@ class DSAGE:
             new_cell_share=float(new_cells) / max(len(solutions), 1),
             holdout_evals=float(self.holdout_evals),
         )
-        metrics.update({f"time_{k}": v for k, v in proposal.times.items()})
+        metrics.update({f"time_{k}": v for k, v in times.items()})
         return metrics
 
-    def _evaluate(self, solutions: Solutions) -> list[EvaluationResult]:
-        seeds = [self.seeds.evaluation(self.evals + i) for i in range(len(solutions))]
-        results = evaluate_with_retry(self.evaluator, solutions, seeds)
+    def _propose(self, outer_iteration: int, times: dict[str, float]) -> Proposal:
+        """Iteration ``outer_iteration``'s proposal, made now; its phases' seconds are added to this step's ``times``."""
+        proposal = self.proposer.propose(outer_iteration=outer_iteration)
+        for phase, seconds in proposal.times.items():
+            times[phase] = times.get(phase, 0.0) + seconds
+        return proposal
+
+    def _record_failures(self, solutions: Solutions, seeds: list[int], results: list[EvaluationResult]) -> None:
         for i, result in enumerate(results):
             if result.failed:
                 self.failures.append({"eval_index": self.evals + i, "seed": seeds[i], "error": result.error,
                                       "solution": np.asarray(solutions[i]).tolist()})
         if self.progress is not None:
             self.progress("evaluate", self.evals + len(solutions), self.config.budget)
-        return results
 
     def _count_new_cells(self, measures: np.ndarray) -> int:
         """How many of these results land in a ground-truth cell that was empty before the batch."""
@@ -263,6 +296,7 @@ class DSAGE:
             "archive": self.archive,
             **self.proposer.state_dict(),
             "last_predictions": self.last_predictions,
+            "pending_proposal": None if self.pending is None else self.pending.state_dict(),
         })
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -285,3 +319,5 @@ class DSAGE:
         self.seeds.load_state_dict(state)
         self.archive = state["archive"]
         self.proposer.load_state_dict(state)
+        pending = state.get("pending_proposal")  # absent from checkpoints of unpipelined versions
+        self.pending = None if pending is None else Proposal.from_state_dict(pending)

@@ -118,6 +118,10 @@ class SimulatorPool:
         PoolResourceError: The cluster (or the enclosing placement group) cannot hold the actors.
     """
 
+    #: The simulators are other processes: a pipelined run overlaps its surrogate's work with a batch
+    #: (:class:`~dsage_ray.core.evaluation.PendingEvaluation`).
+    runs_elsewhere = True
+
     def __init__(
         self,
         *,

@@ -85,3 +85,16 @@ def test_in_process_and_tune_with_one_or_two_actors_write_the_same_archive(varia
         assert trial["config"] == local["config"], workers
         assert trial["metrics"] == local["metrics"], workers
         assert trial["archive.csv"] == local["archive.csv"], workers
+
+
+def test_a_pipelined_run_through_tune_with_two_actors_is_the_in_process_run(tmp_path):
+    """Through the pool the next picks are chosen while the batch is out; in-process one after the other."""
+    config = RunConfig.build({**CONFIG, "variant": "dsage", "pipeline": True, "ray.num_workers": 2})
+    experiment = run_experiment(grid_param_space(config, {}), name="pipelined", storage_path=tmp_path / "tune",
+                                max_failures=0, checkpoint_every=config.checkpoint_every)
+    (trial,) = experiment.trials
+    run_locally(config, out_dir=tmp_path / "local", console=False)
+    local = outputs(tmp_path / "local", config)
+    assert outputs(trial.path, trial.config) == local
+    overlapped = [row.get("time_overlapped", 0.0) for row in json.loads((trial.path / "metrics.json").read_text())]
+    assert overlapped[0] == 0.0 and all(seconds > 0 for seconds in overlapped[1:-1])
