@@ -89,12 +89,16 @@ def phase_seconds(history: list[dict], clock: str) -> list[dict[str, float]]:
 
     The ``time_<phase>`` columns are wall seconds; each iteration's shares of them are applied to its
     seconds on ``clock``, so that on a shared machine the ``cpu`` clock stays the run's own compute.
+    In a pipelined run the surrogate's phases ran while the batch was out (``time_overlapped``); its
+    ``evaluate`` is then only the time the driver waited for the simulators beyond that.
     """
     rows, previous = [], 0.0
     for row in history:
         span, previous = row[f"{clock}_time"] - previous, row[f"{clock}_time"]
         total = row.get("time_total", 0.0)
-        shares = {phase: row.get(f"time_{phase}", 0.0) / total if total > 0 else 0.0 for phase in PHASES}
+        seconds = {phase: row.get(f"time_{phase}", 0.0) for phase in PHASES}
+        seconds["evaluate"] = max(seconds["evaluate"] - row.get("time_overlapped", 0.0), 0.0)
+        shares = {phase: value / total if total > 0 else 0.0 for phase, value in seconds.items()}
         rows.append({"total": span, **{phase: span * share for phase, share in shares.items()}})
     return rows
 

@@ -8,7 +8,10 @@ Every run is ``dsage_ray.run(..., local=True)``: one process, one thread for the
 (``torch_threads = 1``) and in-process evaluation, so a run's ``cpu_time`` is all the compute it used,
 whatever else the machine is doing. That makes ``--clock cpu`` the fair clock on a shared machine
 (``--parallel 2`` runs two at a time on 2 cores); on a quiet machine with ``--parallel 1`` the wall
-clock reads the same. A setting is ``LABEL:key=value,key=value`` on top of ``--preset`` (values read
+clock reads the same. With ``--workers N`` each run goes through Ray Tune with N simulator actors
+instead (the set-up a pipelined outer loop, ``pipeline=true``, is for); the actors' CPU is not in
+``cpu_time`` then, so read ``--clock wall`` of runs made one at a time on an otherwise idle machine.
+A setting is ``LABEL:key=value,key=value`` on top of ``--preset`` (values read
 like ``--set`` values); the label names the run's config (``name``), so the tables group by it.
 
 Runs that already finished end at once and interrupted ones resume, so the command can be re-run
@@ -47,20 +50,34 @@ def parse_setting(text: str) -> tuple[str, list[str]]:
     return label, [item for item in [*items, current] if item]
 
 
+def tune_trial_folder(folder: Path) -> Path | None:
+    """The finished trial's folder inside a ``--workers`` run's Tune storage folder, if any."""
+    finished = sorted(path.parent for path in folder.glob("*/*/metrics.json"))
+    return finished[-1] if finished else None
+
+
 def run_one(label: str, keys: list[str], seed: int, args: argparse.Namespace) -> Path:
     """One run as its own process (so runs in parallel share no torch or Ray state); returns its folder."""
     folder = args.out / f"{label}_s{seed}"
-    command = [sys.executable, "-m", "dsage_ray.cli", "run", str(args.config), "--local", "--preset", args.preset,
+    where = ["--local"] if args.workers is None else ["--workers", str(args.workers)]
+    command = [sys.executable, "-m", "dsage_ray.cli", "run", str(args.config), *where, "--preset", args.preset,
                "--out", str(folder), "--set", f"name={label}", "--set", f"seed={seed}",
                "--set", f"budget={args.budget}", *(f"--set={key}" for key in keys)]
     if args.time_budget:
         command += ["--time-budget", str(args.time_budget)]
-    if (folder / "checkpoint.dsage").exists():
+    if args.workers is not None:
+        trial = tune_trial_folder(folder)
+        if trial is not None:
+            print(f"{label} seed {seed}: done before ({trial})", flush=True)
+            return trial
+    elif (folder / "checkpoint.dsage").exists():
         command.append("--resume")  # a finished run resumes to its end at once and rewrites its outputs
     log = args.out / f"{label}_s{seed}.log"
     with log.open("a") as handle:
         code = subprocess.run(command, stdout=handle, stderr=subprocess.STDOUT, cwd=ROOT,
                               env={**os.environ, "TQDM_DISABLE": "1"}).returncode
+    if args.workers is not None:
+        folder = tune_trial_folder(folder) or folder
     print(f"{label} seed {seed}: exit {code} ({folder})", flush=True)
     return folder
 
@@ -79,6 +96,9 @@ def main() -> int:
     parser.add_argument("--baseline", default="map_elites", help="label every other setting is compared with")
     parser.add_argument("--at-evals", type=float, default=2000)
     parser.add_argument("--clock", choices=["wall", "cpu"], default="cpu")
+    parser.add_argument("--workers", type=int, help="run each search through Ray Tune with this many simulator "
+                                                    "actors instead of in-process (then read --clock wall, "
+                                                    "--parallel 1, on a quiet machine)")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     settings = dict(parse_setting(text) for text in args.setting)
