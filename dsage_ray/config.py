@@ -176,8 +176,8 @@ class RunConfig:
     #: Total real evaluations.
     budget: int = 100_000
     #: Seconds of wall time the run may spend stepping, cumulative across resumes; 0: no limit. Whichever
-    #: of ``budget`` and ``time_budget`` is reached first ends the run, after the outer iteration during
-    #: which it was reached (a clean checkpoint). Where a time budget ends a run depends on the machine
+    #: of ``budget`` and ``time_budget`` is reached first ends the run at a clean checkpoint; a time budget
+    #: that runs out during an evaluation stops the batch there (the levels under way finish). Where a time budget ends a run depends on the machine
     #: and its load, so such a run is not reproducible; an evaluation-budget run is. Raising it and
     #: resuming continues the run (the only key a resume may change).
     time_budget: float = 0.0

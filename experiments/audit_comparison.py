@@ -21,8 +21,9 @@ settings; its folders and rows are named by the label. The table also gives each
 (minutes of its ``wall_time``: compare it only on a quiet machine at ``--jobs 1``) and its CPU seconds (the
 search process's ``cpu_time``, evaluation included: the clock to compare when audits share the machine).
 
-**Equal time.** A time budget ends a search after the outer iteration during which it is reached, so a search
-with long iterations (DSAGE's can evaluate hundreds of levels) overshoots it more than one with short ones.
+**Equal time.** A time budget ends a search when it is reached, but a search can still overshoot it by the
+surrogate's phases if the time runs out during them (the comparisons in ``docs/results/equal_compute`` ran when a
+time budget stopped a search only after the whole outer iteration that reached it).
 ``--match-time LABEL`` (repeatable) therefore runs the other arms first and gives each of LABEL's audits the
 time its seed's first other arm actually searched (its final ``wall_time``) as ``time_budget``; give every arm
 an evaluation ``--budget`` it cannot reach. Audits run seed by seed, so those side by side share the machine

@@ -3,10 +3,12 @@ that run while the driver does something else."""
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
+import time
 import traceback
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -43,6 +45,20 @@ class InProcessEvaluator:
     def _evaluate(self, solutions: Solutions, seeds: Sequence[int]) -> list[EvaluationResult]:
         return [evaluate_safely(self.domain, solution, int(seed)) for solution, seed in zip(solutions, seeds)]
 
+    def evaluate_until(self, solutions: Solutions, seeds: Sequence[int], *, deadline: float | None = None,
+                       progress: "EvaluationProgress | None" = None) -> list[EvaluationResult]:
+        """Evaluates in order, one level at a time, until the batch is done or ``deadline`` (perf_counter) has
+        passed (at least one level); ``progress`` hears the count after each."""
+        results: list[EvaluationResult] = []
+        with torch_threads(self.threads) if self.threads is not None else contextlib.nullcontext():
+            for solution, seed in zip(solutions, seeds):
+                if results and deadline is not None and time.perf_counter() >= deadline:
+                    break
+                results.append(evaluate_safely(self.domain, solution, int(seed)))
+                if progress is not None:
+                    progress(len(results))
+        return results
+
 
 def evaluate_safely(domain: Domain, solution: np.ndarray, seed: int) -> EvaluationResult:
     """``domain.evaluate`` with any exception turned into a failed result that carries the error."""
@@ -57,15 +73,54 @@ def evaluate_safely(domain: Domain, solution: np.ndarray, seed: int) -> Evaluati
         )
 
 
-def evaluate_with_retry(evaluator: Evaluator, solutions: Solutions, seeds: Sequence[int]) -> list[EvaluationResult]:
-    """Evaluates a batch, then re-submits each failed evaluation exactly once.
+#: Called with the number of a batch's evaluations done so far.
+EvaluationProgress = Callable[[int], None]
+#: Solutions per call when an evaluator without :meth:`~InProcessEvaluator.evaluate_until` is given a
+#: deadline or a progress callback: often enough to stop near the deadline and to move a progress bar.
+SLICE = 8
+
+
+def evaluate_prefix(evaluator: Evaluator, solutions: Solutions, seeds: Sequence[int], *,
+                    deadline: float | None = None, progress: EvaluationProgress | None = None
+                    ) -> list[EvaluationResult]:
+    """Evaluates the batch, or with a ``deadline`` (a :func:`time.perf_counter` value) the part of it begun before then.
+
+    What comes back is always a prefix of the batch in order (at least one result when the batch is not
+    empty), so that evaluation ``i`` keeps seed ``seeds[i]`` whoever stops where. An evaluator with an
+    ``evaluate_until(solutions, seeds, *, deadline, progress)`` method (the in-process evaluator, the Ray
+    pool) stops itself, letting the levels under way finish; any other is called in slices of :data:`SLICE`.
+    """
+    native = getattr(evaluator, "evaluate_until", None)
+    if native is not None:
+        results = list(native(solutions, seeds, deadline=deadline, progress=progress))
+        if not 0 < len(results) <= len(solutions) and len(solutions):
+            raise RuntimeError(f"evaluator returned {len(results)} results for {len(solutions)} solutions")
+        return results
+    size = len(solutions) if deadline is None and progress is None else SLICE
+    results: list[EvaluationResult] = []
+    for start in range(0, len(solutions), max(size, 1)):
+        if results and deadline is not None and time.perf_counter() >= deadline:
+            break
+        part = list(evaluator(solutions[start:start + size], list(seeds[start:start + size])))
+        if len(part) != len(solutions[start:start + size]):
+            raise RuntimeError(f"evaluator returned {len(part)} results for {len(solutions[start:start + size])} "
+                               "solutions")
+        results += part
+        if progress is not None:
+            progress(len(results))
+    return results
+
+
+def evaluate_with_retry(evaluator: Evaluator, solutions: Solutions, seeds: Sequence[int], *,
+                        deadline: float | None = None, progress: EvaluationProgress | None = None
+                        ) -> list[EvaluationResult]:
+    """Evaluates a batch (:func:`evaluate_prefix`: all of it unless a ``deadline`` stops it early), then
+    re-submits each failed evaluation exactly once.
 
     A result that fails twice is returned as failed (with its error), so the caller can record it;
     nothing is dropped and nothing is evaluated more than twice.
     """
-    results = list(evaluator(solutions, seeds))
-    if len(results) != len(solutions):
-        raise RuntimeError(f"evaluator returned {len(results)} results for {len(solutions)} solutions")
+    results = evaluate_prefix(evaluator, solutions, seeds, deadline=deadline, progress=progress)
     failed = [i for i, r in enumerate(results) if r.failed]
     if failed:
         logger.warning("%d evaluation(s) failed; retrying once: %s", len(failed), results[failed[0]].error)
@@ -78,6 +133,8 @@ def evaluate_with_retry(evaluator: Evaluator, solutions: Solutions, seeds: Seque
 class PendingEvaluation:
     """A batch's evaluation (with :func:`evaluate_with_retry`), started now and collected by :meth:`result`.
 
+    With a ``deadline`` the result may be a prefix of the batch (:func:`evaluate_prefix`).
+
     An evaluator whose simulators run in other processes says so with a true ``runs_elsewhere``
     attribute (the Ray pool does); its batch is then submitted from a background thread at once, and
     the caller's own work overlaps it. Any other evaluator (the in-process one shares the caller's
@@ -88,8 +145,10 @@ class PendingEvaluation:
     evaluations are lost with the rest of the unfinished outer iteration, and a resume redoes it.
     """
 
-    def __init__(self, evaluator: Evaluator, solutions: Solutions, seeds: Sequence[int]) -> None:
+    def __init__(self, evaluator: Evaluator, solutions: Solutions, seeds: Sequence[int], *,
+                 deadline: float | None = None, progress: EvaluationProgress | None = None) -> None:
         self._call = (evaluator, solutions, list(seeds))
+        self._options = {"deadline": deadline, "progress": progress}
         self._results: list[EvaluationResult] | None = None
         self._error: BaseException | None = None
         self._thread: threading.Thread | None = None
@@ -104,7 +163,7 @@ class PendingEvaluation:
 
     def _run(self) -> None:
         try:
-            self._results = evaluate_with_retry(*self._call)
+            self._results = evaluate_with_retry(*self._call, **self._options)
         except BaseException as exc:  # noqa: BLE001 - re-raised in the caller's thread by result()
             self._error = exc
 

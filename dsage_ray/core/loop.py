@@ -1,9 +1,9 @@
 """The one run loop: a runner stepped to its budget, with callbacks, checkpoints and the run folder's outputs.
 
 "Its budget" is :attr:`DSAGE.done <dsage_ray.core.runner.DSAGE.done>`: the evaluation budget, or the
-time budget (``time_budget``) once an outer iteration ends past it. Either way the run ends after a
-whole iteration, checkpointed and with its outputs written, so ``--resume`` (with a larger time
-budget) continues it.
+time budget (``time_budget``, which cuts short the batch under evaluation when it runs out). Either way
+the run ends at the end of an iteration, checkpointed and with its outputs written, so ``--resume``
+(with a larger time budget) continues it.
 
 A ``--local`` run (:func:`run_locally`, also the audit's in-process search) drives a :class:`RunLoop`
 itself with :meth:`RunLoop.run`; a Tune trial (:class:`dsage_ray.ray.trainable.DSAGETrainable`)

@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 import math
+import threading
 from typing import Mapping
 
 
@@ -50,7 +51,7 @@ def progress_line(metrics: Mapping[str, float], *, budget: int, elapsed_s: float
     if remaining == 0 or time_left <= 0:
         iterations, eta = f"{iteration}", "done"
     elif time_left < eval_eta:
-        # The run ends after the iteration during which the time runs out: at least this long.
+        # The run ends when the time runs out, inside the iteration under way.
         iterations = f"~{iteration + math.ceil(time_left * evals_per_s / per_iteration)}"
         eta = f"{format_duration(time_left)} (time budget)"
     else:
@@ -95,12 +96,20 @@ class ConsoleProgress:
         self.budget = budget
         self.time_budget = time_budget
         self._bars: dict = {}
+        self._lock = threading.Lock()
         self._started: float | None = None
         self._evals_at_start = 0
         self._rate = EvaluationRate()
 
     def phase(self, phase: str, done: int, total: int) -> None:
-        """The runner's progress callback: moves the bar of ``phase`` (a new bar when a new pass starts)."""
+        """The runner's progress callback: moves the bar of ``phase`` (a new bar when a new pass starts).
+
+        Thread-safe: a pipelined run's evaluation reports from its own thread while the inner loop reports.
+        """
+        with self._lock:
+            self._move(phase, done, total)
+
+    def _move(self, phase: str, done: int, total: int) -> None:
         from tqdm import tqdm
 
         bar = self._bars.get(phase)

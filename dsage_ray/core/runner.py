@@ -38,8 +38,11 @@ entries are the phases that ran during it, so a pipelined step's ``time_train`` 
 training; ``time_overlapped`` is how long the driver worked while the batch was being evaluated.
 
 *Budgets and cost*: a run ends when ``budget`` evaluations are spent or, with ``time_budget > 0``,
-after the outer iteration during which its wall time reached ``time_budget`` seconds, whichever
-comes first. Wall time is the time spent inside :meth:`DSAGE.step`, cumulative across resumes (it is
+when its wall time reaches ``time_budget`` seconds, whichever comes first. A time budget that runs out
+while a batch is being evaluated stops the batch there: the levels under way finish, the rest are
+dropped, and the iteration ends with what was evaluated, learned as usual (``evaluated_this_iteration``
+says how many). So a run overshoots its time budget by at most one level per simulator, plus the
+surrogate's phases if the time ran out during them. Wall time is the time spent inside :meth:`DSAGE.step`, cumulative across resumes (it is
 part of the state dict), so a stopped and resumed run counts only the time it ran. Every metric row
 carries it (``wall_time``) and the CPU time of this process during the steps (``cpu_time``,
 :func:`time.process_time`: every thread of the process that runs the outer loop, so in-process
@@ -179,7 +182,8 @@ class DSAGE:
         seeds = [self.seeds.evaluation(self.evals + i) for i in range(len(solutions))]
 
         tic = time.perf_counter()
-        evaluation = PendingEvaluation(self.evaluator, solutions, seeds)
+        evaluation = PendingEvaluation(self.evaluator, solutions, seeds, deadline=self._deadline(started),
+                                       progress=self._evaluation_progress())
         # The next iteration's picks, chosen while this batch is evaluated, by a surrogate that has not
         # seen it. Not in the first iteration: the surrogate has nothing to train on until its random batch is back.
         if self.config.pipeline and self.outer_iteration > 0 and self.evals + len(solutions) < self.config.budget:
@@ -189,6 +193,7 @@ class DSAGE:
                 times["overlapped"] = time.perf_counter() - overlap
         results = evaluation.result()
         times["evaluate"] = time.perf_counter() - tic
+        solutions = solutions[:len(results)]  # a time budget may have stopped the batch early
         self._record_failures(solutions, seeds, results)
         batch = EvaluatedBatch.collect(proposal, results, domain=self.domain, outer_iteration=self.outer_iteration)
         if results and not batch.ok:
@@ -217,6 +222,18 @@ class DSAGE:
         metrics.update({f"time_{k}": v for k, v in times.items()})
         return metrics
 
+    def _deadline(self, step_started: float) -> float | None:
+        """The :func:`time.perf_counter` value at which the time budget runs out (None: no time budget)."""
+        if self.config.time_budget <= 0:
+            return None
+        return step_started + self.config.time_budget - self.wall_time
+
+    def _evaluation_progress(self):
+        if self.progress is None:
+            return None
+        start, budget, progress = self.evals, self.config.budget, self.progress
+        return lambda done: progress("evaluate", start + done, budget)
+
     def _propose(self, outer_iteration: int, times: dict[str, float]) -> Proposal:
         """Iteration ``outer_iteration``'s proposal, made now; its phases' seconds are added to this step's ``times``."""
         proposal = self.proposer.propose(outer_iteration=outer_iteration)
@@ -229,8 +246,6 @@ class DSAGE:
             if result.failed:
                 self.failures.append({"eval_index": self.evals + i, "seed": seeds[i], "error": result.error,
                                       "solution": np.asarray(solutions[i]).tolist()})
-        if self.progress is not None:
-            self.progress("evaluate", self.evals + len(solutions), self.config.budget)
 
     def _count_new_cells(self, measures: np.ndarray) -> int:
         """How many of these results land in a ground-truth cell that was empty before the batch."""

@@ -210,6 +210,16 @@ class SimulatorPool:
 
     def __call__(self, solutions: Solutions, seeds: Sequence[int]) -> list[EvaluationResult]:
         """Evaluates ``solutions[i]`` with ``seeds[i]``; results come back in submission order."""
+        return self.evaluate_until(solutions, seeds)
+
+    def evaluate_until(self, solutions: Solutions, seeds: Sequence[int], *, deadline: float | None = None,
+                       progress: Callable[[int], None] | None = None) -> list[EvaluationResult]:
+        """Evaluates the batch, or once ``deadline`` (a :func:`time.perf_counter` value) has passed, the chunks
+        already handed out: a prefix of the batch, in submission order.
+
+        The chunks of an actor that died are re-run whatever the deadline, so the prefix has no hole.
+        ``progress`` hears the number of results in after each chunk.
+        """
         if self._closed:
             raise RuntimeError("the simulator pool is closed")
         solutions = np.asarray(solutions)
@@ -224,13 +234,20 @@ class SimulatorPool:
         in_flight: dict[ray.ObjectRef, tuple[int, int, tuple[int, int]]] = {}
         load = [0] * self.num_workers
 
+        handed_out = 0  # solutions [0, handed_out) were sent at least once; the rest are still fresh
         while todo or in_flight:
+            if deadline is not None and handed_out and time.perf_counter() >= deadline:
+                # Out of time: no fresh chunk starts; re-runs of a dead actor's chunks (all below) still do.
+                todo = collections.deque(chunk for chunk in todo if chunk[0] < handed_out)
+                if not todo and not in_flight:
+                    break
             # Hand out work to the least-loaded live actors, up to max_in_flight each.
             while todo:
                 slot = min(range(self.num_workers), key=load.__getitem__)
                 if load[slot] >= self.max_in_flight:
                     break
                 chunk = todo.popleft()
+                handed_out = max(handed_out, chunk[1])
                 ref = self._actors[slot].evaluate.remote(solutions[chunk[0]:chunk[1]], list(seeds[chunk[0]:chunk[1]]))
                 in_flight[ref] = (slot, self._generations[slot], chunk)
                 load[slot] += 1
@@ -255,7 +272,10 @@ class SimulatorPool:
                 load[slot] -= 1
             for offset, result in enumerate(chunk_results):
                 self._accept(results, chunk[0] + offset, result)
+            if progress is not None:
+                progress(sum(r is not None for r in results))
 
+        results = results[:handed_out]
         assert all(r is not None for r in results)
         return results  # type: ignore[return-value]
 
@@ -276,7 +296,6 @@ class SimulatorPool:
             self._accept(results, index, EvaluationResult.failure(
                 error=error, num_measures=self._num_measures, occupancy_shape=self._occupancy_shape))
 
-    evaluate = __call__
 
     # ------------------------------------------------------------------------------- lifetime
 

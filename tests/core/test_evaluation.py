@@ -2,12 +2,13 @@
 ``PendingEvaluation`` (a batch evaluated while the caller works)."""
 
 import threading
+import time
 
 import numpy as np
 import pytest
 import torch
 
-from dsage_ray.core.evaluation import InProcessEvaluator, PendingEvaluation
+from dsage_ray.core.evaluation import SLICE, InProcessEvaluator, PendingEvaluation, evaluate_prefix
 from tests.fakes import BitmapDomain
 
 
@@ -86,3 +87,25 @@ def test_what_the_background_evaluator_raises_is_raised_by_result():
                                 domain.random_solutions(2, np.random.default_rng(0)), [0, 1])
     with pytest.raises(ValueError, match="simulator gone"):
         pending.result()
+
+
+def test_a_passed_deadline_stops_a_batch_after_its_first_part_and_keeps_the_order():
+    domain = BitmapDomain()
+    solutions = domain.random_solutions(20, np.random.default_rng(0))
+    seeds = list(range(20))
+    expected = InProcessEvaluator(domain=domain)(solutions, seeds)
+    passed = time.perf_counter() - 1.0
+    counts: list[int] = []
+    # The in-process evaluator stops itself after the level under way; a plain callable is cut in slices.
+    in_process = evaluate_prefix(InProcessEvaluator(domain=domain), solutions, seeds, deadline=passed,
+                                 progress=counts.append)
+    plain = evaluate_prefix(lambda s, k: InProcessEvaluator(domain=domain)(s, k), solutions, seeds, deadline=passed)
+    assert len(in_process) == 1 and counts == [1]
+    assert len(plain) == SLICE
+    for results in (in_process, plain):
+        assert [r.measures.tolist() for r in results] == [r.measures.tolist() for r in expected[:len(results)]]
+    # Without a deadline, all of it, with a count after each part.
+    counts.clear()
+    full = evaluate_prefix(lambda s, k: InProcessEvaluator(domain=domain)(s, k), solutions, seeds,
+                           progress=counts.append)
+    assert len(full) == 20 and counts == [8, 16, 20]

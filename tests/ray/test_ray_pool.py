@@ -116,3 +116,27 @@ def test_simulators_that_cannot_be_placed_time_out_with_a_clear_message(pool):
     with pytest.raises(PoolResourceError, match="started within 2s"):
         SimulatorPool(config=small_config(), num_workers=1, cpus_per_worker=1.5, domain_factory=bitmap_domain,
                       placement_timeout_s=2.0)
+
+
+def test_a_deadline_stops_handing_out_work_and_returns_the_prefix_in_order(pool, batch, monkeypatch):
+    solutions, seeds, expected = batch
+    monkeypatch.setattr(pool, "chunk_size", 3)
+    counts: list[int] = []
+    results = pool.evaluate_until(solutions, seeds, deadline=time.perf_counter() - 1.0, progress=counts.append)
+    # The first hand-out (max_in_flight chunks per actor) still runs: a batch always makes progress.
+    assert len(results) == 2 * pool.max_in_flight * 3
+    assert same_results(results, expected[:len(results)])
+    assert counts == sorted(counts) and counts[-1] == len(results)
+
+
+def test_a_deadline_still_reruns_the_chunks_of_an_actor_that_died(pool, batch, monkeypatch):
+    solutions, seeds, expected = batch
+    monkeypatch.setattr(pool, "chunk_size", 2)
+    deaths = pool.stats.actor_deaths
+    killer = threading.Timer(0.1, lambda: ray.kill(pool.actor_handles()[0]))
+    killer.start()
+    results = pool.evaluate_until(solutions, seeds, deadline=time.perf_counter() + 0.3)
+    killer.join()
+    assert pool.stats.actor_deaths - deaths == 1
+    assert 0 < len(results) < len(solutions)
+    assert same_results(results, expected[:len(results)])  # a prefix without a hole
