@@ -104,6 +104,25 @@ def test_killed_actor_during_a_run_leaves_the_archive_unchanged(pool):
     assert archive_snapshot(runner.archive) == archive_snapshot(uninterrupted.archive)
 
 
+def test_killed_actor_during_a_pipelined_run_leaves_the_archive_unchanged(pool):
+    # The batch is out in a background thread while the surrogate trains; the pool still replaces the actor.
+    config = small_config(variant="dsage", budget=110, pipeline=True)
+    uninterrupted = DSAGE(config=config, domain=SlowBitmapDomain(base_s=0, extra_s=0))
+    uninterrupted.run()
+    deaths = pool.stats.actor_deaths
+    runner = DSAGE(config=config, evaluator=pool, domain=BitmapDomain())
+    runner.step()
+    runner.step()
+    killer = threading.Timer(0.05, lambda: ray.kill(pool.actor_handles()[0]))
+    killer.start()
+    runner.run()
+    killer.join()
+    assert pool.stats.actor_deaths - deaths == 1
+    assert any(row.get("time_overlapped", 0) > 0 for row in runner.history)
+    assert runner.evals == uninterrupted.evals == 110
+    assert archive_snapshot(runner.archive) == archive_snapshot(uninterrupted.archive)
+
+
 def test_more_simulators_than_the_cluster_has_fails_at_once(ray_session):
     started = time.perf_counter()
     with pytest.raises(PoolResourceError, match="ray.num_workers"):
