@@ -101,3 +101,12 @@ def test_the_selected_batch_error_is_the_median_from_outer_iteration_three_per_m
     # objective and the occupancy, which are not measures.
     assert errors == {"path": 60.0, "walls": 5.0}
     assert bench.selected_batch_errors({"history": rows[:2]}) == {}
+
+
+def test_a_pipelined_rows_evaluate_is_only_the_wait_beyond_the_overlapped_surrogate():
+    # 30 s of batch, of which the driver trained and exploited for 20 s while it ran: 10 s of waiting.
+    history = [{"evals": 100, "qd_score": 1.0, "cpu_time": 30.0, "wall_time": 30.0, "time_train": 5.0,
+                "time_exploit": 15.0, "time_overlapped": 20.0, "time_evaluate": 30.0, "time_total": 30.0}]
+    (row,) = bench.phase_seconds(history, "wall")
+    assert row["evaluate"] == 10.0 and row["train"] + row["exploit"] == 20.0
+    assert sum(row[phase] for phase in bench.PHASES) == row["total"]
