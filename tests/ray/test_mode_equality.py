@@ -2,7 +2,9 @@
 
 In-process (``dsage-ray run --local``), one Tune trial with 1 simulator actor and one with 2 actors
 (results arriving out of order, one solution per task) must write byte-identical ``archive.csv``
-files and the same metrics, for DSAGE, a one-stage variant and MAP-Elites. The in-process run is
+files and the same metrics, for DSAGE, a one-stage variant and MAP-Elites. DSAGE's two-actor trial runs
+pipelined (``pipeline = true``: the surrogate trains while the pool evaluates) and is compared with a
+pipelined in-process run. The in-process run is
 started with a torch thread count other than the config's, as a user's shell would have it.
 """
 
@@ -12,6 +14,7 @@ import json
 
 import pytest
 import torch
+from ray import tune
 
 from dsage_ray.config import RunConfig
 from dsage_ray.core.loop import run_locally
@@ -44,6 +47,8 @@ def tune_trials(tmp_path_factory) -> dict[tuple[str, int], dict]:
     """``(variant, ray.num_workers)`` → the trial's resolved config, archive.csv and metrics."""
     base = RunConfig.build({**CONFIG, "variant": "dsage"})
     space = grid_param_space(base, {"variant": list(VARIANTS), "ray.num_workers": list(WORKERS)})
+    # DSAGE with two actors runs pipelined: its next picks are chosen while its batch is out in the pool.
+    space["pipeline"] = tune.sample_from(lambda spec: pipelined(spec.config["variant"], spec.config["ray.num_workers"]))
     experiment = run_experiment(space, name="modes", storage_path=tmp_path_factory.mktemp("tune"), max_failures=0,
                                 checkpoint_every=base.checkpoint_every)
     trials = {}
@@ -51,6 +56,10 @@ def tune_trials(tmp_path_factory) -> dict[tuple[str, int], dict]:
         trials[trial.config.variant, trial.config.ray.num_workers] = outputs(trial.path, trial.config)
     assert sorted(trials) == sorted((v, w) for v in VARIANTS for w in WORKERS)
     return trials
+
+
+def pipelined(variant: str, workers: int) -> bool:
+    return variant == "dsage" and workers == 2
 
 
 def outputs(run_dir, config: RunConfig) -> dict:
@@ -62,12 +71,13 @@ def outputs(run_dir, config: RunConfig) -> dict:
         # Per-phase times (time_*) and the cumulative wall and CPU time differ from run to run.
         "metrics": [{k: v for k, v in m.items() if not k.startswith("time_") and k not in ("wall_time", "cpu_time")}
                     for m in history],
+        "history": history,
     }
 
 
-@pytest.mark.parametrize("variant", VARIANTS)
-def test_in_process_and_tune_with_one_or_two_actors_write_the_same_archive(variant, tune_trials, tmp_path):
-    config = RunConfig.build({**CONFIG, "variant": variant})
+@pytest.mark.parametrize("variant, pipeline", [(variant, False) for variant in VARIANTS] + [("dsage", True)])
+def test_in_process_and_tune_with_one_or_two_actors_write_the_same_archive(variant, pipeline, tune_trials, tmp_path):
+    config = RunConfig.build({**CONFIG, "variant": variant, "pipeline": pipeline})
     assert config.torch_threads == 1
     caller_threads = torch.get_num_threads()
     torch.set_num_threads(2)  # not the config's count: the runner pins it during each step
@@ -80,21 +90,12 @@ def test_in_process_and_tune_with_one_or_two_actors_write_the_same_archive(varia
     assert len(local["metrics"]) >= 3  # a surrogate variant trains at least twice
     if config.uses_surrogate:
         assert "surrogate_loss" in local["metrics"][-1]
-    for workers in WORKERS:
+    for workers in [w for w in WORKERS if pipelined(variant, w) == pipeline]:
         trial = tune_trials[variant, workers]
         assert trial["config"] == local["config"], workers
         assert trial["metrics"] == local["metrics"], workers
         assert trial["archive.csv"] == local["archive.csv"], workers
+        if pipeline:  # the surrogate worked while each batch after the first was out
+            overlapped = [row.get("time_overlapped", 0.0) for row in trial["history"]]
+            assert overlapped[0] == 0.0 and all(seconds > 0 for seconds in overlapped[1:-1])
 
-
-def test_a_pipelined_run_through_tune_with_two_actors_is_the_in_process_run(tmp_path):
-    """Through the pool the next picks are chosen while the batch is out; in-process one after the other."""
-    config = RunConfig.build({**CONFIG, "variant": "dsage", "pipeline": True, "ray.num_workers": 2})
-    experiment = run_experiment(grid_param_space(config, {}), name="pipelined", storage_path=tmp_path / "tune",
-                                max_failures=0, checkpoint_every=config.checkpoint_every)
-    (trial,) = experiment.trials
-    run_locally(config, out_dir=tmp_path / "local", console=False)
-    local = outputs(tmp_path / "local", config)
-    assert outputs(trial.path, trial.config) == local
-    overlapped = [row.get("time_overlapped", 0.0) for row in json.loads((trial.path / "metrics.json").read_text())]
-    assert overlapped[0] == 0.0 and all(seconds > 0 for seconds in overlapped[1:-1])
