@@ -167,5 +167,9 @@ class AuditableDomain(Domain, Protocol):
         """The domain's own numbers of one collection entry: every key its registration's ``columns`` name."""
 
 
-#: Evaluates a batch of solutions, one seed each, returning results in submission order.
+#: Evaluates a batch of solutions, one seed each, returning results in submission order. An evaluator may
+#: also offer ``evaluate_until(solutions, seeds, *, deadline, progress)`` (stop starting levels once
+#: ``time.perf_counter()`` passes ``deadline``; return the evaluated prefix) and ``runs_elsewhere = True``
+#: (its simulators are other processes, so a pipelined run overlaps them); see
+#: :mod:`dsage_ray.core.evaluation`.
 Evaluator = Callable[[Solutions, Sequence[int]], list[EvaluationResult]]
