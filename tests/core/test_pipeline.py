@@ -64,16 +64,6 @@ def test_each_pick_is_chosen_by_a_surrogate_one_batch_behind(reference):
     assert seen[1] == (1, evals_after[1])  # the first picks wait for the random batch
 
 
-def test_pipelined_and_sequential_loops_differ_only_in_what_the_surrogate_knew(reference):
-    pipelined, _ = reference
-    sequential = make_runner(pipeline=False)
-    sequential.run()
-    assert sequential.evals == pipelined.evals
-    # Both evaluate the same random batch first; the picks differ from the second surrogate on.
-    assert untimed(sequential.history[:1]) == untimed(pipelined.history[:1])
-    assert archive_snapshot(sequential.archive) != archive_snapshot(pipelined.archive)
-
-
 def test_a_resume_continues_from_the_saved_next_picks(reference):
     uninterrupted, _ = reference
     interrupted = make_runner()

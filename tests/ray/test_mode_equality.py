@@ -24,7 +24,7 @@ from tests.fakes import SMALL_RUN
 pytestmark = pytest.mark.usefixtures("ray_session")
 
 #: The shared small run on the real Maze (its archive and blocks, not the bitmap's) with the fast
-#: deterministic agent: 13 outer iterations of DSAGE. A checkpoint and images at the end only, as
+#: deterministic agent: 11 outer iterations of DSAGE. A checkpoint and images at the end only, as
 #: they cost time and change nothing. Small CPU reservations, so that three trials share the 2-CPU
 #: test cluster (their processes mostly wait on each other's start-up).
 CONFIG = {
@@ -32,6 +32,7 @@ CONFIG = {
     "preset": "tiny",
     "maze.agent": "builtin:wall_follower",
     "maze.episodes": 2,
+    "budget": 58,
     "checkpoint_every": 100,
     "image_every": 100,
     "ray.trial_cpus": 0.5,

@@ -90,7 +90,7 @@ def test_killed_actor_is_replaced_and_nothing_is_lost_or_duplicated(pool, batch)
 
 @pytest.mark.parametrize("overrides", [{"variant": "map_elites", "budget": 160},
                                        # the batch is out in a background thread while the surrogate trains
-                                       {"variant": "dsage", "budget": 110, "pipeline": True}],
+                                       {"variant": "dsage", "budget": 90, "pipeline": True}],
                          ids=["map_elites", "dsage_pipelined"])
 def test_killed_actor_during_a_run_leaves_the_archive_unchanged(pool, overrides):
     config = small_config(**overrides)
