@@ -37,13 +37,7 @@ class InProcessEvaluator:
         self.threads = threads
 
     def __call__(self, solutions: Solutions, seeds: Sequence[int]) -> list[EvaluationResult]:
-        if self.threads is None:
-            return self._evaluate(solutions, seeds)
-        with torch_threads(self.threads):
-            return self._evaluate(solutions, seeds)
-
-    def _evaluate(self, solutions: Solutions, seeds: Sequence[int]) -> list[EvaluationResult]:
-        return [evaluate_safely(self.domain, solution, int(seed)) for solution, seed in zip(solutions, seeds)]
+        return self.evaluate_until(solutions, seeds)
 
     def evaluate_until(self, solutions: Solutions, seeds: Sequence[int], *, deadline: float | None = None,
                        progress: "EvaluationProgress | None" = None) -> list[EvaluationResult]:
