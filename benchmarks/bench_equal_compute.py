@@ -215,11 +215,16 @@ def counting_bound(run: dict, baseline_run: dict, clock: str) -> dict[str, float
             "yield": last.get("num_elites", last["qd_score"]) / max(last["evals"], 1)}
 
 
+def is_pipelined(group: list[dict]) -> bool:
+    """Whether these runs chose their next picks while a batch was out (``pipeline = true``)."""
+    return any("time_overlapped" in row for run in group for row in run["history"])
+
+
 def print_counting_bound(variant: str, group: list[dict], baseline: list[dict], clock: str, target: float) -> None:
     """Per seed, :func:`counting_bound`, and the share of evaluations that would have to fill a new cell."""
     rows = [(run["seed"], counting_bound(run, other, clock)) for run, other in same_seed_pairs(group, baseline)]
     # A pipelined run's evaluate column is only its wait for the simulators: no surrogate-free reading.
-    pipelined = any("time_overlapped" in row for run in group for row in run["history"])
+    pipelined = is_pipelined(group)
     for seed, bound in rows:
         print(f"  seed {seed}: now {bound['ratio']:.2f}x with {bound['yield']:.0%} of its evaluations filling a new "
               f"cell; every one filling one: {bound['perfect']:.2f}x"
@@ -335,7 +340,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{surrogate:.1%} | {eval_cost[variant]:.3f} |")
 
     pipelined = [v for v in surrogate_variants
-                 if any("time_overlapped" in row for run in by_variant[v] for row in run["history"])]
+                 if is_pipelined(by_variant[v])]
     if pipelined:
         print(f"  pipelined ({', '.join(pipelined)}): the surrogate's phases ran while the simulators evaluated, so "
               "they overlap its evaluate column, which is only the time the driver waited for the simulators")
