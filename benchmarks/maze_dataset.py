@@ -330,7 +330,6 @@ class Evaluator:
             from dsage_ray.ray.pool import SimulatorPool
 
             self.evaluator = SimulatorPool(config=config, num_workers=workers, cpus_per_worker=1.0)
-            self.step = max(workers * 8, 16)
         else:
             from dsage_ray.core.evaluation import InProcessEvaluator
             from dsage_ray.domains import build_domain
@@ -338,7 +337,6 @@ class Evaluator:
             # The run's torch threads (one): torch's default of one per core slows an agent's small batches
             # several-fold when other processes share the cores.
             self.evaluator = InProcessEvaluator(domain=build_domain(config), threads=config.torch_threads)
-            self.step = 1
 
     def __enter__(self) -> "Evaluator":
         return self
@@ -353,11 +351,9 @@ class Evaluator:
         from dsage_ray.core.evaluation import evaluate_with_retry
 
         seeds = [seed + i for i in range(len(solutions))]
-        results = []
-        for start in range(0, len(solutions), self.step):
-            chunk, chunk_seeds = solutions[start:start + self.step], seeds[start:start + self.step]
-            results += evaluate_with_retry(self.evaluator, chunk, chunk_seeds)
-            bar.update(len(chunk))
+        first = bar.n
+        results = evaluate_with_retry(self.evaluator, solutions, seeds,
+                                      progress=lambda done: bar.update(first + done - bar.n))
         failed = np.array([r.failed for r in results], dtype=bool)
         height, width = self.config.maze.height, self.config.maze.width
         measures = np.array([np.full(len(self.config.maze.measures), np.nan) if r.failed else r.measures

@@ -31,7 +31,6 @@ fills in what its older collections lack)::
 from __future__ import annotations
 
 import json
-import math
 import re
 import time
 from pathlib import Path
@@ -49,8 +48,6 @@ from dsage_ray.types import EvaluationResult, Evaluator, Solutions
 
 _SEED_TAG = 0xC011EC7  # keeps collection seeds apart from the runner's evaluation seeds
 SEED_RULE = "seed = SeedSequence([run_seed, 0xC011EC7, rank in the search's worst-first order])"
-#: Progress-bar updates a re-evaluation aims for (more chunks: a livelier bar, more batch barriers).
-PROGRESS_STEPS = 50
 
 
 def agent_slug(spec: str) -> str:
@@ -144,17 +141,16 @@ def level_seed(run_seed: int, rank: int) -> int:
     return int(np.random.SeedSequence([int(run_seed), _SEED_TAG, int(rank)]).generate_state(1)[0])
 
 
-def reevaluate(evaluator: Evaluator, solutions: Solutions, seeds: Sequence[int], *, desc: str,
-               workers: int = 1) -> list[EvaluationResult]:
-    """Evaluates ``solutions`` with their seeds in chunks, with a progress bar; failures retried once.
+def reevaluate(evaluator: Evaluator, solutions: Solutions, seeds: Sequence[int], *, desc: str
+               ) -> list[EvaluationResult]:
+    """Evaluates ``solutions`` with their seeds, with a progress bar; failures retried once.
 
     Args:
         evaluator: In-process or the Ray simulator pool (which replaces an actor that dies and re-runs its
             work, so a dying simulator loses no level).
         solutions: The levels.
         seeds: One seed per level.
-        desc: The bar's label.
-        workers: Simulators behind ``evaluator``: a chunk keeps each of them busy.
+        desc: The bar's label (it moves per level in-process, per chunk on the pool).
 
     Returns:
         One result per solution, in order (failed twice: ``failed`` with the error).
@@ -163,15 +159,8 @@ def reevaluate(evaluator: Evaluator, solutions: Solutions, seeds: Sequence[int],
 
     from dsage_ray.core.evaluation import evaluate_with_retry
 
-    n = len(solutions)
-    chunk = max(8, 2 * workers, math.ceil(n / PROGRESS_STEPS))
-    results: list[EvaluationResult] = []
-    with tqdm(total=n, desc=desc, unit="level", dynamic_ncols=True) as bar:
-        for start in range(0, n, chunk):
-            stop = min(start + chunk, n)
-            results += evaluate_with_retry(evaluator, solutions[start:stop], list(seeds[start:stop]))
-            bar.update(stop - start)
-    return results
+    with tqdm(total=len(solutions), desc=desc, unit="level", dynamic_ncols=True) as bar:
+        return evaluate_with_retry(evaluator, solutions, list(seeds), progress=lambda done: bar.update(done - bar.n))
 
 
 def build_collection(
@@ -180,7 +169,6 @@ def build_collection(
     config: RunConfig,
     out_dir: str | Path,
     evaluator: Evaluator | None = None,
-    workers: int = 1,
     max_levels: int | None = None,
     search_dir: str | Path | None = None,
 ) -> Path:
@@ -200,7 +188,6 @@ def build_collection(
             the level files by absolute path, so they run from any directory (and not after a move).
         evaluator: Evaluates ``(solutions, seeds)`` with a domain built from ``config``; default in-process
             (the Ray simulator pool fits here too).
-        workers: Simulators behind ``evaluator`` (sizes the progress chunks).
         max_levels: Keep only the elites the search rated worst (all by default).
         search_dir: Recorded in the collection for provenance.
 
@@ -222,7 +209,7 @@ def build_collection(
     if max_levels is not None:
         order = order[:max_levels]
     seeds = [level_seed(config.seed, rank) for rank in range(len(order))]
-    results = (reevaluate(evaluator, solutions[order], seeds, desc="re-evaluating the collection", workers=workers)
+    results = (reevaluate(evaluator, solutions[order], seeds, desc="re-evaluating the collection")
                if order else [])
 
     # A level whose evaluation failed twice has no numbers to reproduce; it is counted, not shown.

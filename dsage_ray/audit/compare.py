@@ -163,7 +163,7 @@ def _evaluate(config: RunConfig, domain, solutions: Solutions, seeds: Sequence[i
 
     pool = SimulatorPool(config=config)
     try:
-        return reevaluate(pool, solutions, seeds, desc=desc, workers=workers)
+        return reevaluate(pool, solutions, seeds, desc=desc)
     finally:
         pool.close()
 

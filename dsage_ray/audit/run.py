@@ -179,7 +179,7 @@ def search_and_collect(
     pool = SimulatorPool(config=collection_config)
     try:
         build_collection(search.archive, config=collection_config, out_dir=collection_dir, evaluator=pool,
-                         workers=collection_config.ray.num_workers, max_levels=max_levels, search_dir=search.path)
+                         max_levels=max_levels, search_dir=search.path)
     finally:
         pool.close()
     return Collection.load(collection_dir)

@@ -432,7 +432,7 @@ class AuditSeries:
         connect(self.address)
         pool = SimulatorPool(config=config)
         try:
-            return reevaluate(pool, solutions, seeds, desc=desc, workers=config.ray.num_workers)
+            return reevaluate(pool, solutions, seeds, desc=desc)
         finally:
             pool.close()
 

@@ -59,7 +59,7 @@ def test_a_dying_simulator_loses_no_level(ray_session, search):
     pool = SimulatorPool(config=config, chunk_size=1,
                          domain_factory=functools.partial(dying_domain, marker=str(folder / "died")))
     try:
-        on_pool = build_collection(archive, config=config, out_dir=folder / "on_pool", evaluator=pool, workers=2)
+        on_pool = build_collection(archive, config=config, out_dir=folder / "on_pool", evaluator=pool)
     finally:
         pool.close()
     assert (folder / "died").exists() and pool.stats.actor_deaths >= 1, "no simulator died: the test proves nothing"
