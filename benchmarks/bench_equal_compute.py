@@ -135,8 +135,8 @@ def same_seed_pairs(group: list[dict], baseline: list[dict]) -> list[tuple[dict,
     return [(run, baseline_by_seed[run["seed"]]) for run in group if run["seed"] in baseline_by_seed]
 
 
-def paired_at_own_end(group: list[dict], baseline: list[dict], clock: str, *,
-                      evaluation_only: bool = False) -> list[tuple[int, float, float, bool]]:
+def paired_at_own_end(group: list[dict], baseline: list[dict], clock: str, *, evaluation_only: bool = False,
+                      at_evals: float | None = None) -> list[tuple[int, float, float, bool]]:
     """Each run's final QD-score against the same seed's baseline run at the same second.
 
     A surrogate run's QD-score moves only when an outer iteration ends, and its few outer iterations are
@@ -144,16 +144,49 @@ def paired_at_own_end(group: list[dict], baseline: list[dict], clock: str, *,
     its next step. Reading each run where its own last iteration ended and the baseline (whose steps are one
     batch apart) at that second compares two exact step values.
 
+    Args:
+        at_evals: Read each run instead where the outer iteration that reached this many evaluations ended
+            (the run as if its budget had stopped it there); runs that never reached it are left out.
+
     Returns:
         ``(seed, own QD-score, baseline QD-score then, baseline ran that long)`` for every seed both have.
     """
     pairs = []
     for run, other in same_seed_pairs(group, baseline):
-        end = run_end(run, clock, evaluation_only=evaluation_only)
-        pairs.append((run["seed"], float(run["history"][-1]["qd_score"]),
+        history = run["history"]
+        last = len(history) - 1 if at_evals is None else next(
+            (i for i, row in enumerate(history) if row["evals"] >= at_evals), None)
+        if last is None:
+            continue
+        ends = evaluation_ends(history, clock) if evaluation_only else [row[f"{clock}_time"] for row in history]
+        end = float(ends[last])
+        pairs.append((run["seed"], float(history[last]["qd_score"]),
                       qd_at_time(other["history"], end, clock, evaluation_only=evaluation_only),
                       run_end(other, clock, evaluation_only=evaluation_only) >= end))
     return pairs
+
+
+def print_by_length(variant: str, baseline: str, group: list[dict], baseline_runs: list[dict], clock: str,
+                    lengths: list[float]) -> None:
+    """The equal-evaluation and the paired equal-time ratios of runs stopped at each budget in ``lengths``."""
+    print(f"\n{variant} / {baseline} by run length: each {variant} run read where its outer iteration that reached "
+          f"the budget ended, the same seed's {baseline} run at the same evaluations and at the same {clock} second")
+    print(f"| budget (evaluations) | seeds | {variant} QD-score | at equal evaluations | at equal {clock} time |")
+    print("|---|---|---|---|---|")
+    for length in lengths:
+        pairs = paired_at_own_end(group, baseline_runs, clock, at_evals=length)
+        if not pairs:
+            print(f"| {length:,.0f} | 0 | no {variant} run reached it | | |")
+            continue
+        by_seed = {run["seed"]: run for run in group}
+        base_by_seed = {run["seed"]: run for run in baseline_runs}
+        per_eval = [qd_at_evals(by_seed[seed]["history"], length)[0]
+                    / max(qd_at_evals(base_by_seed[seed]["history"], length)[0], 1e-9) for seed, *_ in pairs]
+        at_time = [own / max(base, 1e-9) for _, own, base, _ in pairs]
+        short = sum(not long_enough for *_, long_enough in pairs)
+        note = f" ({short} {baseline} run(s) stopped before that second)" if short else ""
+        print(f"| {length:,.0f} | {len(pairs)} | {mean_pm([own for _, own, _, _ in pairs])} | "
+              f"{mean_pm(per_eval, '.2f')}x | {mean_pm(at_time, '.2f')}x{note} |")
 
 
 def time_to_reach(history: list[dict], qd_score: float, clock: str) -> float | None:
@@ -277,6 +310,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--clock", choices=["wall", "cpu"], default="wall")
     parser.add_argument("--target", type=float, default=1.4, help="equal-time ratio the counting bound is read "
                                                                   "against (issue 17's 1.4)")
+    parser.add_argument("--lengths", type=lambda text: [float(v) for v in text.split(",")], default=[],
+                        help="comma-separated budgets (evaluations): the ratios of each run stopped there, to see "
+                             "how the equal-time comparison moves with the run's length")
     parser.add_argument("--label", choices=["variant", "name"], default="variant",
                         help="group runs by their config's variant, or by its name (settings of one variant)")
     args = parser.parse_args(argv)
@@ -318,6 +354,9 @@ def main(argv: list[str] | None = None) -> int:
             print_pairs(variant, args.baseline, paired_at_own_end(by_variant[variant], by_variant[args.baseline],
                                                                   args.clock), f"{args.clock} time")
             print_time_to_reach(variant, by_variant[variant], by_variant[args.baseline], args.clock)
+            if args.lengths:
+                print_by_length(variant, args.baseline, by_variant[variant], by_variant[args.baseline], args.clock,
+                                args.lengths)
 
     surrogate_variants = [v for v, g in by_variant.items()
                           if any("time_exploit" in row for run in g for row in run["history"])]

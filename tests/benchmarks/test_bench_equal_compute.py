@@ -51,6 +51,23 @@ def test_a_baseline_that_stopped_early_is_flagged_and_seeds_without_a_partner_ar
     assert bench.paired_at_own_end([run(2, [(1, 1.0, 1.0, 1.0)], "dsage")], [BASELINE], "cpu") == []
 
 
+def test_a_budget_reads_the_run_where_the_iteration_that_reached_it_ended():
+    # 250 evaluations were reached by the second iteration (400), which ended at 500 s: 8 baseline batches.
+    assert bench.paired_at_own_end([SURROGATE], [BASELINE], "cpu", at_evals=250) == [(1, 300.0, 320.0, True)]
+    # 100 exactly: the first iteration, ended at 100 s, when the baseline had one batch.
+    assert bench.paired_at_own_end([SURROGATE], [BASELINE], "cpu", at_evals=100) == [(1, 50.0, 40.0, True)]
+    assert bench.paired_at_own_end([SURROGATE], [BASELINE], "cpu", at_evals=401) == []
+
+
+def test_the_length_table_has_a_row_per_budget(capsys):
+    bench.print_by_length("dsage", "map_elites", [SURROGATE], [BASELINE], "cpu", [100, 400, 401])
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| ") and "---" not in line]
+    # 100 evaluations: 50 against the baseline's 100/150 · 40 per evaluation, and 50 against 40 at 100 s.
+    assert rows[1] == "| 100 | 1 | 50.0 | 1.88x | 1.25x |"
+    assert rows[2] == "| 400 | 1 | 300.0 | 2.81x | 0.94x |"
+    assert rows[3] == "| 401 | 0 | no dsage run reached it | | |"
+
+
 def test_main_prints_the_paired_ratio(tmp_path, capsys):
     for loaded in (SURROGATE, BASELINE):
         folder = tmp_path / loaded["variant"]
