@@ -187,8 +187,10 @@ class SimulatorPool:
             raise PoolResourceError(
                 f"only {len(ready)} of {self.num_workers} simulator actors "
                 f"({self.cpus_per_worker:g} CPU each) started within {self.placement_timeout_s:g}s "
-                f"in {where}; lower ray.num_workers or ray.cpus_per_worker, add nodes, or raise "
-                f"ray.placement_timeout_s")
+                f"in {where}. Either they do not fit (lower ray.num_workers or ray.cpus_per_worker, or add "
+                f"nodes), or they are still starting: Ray runs its workers at a low priority (niceness 15, "
+                f"RAY_worker_niceness), so on a machine busy with other processes, importing torch and building "
+                f"the domain can take minutes (raise ray.placement_timeout_s)")
         try:
             return ray.get(probes)
         except RayActorError as exc:
