@@ -173,20 +173,23 @@ def print_by_length(variant: str, baseline: str, group: list[dict], baseline_run
           f"the budget ended, the same seed's {baseline} run at the same evaluations and at the same {clock} second")
     print(f"| budget (evaluations) | seeds | {variant} QD-score | at equal evaluations | at equal {clock} time |")
     print("|---|---|---|---|---|")
+    histories = {run["seed"]: run["history"] for run in group}
+    base_histories = {run["seed"]: run["history"] for run in baseline_runs}
     for length in lengths:
         pairs = paired_at_own_end(group, baseline_runs, clock, at_evals=length)
         if not pairs:
             print(f"| {length:,.0f} | 0 | no {variant} run reached it | | |")
             continue
-        by_seed = {run["seed"]: run for run in group}
-        base_by_seed = {run["seed"]: run for run in baseline_runs}
-        per_eval = [qd_at_evals(by_seed[seed]["history"], length)[0]
-                    / max(qd_at_evals(base_by_seed[seed]["history"], length)[0], 1e-9) for seed, *_ in pairs]
+        base_at_length = [qd_at_evals(base_histories[seed], length) for seed, *_ in pairs]
+        per_eval = [qd_at_evals(histories[seed], length)[0] / max(base, 1e-9)
+                    for (seed, *_), (base, _) in zip(pairs, base_at_length)]
         at_time = [own / max(base, 1e-9) for _, own, base, _ in pairs]
+        fewer = sum(not reached for _, reached in base_at_length)
         short = sum(not long_enough for *_, long_enough in pairs)
-        note = f" ({short} {baseline} run(s) stopped before that second)" if short else ""
+        evals_note = f" ({fewer} {baseline} run(s) made fewer evaluations)" if fewer else ""
+        time_note = f" ({short} {baseline} run(s) stopped before that second)" if short else ""
         print(f"| {length:,.0f} | {len(pairs)} | {mean_pm([own for _, own, _, _ in pairs])} | "
-              f"{mean_pm(per_eval, '.2f')}x | {mean_pm(at_time, '.2f')}x{note} |")
+              f"{mean_pm(per_eval, '.2f')}x{evals_note} | {mean_pm(at_time, '.2f')}x{time_note} |")
 
 
 def time_to_reach(history: list[dict], qd_score: float, clock: str) -> float | None:

@@ -68,6 +68,13 @@ def test_the_length_table_has_a_row_per_budget(capsys):
     assert rows[3] == "| 401 | 0 | no dsage run reached it | | |"
 
 
+def test_the_length_table_flags_a_baseline_that_made_fewer_evaluations_or_stopped_sooner(capsys):
+    short = run(1, [(150, 40.0, 60.0, 60.0)], "map_elites")
+    bench.print_by_length("dsage", "map_elites", [SURROGATE], [short], "cpu", [400])
+    row = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| 400")][0]
+    assert "(1 map_elites run(s) made fewer evaluations)" in row and "(1 map_elites run(s) stopped before" in row
+
+
 def test_main_prints_the_paired_ratio(tmp_path, capsys):
     for loaded in (SURROGATE, BASELINE):
         folder = tmp_path / loaded["variant"]
