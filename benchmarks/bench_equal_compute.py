@@ -381,8 +381,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"| {variant} | " + " | ".join(f"{s:.1%}" for s in shares) + f" | {1 - sum(shares):.1%} | "
               f"{surrogate:.1%} | {eval_cost[variant]:.3f} |")
 
-    pipelined = [v for v in surrogate_variants
-                 if is_pipelined(by_variant[v])]
+    pipelined = [v for v in surrogate_variants if is_pipelined(by_variant[v])]
     if pipelined:
         print(f"  pipelined ({', '.join(pipelined)}): the surrogate's phases ran while the simulators evaluated, so "
               "they overlap its evaluate column, which is only the time the driver waited for the simulators")

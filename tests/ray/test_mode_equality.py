@@ -64,7 +64,8 @@ def pipelined(variant: str, workers: int) -> bool:
 
 
 def outputs(run_dir, config: RunConfig) -> dict:
-    """What must match across modes: the config (Ray keys aside), the archive and the metrics (timings aside)."""
+    """What must match across modes: the config (Ray keys aside), the archive and the metrics (timings aside);
+    and the raw ``history``, timings included, which is read but not compared."""
     history = json.loads((run_dir / "metrics.json").read_text())
     return {
         "config": {k: v for k, v in config.to_flat().items() if not k.startswith("ray.")},
