@@ -145,6 +145,16 @@ class SelectionConfig:
     #: Drop picks predicted to land in a ground-truth cell that already holds an objective at least
     #: as high (the ``dsage_novel`` variant; see :func:`dsage_ray.qd.selection.skip_filled`).
     skip_filled: bool = False
+    #: In each downsampling block, pick the elite expected to add most QD-score, judged by the
+    #: surrogate's errors on recent picks, instead of a uniform one (the ``dsage_gain`` variant; see
+    #: :mod:`dsage_ray.qd.gain`). Until a pick has been evaluated, blocks are sampled uniformly.
+    expected_gain: bool = False
+    #: ``expected_gain``: drop a block's pick expected to add less QD-score than this.
+    min_gain: float = 0.0
+    #: ``expected_gain``: how many of the latest evaluated picks' errors are kept.
+    gain_window: int = 1000
+    #: ``expected_gain``: how many of them, nearest in predicted measures, lend a candidate their errors.
+    gain_neighbours: int = 64
 
 
 @dataclasses.dataclass
@@ -365,6 +375,13 @@ class RunConfig:
              "pipelines the surrogate's phases with the evaluations; this variant has no surrogate")
         need(self.uses_surrogate or not self.selection.skip_filled, "selection.skip_filled",
              "needs a surrogate (surrogate.kind = 'none' selects nothing)")
+        need(self.uses_surrogate or not self.selection.expected_gain, "selection.expected_gain",
+             "needs a surrogate (surrogate.kind = 'none' selects nothing)")
+        need(self.selection.method == "downsample" or not self.selection.expected_gain, "selection.expected_gain",
+             f"chooses within downsampling blocks; selection.method is {self.selection.method!r}")
+        need(self.selection.min_gain >= 0, "selection.min_gain", "must be >= 0 (0: keep every block's pick)")
+        need(self.selection.gain_window >= 1, "selection.gain_window", "must be positive")
+        need(self.selection.gain_neighbours >= 1, "selection.gain_neighbours", "must be positive")
         need(self.ray.num_workers >= 0, "ray.num_workers", "must be >= 0")
         need(self.ray.cpus_per_worker > 0, "ray.cpus_per_worker", "must be positive")
         need(self.ray.trial_cpus > 0, "ray.trial_cpus", "must be positive")
@@ -404,6 +421,10 @@ COMMON_VARIANTS: dict[str, dict[str, Any]] = {
     # Not in the paper: DSAGE that spends no evaluation on a pick the ground-truth archive already
     # beats (predicted cell occupied with an objective >= the predicted one).
     "dsage_novel": {"surrogate.kind": "two_stage", "selection.method": "downsample", "selection.skip_filled": True},
+    # Not in the paper: DSAGE that picks, per block, the elite expected to add most QD-score given the
+    # surrogate's errors on recent picks, and skips blocks expected to add little.
+    "dsage_gain": {"surrogate.kind": "two_stage", "selection.method": "downsample", "selection.expected_gain": True,
+                   "selection.min_gain": 0.2},
     # Domain randomisation: the random emitter draws every level from the domain's own generator.
     "dr": {"surrogate.kind": "none", "qd.emitter": "random", "qd.num_emitters": 5, "qd.batch_size": 30},
 }

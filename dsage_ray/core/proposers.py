@@ -24,6 +24,7 @@ from dsage_ray.config import RunConfig
 from dsage_ray.core.holdout import HeldOutLevels, head_label
 from dsage_ray.qd.archives import make_archive
 from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
+from dsage_ray.qd.gain import PickErrors, best_per_block, expected_gains
 from dsage_ray.qd.selection import gather_elites, select_solutions, skip_filled
 from dsage_ray.surrogate.models import encode_solutions
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
@@ -205,6 +206,8 @@ class SurrogateAssisted:
         self.last_predictions: tuple[np.ndarray, np.ndarray] | None = None
         #: Samples of the dataset that came from ``surrogate.init`` (the oldest ones), not from this run.
         self.prior_samples = 0
+        #: The surrogate's errors on recent picks (``selection.expected_gain`` reads them).
+        self.pick_errors = PickErrors(window=config.selection.gain_window)
 
     def propose(self, *, outer_iteration: int) -> Proposal:
         proposal = Proposal(np.empty(0))
@@ -253,6 +256,9 @@ class SurrogateAssisted:
                 errors = self.surrogate.mae(encoded, batch.results, prediction=batch.predicted)
                 metrics.update({f"mae_{self._label(k)}": v for k, v in errors.items()})
                 self.last_predictions = (batch.predicted.measures[batch.ok], batch.measures)
+                self.pick_errors.add(predicted_objective=batch.predicted.objective[batch.ok],
+                                     predicted_measures=batch.predicted.measures[batch.ok],
+                                     objective=batch.objective, measures=batch.measures)
         return metrics
 
     # ---------------------------------------------------------------------------------- phases
@@ -301,8 +307,19 @@ class SurrogateAssisted:
     def _select(self, surrogate_archive: "GridArchive", metrics: dict[str, float]) -> Solutions:
         """Selection: downsample / random / full picks from the surrogate archive."""
         selection = self.config.selection
-        picks = select_solutions(surrogate_archive, method=selection.method, block=selection.block,
-                                 count=selection.count, rng=self.seeds.rng)
+        if selection.expected_gain and len(self.pick_errors):
+            candidates = surrogate_archive.data(["objective", "measures"])
+            gains = expected_gains(candidates["objective"], candidates["measures"], ground_truth_archive=self.archive,
+                                   errors=self.pick_errors, neighbours=selection.gain_neighbours)
+            chosen = best_per_block(surrogate_archive, gains, block=selection.block, min_gain=selection.min_gain,
+                                    rng=self.seeds.rng)
+            picks = chosen.indices
+            metrics["selection_expected_gain"] = float(chosen.gains.sum())
+            metrics["selection_dropped"] = float(chosen.dropped)
+            metrics["selection_fallback"] = float(chosen.fallback)
+        else:
+            picks = select_solutions(surrogate_archive, method=selection.method, block=selection.block,
+                                     count=selection.count, rng=self.seeds.rng)
         if selection.skip_filled:
             skipped = skip_filled(surrogate_archive, picks, self.archive)
             picks = skipped.kept
@@ -317,12 +334,15 @@ class SurrogateAssisted:
 
     def state_dict(self) -> dict[str, Any]:
         return {"scheduler": None, "surrogate": self.surrogate.state_dict(), "dataset": self.dataset.state_dict(),
-                "prior_samples": self.prior_samples, **self.holdout.state_dict()}
+                "prior_samples": self.prior_samples, "pick_errors": self.pick_errors.state_dict(),
+                **self.holdout.state_dict()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.archive = state["archive"]
         self.surrogate.load_state_dict(state["surrogate"])
         self.dataset.load_state_dict(state["dataset"])
         self.prior_samples = state.get("prior_samples", 0)
+        if state.get("pick_errors") is not None:  # checkpoints written before expected_gain have none
+            self.pick_errors = PickErrors.from_state_dict(state["pick_errors"])
         self.holdout.load_state_dict(state)
         self.last_predictions = state["last_predictions"]

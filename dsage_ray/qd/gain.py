@@ -1,0 +1,209 @@
+"""Which surrogate elites are worth a real evaluation, by the QD-score they are expected to add (the
+``dsage_gain`` variant; not in the paper).
+
+The paper's downsampling evaluates one uniformly chosen surrogate elite per block of cells. Where the
+surrogate's measure errors span many cells (the Maze path length is off by about 126 steps, some 30
+cells), a pick's predicted cell says little about where it lands, and late in a run most picks land
+in cells the ground-truth archive already holds.
+
+The surrogate's errors on the picks it recently selected do say how far off it tends to be, and
+where. :func:`expected_gains` treats them as the distribution of a candidate's true outcome: the
+candidate's prediction plus the error of each of the ``neighbours`` recent picks whose *predicted*
+measures were closest to its own (so an error that depends on the prediction, e.g. short paths being
+predicted well, carries over). Each such sample lands in a ground-truth cell and adds what
+:class:`~ribs.archives.GridArchive` would add to the QD-score there. The mean over the samples is the
+candidate's expected gain; :func:`best_per_block` then keeps the most promising elite of each block
+and drops those below ``min_gain``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Sequence
+
+import numpy as np
+from ribs.archives import GridArchive
+
+from dsage_ray.qd.selection import block_ids
+
+
+@dataclasses.dataclass
+class PickErrors:
+    """What the surrogate predicted for its most recent evaluated picks, and what they scored.
+
+    Attributes:
+        window: How many of the latest picks are kept.
+        predicted: ``(n, 1 + M)``: predicted objective, then the M predicted measures.
+        actual: ``(n, 1 + M)``: the real objective and measures, same order.
+    """
+
+    window: int
+    predicted: np.ndarray = dataclasses.field(default_factory=lambda: np.empty((0, 0)))
+    actual: np.ndarray = dataclasses.field(default_factory=lambda: np.empty((0, 0)))
+
+    def __post_init__(self) -> None:
+        if self.window < 1:
+            raise ValueError(f"window must be positive (got {self.window})")
+
+    def __len__(self) -> int:
+        return len(self.predicted)
+
+    def add(self, *, predicted_objective: np.ndarray, predicted_measures: np.ndarray, objective: np.ndarray,
+            measures: np.ndarray) -> None:
+        """Appends evaluated picks (row i of each array is pick i), then keeps the latest :attr:`window`.
+
+        Raises:
+            ValueError: The arrays do not describe the same picks, or the number of measures changed.
+        """
+        predicted = np.column_stack([np.asarray(predicted_objective, np.float64).reshape(-1),
+                                     np.asarray(predicted_measures, np.float64).reshape(len(predicted_measures), -1)])
+        actual = np.column_stack([np.asarray(objective, np.float64).reshape(-1),
+                                  np.asarray(measures, np.float64).reshape(len(measures), -1)])
+        if predicted.shape != actual.shape:
+            raise ValueError(f"predictions {predicted.shape} and results {actual.shape} differ in shape")
+        if len(self) and predicted.shape[1] != self.predicted.shape[1]:
+            raise ValueError(f"picks have {predicted.shape[1] - 1} measures, earlier ones {self.predicted.shape[1] - 1}")
+        if len(predicted) == 0:
+            return
+        if len(self):
+            predicted, actual = np.concatenate([self.predicted, predicted]), np.concatenate([self.actual, actual])
+        self.predicted, self.actual = predicted[-self.window:], actual[-self.window:]
+
+    def state_dict(self) -> dict[str, Any]:
+        """Plain arrays, for a checkpoint."""
+        return {"window": self.window, "predicted": self.predicted.copy(), "actual": self.actual.copy()}
+
+    @classmethod
+    def from_state_dict(cls, state: dict[str, Any]) -> "PickErrors":
+        return cls(window=int(state["window"]), predicted=np.asarray(state["predicted"], np.float64),
+                   actual=np.asarray(state["actual"], np.float64))
+
+
+def expected_gains(
+    objective: np.ndarray,
+    measures: np.ndarray,
+    *,
+    ground_truth_archive: GridArchive,
+    errors: PickErrors,
+    neighbours: int,
+    chunk: int = 1024,
+) -> np.ndarray:
+    """The QD-score each candidate is expected to add to ``ground_truth_archive`` (see the module doc).
+
+    A sample that lands in an empty cell adds its objective minus the archive's QD-score offset; one
+    that lands in an occupied cell adds how much it beats the elite there, if it does. Samples outside
+    the measure ranges land in the edge cells, as the archive would put them.
+
+    Args:
+        objective: ``(n,)`` predicted objectives of the candidates.
+        measures: ``(n, M)`` predicted measures.
+        ground_truth_archive: The archive real evaluations enter.
+        errors: Recent picks' predictions and results (must hold at least one).
+        neighbours: How many recent picks, nearest in predicted measures (scaled by the archive's
+            ranges), lend their errors to a candidate; all of them if fewer are held.
+        chunk: Candidates scored at a time (bounds memory at ``chunk × len(errors)`` distances).
+
+    Returns:
+        ``(n,)`` expected gains.
+
+    Raises:
+        ValueError: ``errors`` is empty, ``neighbours < 1``, or the shapes do not match the archive.
+    """
+    objective = np.asarray(objective, np.float64).reshape(-1)
+    measures = np.asarray(measures, np.float64).reshape(len(objective), -1)
+    dim = ground_truth_archive.measure_dim
+    if measures.shape[1] != dim or (len(errors) and errors.predicted.shape[1] != 1 + dim):
+        raise ValueError(f"the archive has {dim} measures; candidates have {measures.shape[1]}, "
+                         f"recent picks {errors.predicted.shape[1] - 1 if len(errors) else '-'}")
+    if len(errors) == 0:
+        raise ValueError("expected_gains needs the errors of at least one evaluated pick")
+    if neighbours < 1:
+        raise ValueError(f"neighbours must be positive (got {neighbours})")
+    scale = np.asarray(ground_truth_archive.upper_bounds, np.float64) - np.asarray(ground_truth_archive.lower_bounds,
+                                                                                   np.float64)
+    known = errors.predicted[:, 1:] / scale
+    residuals = errors.actual - errors.predicted
+    k = min(neighbours, len(errors))
+    cell_objective = _cell_objectives(ground_truth_archive)
+    gains = np.empty(len(objective))
+    for start in range(0, len(objective), chunk):
+        part = slice(start, start + chunk)
+        distance = (((measures[part] / scale)[:, None, :] - known[None, :, :]) ** 2).sum(axis=2)
+        nearest = np.argpartition(distance, k - 1, axis=1)[:, :k] if k < len(errors) else \
+            np.broadcast_to(np.arange(len(errors)), distance.shape)
+        sampled = residuals[nearest]  # (chunk, k, 1 + M)
+        sample_objective = objective[part, None] + sampled[:, :, 0]
+        sample_measures = measures[part, None, :] + sampled[:, :, 1:]
+        cells = ground_truth_archive.index_of(sample_measures.reshape(-1, dim)).reshape(sample_objective.shape)
+        incumbent = cell_objective[cells]
+        empty = np.isnan(incumbent)
+        added = np.where(empty, sample_objective - ground_truth_archive.qd_score_offset,
+                         np.maximum(sample_objective - np.where(empty, 0.0, incumbent), 0.0))
+        gains[part] = added.mean(axis=1)
+    return gains
+
+
+def _cell_objectives(archive: GridArchive) -> np.ndarray:
+    """The objective of every cell's elite, NaN where a cell is empty."""
+    cells = np.full(archive.cells, np.nan)
+    data = archive.data(["index", "objective"])
+    cells[np.asarray(data["index"], np.int64)] = data["objective"]
+    return cells
+
+
+@dataclasses.dataclass
+class GainPicks:
+    """What :func:`best_per_block` chose.
+
+    Attributes:
+        indices: Sorted archive indices to evaluate.
+        gains: Their expected gains, same order.
+        dropped: Blocks whose best elite was expected to add less than ``min_gain``.
+        fallback: Every block's best was below ``min_gain``, so all of them were kept.
+    """
+
+    indices: np.ndarray
+    gains: np.ndarray
+    dropped: int
+    fallback: bool
+
+
+def best_per_block(
+    archive: GridArchive,
+    gains: np.ndarray,
+    *,
+    block: Sequence[int],
+    min_gain: float,
+    rng: np.random.Generator,
+) -> GainPicks:
+    """The elite of highest expected gain in each occupied downsampling block, keeping those ``>= min_gain``.
+
+    Ties within a block are broken uniformly at random. When no block's best reaches ``min_gain``,
+    every block's best is kept: a run that evaluated nothing would learn nothing that could change
+    the surrogate's mind.
+
+    Args:
+        archive: The surrogate archive.
+        gains: Expected gain of each elite, in the order of ``archive.data("index")``.
+        block: Cells per block along each measure, as for ``downsample``.
+        min_gain: Smallest expected gain worth an evaluation.
+        rng: Breaks ties.
+
+    Raises:
+        ValueError: ``gains`` is not one value per elite, or ``block`` is invalid.
+    """
+    indices = np.asarray(archive.data("index"), dtype=np.int64)
+    gains = np.asarray(gains, np.float64)
+    if gains.shape != indices.shape:
+        raise ValueError(f"gains must hold one value per elite ({len(indices)}), got shape {gains.shape}")
+    if len(indices) == 0:
+        return GainPicks(indices=indices, gains=gains, dropped=0, fallback=False)
+    blocks = block_ids(archive, indices, block)
+    order = np.lexsort((rng.random(len(indices)), -gains, blocks))
+    first_of_block = order[np.r_[True, blocks[order][1:] != blocks[order][:-1]]]
+    keep = gains[first_of_block] >= min_gain
+    fallback = not keep.any()
+    chosen = first_of_block if fallback else first_of_block[keep]
+    chosen = chosen[np.argsort(indices[chosen])]
+    return GainPicks(indices=indices[chosen], gains=gains[chosen], dropped=0 if fallback else int((~keep).sum()),
+                     fallback=fallback)
