@@ -39,6 +39,15 @@ def test_novel_variant_exists_beside_the_paper_comparison(domain):
     assert not any(v.get("selection.skip_filled") for name, v in variants(domain).items() if name != "dsage_novel")
 
 
+@pytest.mark.parametrize("domain", ["maze", "mario"])
+def test_gain_variant_exists_beside_the_paper_comparison(domain):
+    config = RunConfig.build({"domain": domain, "variant": "dsage_gain"})
+    assert config.selection.expected_gain and config.selection.method == "downsample"
+    assert config.surrogate.kind == "two_stage" and not config.selection.skip_filled
+    assert "dsage_gain" not in paper_comparison(domain)
+    assert not any(v.get("selection.expected_gain") for name, v in variants(domain).items() if name != "dsage_gain")
+
+
 def test_held_out_levels_are_on_in_the_maze_cpu_preset_only():
     assert RunConfig.build({"domain": "maze", "preset": "cpu"}).surrogate.holdout_levels == 100
     for domain, preset in (("maze", "paper"), ("maze", "tiny"), ("mario", "tiny")):

@@ -22,7 +22,7 @@ def archive_snapshot(archive) -> tuple:
 
 
 @pytest.mark.parametrize("variant", ["dsage", "dsage_only_anc", "dsage_only_down", "dsage_basic", "dsage_rsample",
-                                     "dsage_novel", "map_elites", "dr"])
+                                     "dsage_novel", "dsage_gain", "map_elites", "dr"])
 def test_every_variant_spends_exactly_the_budget(variant):
     runner = make_runner(variant=variant)
     history = runner.run()
@@ -66,7 +66,7 @@ def test_same_seed_same_run_and_different_seed_differs():
     assert archive_snapshot(a.archive) != archive_snapshot(c.archive)
 
 
-@pytest.mark.parametrize("variant", ["dsage", "map_elites"])
+@pytest.mark.parametrize("variant", ["dsage", "dsage_gain", "map_elites"])
 def test_resumed_run_continues_exactly(variant):
     reference = make_runner(variant=variant)
     reference.run()
@@ -185,3 +185,43 @@ def test_skip_filled_needs_a_surrogate():
 
     with pytest.raises(ConfigError, match="selection.skip_filled"):
         RunConfig.build({**SMALL, "variant": "map_elites", "selection.skip_filled": True})
+
+
+def test_gain_variant_scores_the_picks_by_the_errors_of_the_picks_before(monkeypatch):
+    import dsage_ray.core.proposers as proposers_module
+
+    calls = []
+    original = proposers_module.best_per_block
+
+    def spy(archive, gains, **kwargs):
+        result = original(archive, gains, **kwargs)
+        calls.append(result)
+        return result
+
+    monkeypatch.setattr(proposers_module, "best_per_block", spy)
+    runner = make_runner(variant="dsage_gain", **{"selection.min_gain": 0.3})
+    runner.step()
+    first = runner.step()  # no pick has been evaluated yet: plain downsampling
+    assert not calls and "selection_expected_gain" not in first
+    errors = len(runner.proposer.pick_errors)
+    assert errors == first["evaluated_this_iteration"] - first.get("failed_evals", 0)
+    second = runner.step()
+    (chosen,) = calls
+    assert second["evaluated_this_iteration"] == len(chosen.indices)
+    assert second["selection_dropped"] == chosen.dropped and second["selection_fallback"] == chosen.fallback
+    assert second["selection_expected_gain"] == pytest.approx(chosen.gains.sum())
+    assert chosen.fallback or chosen.gains.min() >= 0.3
+
+
+@pytest.mark.parametrize("overrides, key", [
+    ({"variant": "map_elites", "selection.expected_gain": True}, "selection.expected_gain"),
+    ({"variant": "dsage_gain", "selection.method": "random"}, "selection.expected_gain"),
+    ({"variant": "dsage_gain", "selection.min_gain": -0.1}, "selection.min_gain"),
+    ({"variant": "dsage_gain", "selection.gain_window": 0}, "selection.gain_window"),
+    ({"variant": "dsage_gain", "selection.gain_neighbours": 0}, "selection.gain_neighbours"),
+])
+def test_expected_gain_config_is_checked(overrides, key):
+    from dsage_ray.config import ConfigError
+
+    with pytest.raises(ConfigError, match=key):
+        RunConfig.build({**SMALL, **overrides})
