@@ -155,6 +155,11 @@ class SelectionConfig:
     gain_window: int = 1000
     #: ``expected_gain``: how many of them, nearest in predicted measures, lend a candidate their errors.
     gain_neighbours: int = 64
+    #: ``expected_gain``: a measure an evaluation's cost grows with in proportion; the gain is then
+    #: counted per evaluation of average cost ("": every evaluation costs the same).
+    cost_measure: str = ""
+    #: ``cost_measure``: an evaluation's cost at measure 0, in the measure's units (must be > 0).
+    cost_offset: float = 1.0
 
 
 @dataclasses.dataclass
@@ -367,6 +372,9 @@ class RunConfig:
         need(not self.surrogate.prior_measure or measure_names is None
              or self.surrogate.prior_measure in measure_names, "surrogate.prior_measure",
              f"{self.surrogate.prior_measure!r} is not one of the measures {list(measure_names or [])}")
+        need(not self.selection.cost_measure or measure_names is None
+             or self.selection.cost_measure in measure_names, "selection.cost_measure",
+             f"{self.selection.cost_measure!r} is not one of the measures {list(measure_names or [])}")
         for key in ("num_emitters", "batch_size", "exploit_iterations", "mutation_cells"):
             need(getattr(self.qd, key) >= 1, f"qd.{key}", "must be positive")
         need(self.qd.sigma0 > 0, "qd.sigma0", "must be positive")
@@ -382,6 +390,7 @@ class RunConfig:
         need(self.selection.min_gain >= 0, "selection.min_gain", "must be >= 0 (0: keep every block's pick)")
         need(self.selection.gain_window >= 1, "selection.gain_window", "must be positive")
         need(self.selection.gain_neighbours >= 1, "selection.gain_neighbours", "must be positive")
+        need(self.selection.cost_offset > 0, "selection.cost_offset", "must be positive")
         need(self.ray.num_workers >= 0, "ray.num_workers", "must be >= 0")
         need(self.ray.cpus_per_worker > 0, "ray.cpus_per_worker", "must be positive")
         need(self.ray.trial_cpus > 0, "ray.trial_cpus", "must be positive")

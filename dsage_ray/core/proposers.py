@@ -24,7 +24,7 @@ from dsage_ray.config import RunConfig
 from dsage_ray.core.holdout import HeldOutLevels, head_label
 from dsage_ray.qd.archives import make_archive
 from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
-from dsage_ray.qd.gain import PickErrors, best_per_block, expected_gains
+from dsage_ray.qd.gain import EvaluationCost, PickErrors, best_per_block, expected_outcomes
 from dsage_ray.qd.selection import gather_elites, select_solutions, skip_filled
 from dsage_ray.surrogate.models import encode_solutions
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
@@ -308,13 +308,18 @@ class SurrogateAssisted:
         """Selection: downsample / random / full picks from the surrogate archive."""
         selection = self.config.selection
         if selection.expected_gain and len(self.pick_errors):
-            candidates = surrogate_archive.data(["objective", "measures"])
-            gains = expected_gains(candidates["objective"], candidates["measures"], ground_truth_archive=self.archive,
-                                   errors=self.pick_errors, neighbours=selection.gain_neighbours)
-            chosen = best_per_block(surrogate_archive, gains, block=selection.block, min_gain=selection.min_gain,
-                                    rng=self.seeds.rng)
+            candidates = surrogate_archive.data(["index", "objective", "measures"])
+            cost = None if not selection.cost_measure else EvaluationCost(
+                measure=list(self.domain.measure_names).index(selection.cost_measure), offset=selection.cost_offset)
+            outcomes = expected_outcomes(candidates["objective"], candidates["measures"],
+                                         ground_truth_archive=self.archive, errors=self.pick_errors,
+                                         neighbours=selection.gain_neighbours, cost=cost)
+            chosen = best_per_block(surrogate_archive, outcomes.gain_per_cost, block=selection.block,
+                                    min_gain=selection.min_gain, rng=self.seeds.rng)
             picks = chosen.indices
-            metrics["selection_expected_gain"] = float(chosen.gains.sum())
+            kept = np.isin(candidates["index"], picks)
+            metrics["selection_expected_gain"] = float(outcomes.gain[kept].sum())
+            metrics["selection_relative_cost"] = float(outcomes.cost[kept].mean()) if kept.any() else 0.0
             metrics["selection_dropped"] = float(chosen.dropped)
             metrics["selection_fallback"] = float(chosen.fallback)
         else:

@@ -7,13 +7,18 @@ cells), a pick's predicted cell says little about where it lands, and late in a 
 in cells the ground-truth archive already holds.
 
 The surrogate's errors on the picks it recently selected do say how far off it tends to be, and
-where. :func:`expected_gains` treats them as the distribution of a candidate's true outcome: the
+where. :func:`expected_outcomes` treats them as the distribution of a candidate's true outcome: the
 candidate's prediction plus the error of each of the ``neighbours`` recent picks whose *predicted*
 measures were closest to its own (so an error that depends on the prediction, e.g. short paths being
 predicted well, carries over). Each such sample lands in a ground-truth cell and adds what
 :class:`~ribs.archives.GridArchive` would add to the QD-score there. The mean over the samples is the
-candidate's expected gain; :func:`best_per_block` then keeps the most promising elite of each block
-and drops those below ``min_gain``.
+candidate's expected gain (:func:`expected_outcomes`).
+
+Evaluations do not all cost the same: a Maze evaluation steps the agent about as many times as its
+mean path length, so a level the agent solves in 20 steps costs a tenth of one it fails. With an
+:class:`EvaluationCost`, the same neighbours' real measures say what a candidate's evaluation will
+cost, and the gain is counted per evaluation of average cost. :func:`best_per_block` then keeps the
+most promising elite of each block and drops those below ``min_gain``.
 """
 
 from __future__ import annotations
@@ -79,20 +84,60 @@ class PickErrors:
                    actual=np.asarray(state["actual"], np.float64))
 
 
-def expected_gains(
+@dataclasses.dataclass(frozen=True)
+class EvaluationCost:
+    """What an evaluation costs, as a measure it grows with: ``offset + measure`` (e.g. the Maze's mean
+    path length, since the simulator steps the agent that many times per episode).
+
+    Attributes:
+        measure: Index of the measure among the archive's measures.
+        offset: The cost of an evaluation whose measure is 0, in the measure's units (resetting and
+            building the level); must be positive.
+    """
+
+    measure: int
+    offset: float
+
+    def __post_init__(self) -> None:
+        if self.offset <= 0:
+            raise ValueError(f"cost offset must be positive (got {self.offset})")
+
+
+@dataclasses.dataclass(frozen=True)
+class Outcomes:
+    """What :func:`expected_outcomes` expects of each candidate.
+
+    Attributes:
+        gain: The QD-score it is expected to add.
+        cost: What its evaluation is expected to cost, relative to the mean of the recent picks
+            (all ones without an :class:`EvaluationCost`).
+    """
+
+    gain: np.ndarray
+    cost: np.ndarray
+
+    @property
+    def gain_per_cost(self) -> np.ndarray:
+        """The QD-score expected per evaluation of average cost."""
+        return self.gain / self.cost
+
+
+def expected_outcomes(
     objective: np.ndarray,
     measures: np.ndarray,
     *,
     ground_truth_archive: GridArchive,
     errors: PickErrors,
     neighbours: int,
+    cost: EvaluationCost | None = None,
     chunk: int = 1024,
-) -> np.ndarray:
-    """The QD-score each candidate is expected to add to ``ground_truth_archive`` (see the module doc).
+) -> Outcomes:
+    """The QD-score each candidate is expected to add to ``ground_truth_archive``, and what it would cost.
 
-    A sample that lands in an empty cell adds its objective minus the archive's QD-score offset; one
-    that lands in an occupied cell adds how much it beats the elite there, if it does. Samples outside
-    the measure ranges land in the edge cells, as the archive would put them.
+    A sample (see the module doc) that lands in an empty cell adds its objective minus the archive's
+    QD-score offset; one that lands in an occupied cell adds how much it beats the elite there, if it
+    does. Samples outside the measure ranges land in the edge cells, as the archive would put them.
+    The expected cost is that of the same neighbours' real evaluations.
 
     Args:
         objective: ``(n,)`` predicted objectives of the candidates.
@@ -101,10 +146,8 @@ def expected_gains(
         errors: Recent picks' predictions and results (must hold at least one).
         neighbours: How many recent picks, nearest in predicted measures (scaled by the archive's
             ranges), lend their errors to a candidate; all of them if fewer are held.
+        cost: How an evaluation's cost follows from its measures; None: every evaluation costs the same.
         chunk: Candidates scored at a time (bounds memory at ``chunk × len(errors)`` distances).
-
-    Returns:
-        ``(n,)`` expected gains.
 
     Raises:
         ValueError: ``errors`` is empty, ``neighbours < 1``, or the shapes do not match the archive.
@@ -116,16 +159,21 @@ def expected_gains(
         raise ValueError(f"the archive has {dim} measures; candidates have {measures.shape[1]}, "
                          f"recent picks {errors.predicted.shape[1] - 1 if len(errors) else '-'}")
     if len(errors) == 0:
-        raise ValueError("expected_gains needs the errors of at least one evaluated pick")
+        raise ValueError("expected_outcomes needs the errors of at least one evaluated pick")
     if neighbours < 1:
         raise ValueError(f"neighbours must be positive (got {neighbours})")
+    if cost is not None and not 0 <= cost.measure < dim:
+        raise ValueError(f"cost measure index {cost.measure} is not one of the archive's {dim} measures")
     scale = np.asarray(ground_truth_archive.upper_bounds, np.float64) - np.asarray(ground_truth_archive.lower_bounds,
                                                                                    np.float64)
     known = errors.predicted[:, 1:] / scale
     residuals = errors.actual - errors.predicted
+    spent = (np.ones(len(errors)) if cost is None
+             else np.maximum(cost.offset + errors.actual[:, 1 + cost.measure], 0.0))
+    spent = spent / spent.mean()
     k = min(neighbours, len(errors))
     cell_objective = _cell_objectives(ground_truth_archive)
-    gains = np.empty(len(objective))
+    gains, costs = np.empty(len(objective)), np.empty(len(objective))
     for start in range(0, len(objective), chunk):
         part = slice(start, start + chunk)
         distance = (((measures[part] / scale)[:, None, :] - known[None, :, :]) ** 2).sum(axis=2)
@@ -140,7 +188,9 @@ def expected_gains(
         added = np.where(empty, sample_objective - ground_truth_archive.qd_score_offset,
                          np.maximum(sample_objective - np.where(empty, 0.0, incumbent), 0.0))
         gains[part] = added.mean(axis=1)
-    return gains
+        costs[part] = spent[nearest].mean(axis=1)
+    # A neighbourhood of evaluations that cost nothing would make any gain infinitely cheap.
+    return Outcomes(gain=gains, cost=np.maximum(costs, 1e-6))
 
 
 def _cell_objectives(archive: GridArchive) -> np.ndarray:
@@ -157,8 +207,8 @@ class GainPicks:
 
     Attributes:
         indices: Sorted archive indices to evaluate.
-        gains: Their expected gains, same order.
-        dropped: Blocks whose best elite was expected to add less than ``min_gain``.
+        gains: Their ``gains``, same order.
+        dropped: Blocks whose best elite had ``gains`` below ``min_gain``.
         fallback: Every block's best was below ``min_gain``, so all of them were kept.
     """
 
@@ -176,7 +226,7 @@ def best_per_block(
     min_gain: float,
     rng: np.random.Generator,
 ) -> GainPicks:
-    """The elite of highest expected gain in each occupied downsampling block, keeping those ``>= min_gain``.
+    """The elite of highest ``gains`` in each occupied downsampling block, keeping those ``>= min_gain``.
 
     Ties within a block are broken uniformly at random. When no block's best reaches ``min_gain``,
     every block's best is kept: a run that evaluated nothing would learn nothing that could change
@@ -184,7 +234,8 @@ def best_per_block(
 
     Args:
         archive: The surrogate archive.
-        gains: Expected gain of each elite, in the order of ``archive.data("index")``.
+        gains: What each elite is expected to add (e.g. :attr:`Outcomes.gain_per_cost`), in the order of
+            ``archive.data("index")``.
         block: Cells per block along each measure, as for ``downsample``.
         min_gain: Smallest expected gain worth an evaluation.
         rng: Breaks ties.

@@ -187,7 +187,8 @@ def test_skip_filled_needs_a_surrogate():
         RunConfig.build({**SMALL, "variant": "map_elites", "selection.skip_filled": True})
 
 
-def test_gain_variant_scores_the_picks_by_the_errors_of_the_picks_before(monkeypatch):
+@pytest.mark.parametrize("cost_measure", ["", "num_walls"])
+def test_gain_variant_scores_the_picks_by_the_errors_of_the_picks_before(monkeypatch, cost_measure):
     import dsage_ray.core.proposers as proposers_module
 
     calls = []
@@ -199,7 +200,7 @@ def test_gain_variant_scores_the_picks_by_the_errors_of_the_picks_before(monkeyp
         return result
 
     monkeypatch.setattr(proposers_module, "best_per_block", spy)
-    runner = make_runner(variant="dsage_gain", **{"selection.min_gain": 0.3})
+    runner = make_runner(variant="dsage_gain", **{"selection.min_gain": 0.3, "selection.cost_measure": cost_measure})
     runner.step()
     first = runner.step()  # no pick has been evaluated yet: plain downsampling
     assert not calls and "selection_expected_gain" not in first
@@ -209,8 +210,12 @@ def test_gain_variant_scores_the_picks_by_the_errors_of_the_picks_before(monkeyp
     (chosen,) = calls
     assert second["evaluated_this_iteration"] == len(chosen.indices)
     assert second["selection_dropped"] == chosen.dropped and second["selection_fallback"] == chosen.fallback
-    assert second["selection_expected_gain"] == pytest.approx(chosen.gains.sum())
     assert chosen.fallback or chosen.gains.min() >= 0.3
+    if not cost_measure:  # every evaluation costs the same: the gain per cost is the gain
+        assert second["selection_expected_gain"] == pytest.approx(chosen.gains.sum())
+        assert second["selection_relative_cost"] == 1.0
+    else:
+        assert second["selection_relative_cost"] > 0 and second["selection_expected_gain"] >= 0
 
 
 @pytest.mark.parametrize("overrides, key", [
@@ -219,6 +224,8 @@ def test_gain_variant_scores_the_picks_by_the_errors_of_the_picks_before(monkeyp
     ({"variant": "dsage_gain", "selection.min_gain": -0.1}, "selection.min_gain"),
     ({"variant": "dsage_gain", "selection.gain_window": 0}, "selection.gain_window"),
     ({"variant": "dsage_gain", "selection.gain_neighbours": 0}, "selection.gain_neighbours"),
+    ({"variant": "dsage_gain", "selection.cost_offset": 0.0}, "selection.cost_offset"),
+    ({"variant": "dsage_gain", "selection.cost_measure": "jumps"}, "selection.cost_measure"),
 ])
 def test_expected_gain_config_is_checked(overrides, key):
     from dsage_ray.config import ConfigError

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from dsage_ray.qd import make_archive
-from dsage_ray.qd.gain import PickErrors, best_per_block, expected_gains
+from dsage_ray.qd.gain import EvaluationCost, PickErrors, best_per_block, expected_outcomes
 
 
 def _line(filled: dict[int, float], cells: int = 8):
@@ -52,24 +52,24 @@ def test_a_candidate_gains_the_share_of_its_error_samples_that_land_in_empty_cel
     truth = _line({0: 1.0, 1: 1.0})
     # Errors of 0 and +1 cell, each half the time: from cell 1 one sample stays, one lands in empty cell 2.
     errors = _errors([3.5, 3.5], [3.5, 4.5])
-    gains = expected_gains(np.ones(3), np.array([[0.5], [1.5], [5.5]]), ground_truth_archive=truth, errors=errors,
-                           neighbours=2)
+    gains = expected_outcomes(np.ones(3), np.array([[0.5], [1.5], [5.5]]), ground_truth_archive=truth, errors=errors,
+                           neighbours=2).gain
     np.testing.assert_allclose(gains, [0.0, 0.5, 1.0])
 
 
 def test_an_occupied_cell_adds_only_the_improvement_and_samples_past_the_edge_land_in_the_edge_cell():
     truth = _line({7: 0.25})
     errors = _errors([1.0], [30.0])  # a huge error: lands past the upper edge, in cell 7
-    gains = expected_gains(np.array([1.0, 0.1]), np.array([[1.0], [1.0]]), ground_truth_archive=truth,
-                           errors=errors, neighbours=1)
+    gains = expected_outcomes(np.array([1.0, 0.1]), np.array([[1.0], [1.0]]), ground_truth_archive=truth,
+                           errors=errors, neighbours=1).gain
     np.testing.assert_allclose(gains, [0.75, 0.0])  # beats 0.25 by 0.75; a worse one adds nothing
 
 
 def test_objective_errors_move_the_sampled_objective():
     truth = _line({})
     errors = _errors([2.5], [2.5], predicted_objective=np.array([1.0]), objective=np.array([0.4]))
-    gains = expected_gains(np.array([1.0]), np.array([[5.5]]), ground_truth_archive=truth, errors=errors,
-                           neighbours=1)
+    gains = expected_outcomes(np.array([1.0]), np.array([[5.5]]), ground_truth_archive=truth, errors=errors,
+                           neighbours=1).gain
     np.testing.assert_allclose(gains, [0.4])  # predicted 1.0, off by -0.6 the last time
 
 
@@ -77,24 +77,48 @@ def test_a_candidate_borrows_the_errors_of_picks_predicted_near_it():
     truth = _line({0: 1.0, 1: 1.0})
     # Picks predicted low were right; picks predicted high landed 6 cells lower, in filled cell 0 or 1.
     errors = _errors([2.2, 2.4, 6.8, 7.2], [2.2, 2.4, 0.8, 1.2])
-    gains = expected_gains(np.ones(2), np.array([[2.5], [7.0]]), ground_truth_archive=truth, errors=errors,
-                           neighbours=2)
+    gains = expected_outcomes(np.ones(2), np.array([[2.5], [7.0]]), ground_truth_archive=truth, errors=errors,
+                           neighbours=2).gain
     np.testing.assert_allclose(gains, [1.0, 0.0])
-    everyone = expected_gains(np.ones(2), np.array([[2.5], [7.0]]), ground_truth_archive=truth, errors=errors,
-                              neighbours=50)  # more neighbours than picks: all four
+    everyone = expected_outcomes(np.ones(2), np.array([[2.5], [7.0]]), ground_truth_archive=truth, errors=errors,
+                              neighbours=50).gain  # more neighbours than picks: all four
     np.testing.assert_allclose(everyone, [0.5, 0.5])  # half of the errors are -6 cells, for both
 
 
-def test_expected_gains_bad_input():
+def test_without_a_cost_every_candidate_costs_the_same():
+    errors = _errors([2.2, 6.8], [2.2, 0.8])
+    outcomes = expected_outcomes(np.ones(2), np.array([[2.5], [7.0]]), ground_truth_archive=_line({}), errors=errors,
+                                 neighbours=1)
+    np.testing.assert_allclose(outcomes.cost, [1.0, 1.0])
+    np.testing.assert_allclose(outcomes.gain_per_cost, outcomes.gain)
+
+
+def test_the_cost_is_that_of_the_neighbours_real_evaluations_relative_to_the_recent_mean():
+    # Picks predicted at 1 really measured 1; those predicted at 6 really measured 7. With an offset
+    # of 1, they cost 2 and 8: the mean is 5.
+    errors = _errors([1.0, 1.0, 6.0, 6.0], [1.0, 1.0, 7.0, 7.0])
+    outcomes = expected_outcomes(np.ones(2), np.array([[1.2], [5.8]]), ground_truth_archive=_line({}),
+                                 errors=errors, neighbours=2, cost=EvaluationCost(measure=0, offset=1.0))
+    np.testing.assert_allclose(outcomes.cost, [2 / 5, 8 / 5])
+    np.testing.assert_allclose(outcomes.gain, [1.0, 1.0])
+    np.testing.assert_allclose(outcomes.gain_per_cost, [2.5, 0.625])
+    with pytest.raises(ValueError, match="positive"):
+        EvaluationCost(measure=0, offset=0.0)
+    with pytest.raises(ValueError, match="cost measure"):
+        expected_outcomes(np.ones(1), np.ones((1, 1)), ground_truth_archive=_line({}), errors=errors, neighbours=1,
+                          cost=EvaluationCost(measure=1, offset=1.0))
+
+
+def test_expected_outcomes_bad_input():
     truth = _line({})
     with pytest.raises(ValueError, match="at least one"):
-        expected_gains(np.ones(1), np.ones((1, 1)), ground_truth_archive=truth, errors=PickErrors(window=3),
+        expected_outcomes(np.ones(1), np.ones((1, 1)), ground_truth_archive=truth, errors=PickErrors(window=3),
                        neighbours=1)
     with pytest.raises(ValueError, match="neighbours"):
-        expected_gains(np.ones(1), np.ones((1, 1)), ground_truth_archive=truth, errors=_errors([1.0], [1.0]),
+        expected_outcomes(np.ones(1), np.ones((1, 1)), ground_truth_archive=truth, errors=_errors([1.0], [1.0]),
                        neighbours=0)
     with pytest.raises(ValueError, match="measures"):
-        expected_gains(np.ones(1), np.ones((1, 2)), ground_truth_archive=truth, errors=_errors([1.0], [1.0]),
+        expected_outcomes(np.ones(1), np.ones((1, 2)), ground_truth_archive=truth, errors=_errors([1.0], [1.0]),
                        neighbours=1)
 
 
