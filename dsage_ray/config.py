@@ -433,7 +433,7 @@ COMMON_VARIANTS: dict[str, dict[str, Any]] = {
     # Not in the paper: DSAGE that picks, per block, the elite expected to add most QD-score given the
     # surrogate's errors on recent picks, and skips blocks expected to add little.
     "dsage_gain": {"surrogate.kind": "two_stage", "selection.method": "downsample", "selection.expected_gain": True,
-                   "selection.min_gain": 0.2},
+                   "selection.min_gain": 0.3},
     # Domain randomisation: the random emitter draws every level from the domain's own generator.
     "dr": {"surrogate.kind": "none", "qd.emitter": "random", "qd.num_emitters": 5, "qd.batch_size": 30},
 }
