@@ -7,6 +7,7 @@ from dsage_ray.qd.archives import (
     make_archive,
 )
 from dsage_ray.qd.emitters import MapElitesBitmapEmitter, RandomEmitter
+from dsage_ray.qd.gain import EvaluationCost, GainPicks, Outcomes, PickErrors, best_per_block, expected_outcomes
 from dsage_ray.qd.optimizer import InnerLoopTimings, emitter_seeds, make_emitters, make_scheduler, run_inner_loop
 from dsage_ray.qd.selection import (
     SELECTION_METHODS,
@@ -20,14 +21,20 @@ from dsage_ray.qd.selection import (
 __all__ = [
     "OCCUPANCY_FIELD",
     "SELECTION_METHODS",
+    "EvaluationCost",
     "FilledSkip",
+    "GainPicks",
     "InnerLoopTimings",
     "MapElitesBitmapEmitter",
+    "Outcomes",
+    "PickErrors",
     "RandomEmitter",
     "archive_stats",
     "archive_to_dataframe",
+    "best_per_block",
     "block_ids",
     "emitter_seeds",
+    "expected_outcomes",
     "gather_elites",
     "make_archive",
     "make_emitters",
