@@ -228,6 +228,19 @@ def selected_batch_errors(run: dict, *, first_iteration: int = 3) -> dict[str, f
     return {measure: float(np.median(values)) for measure, values in sorted(errors.items())}
 
 
+def realized_over_expected(run: dict) -> float | None:
+    """QD-score an expected-gain selection's picks added, over what it expected (``selection_expected_gain``),
+    summed over every iteration but the last (which the budget may cut short); None for a run without one."""
+    expected = realized = 0.0
+    for previous, row in zip(run["history"][:-1], run["history"][1:-1]):
+        gain = row.get("selection_expected_gain")
+        if gain is None:
+            continue
+        expected += gain
+        realized += row["qd_score"] - previous["qd_score"]
+    return realized / expected if expected > 0 else None
+
+
 def counting_bound(run: dict, baseline_run: dict, clock: str) -> dict[str, float]:
     """How far ``run`` could get at equal time if every evaluation it made had filled a new archive cell.
 
@@ -394,6 +407,15 @@ def main(argv: list[str] | None = None) -> int:
             values = [(seed, errors[measure]) for seed, errors in per_run if measure in errors]
             print(f"  {variant} {measure}: {mean_pm([v for _, v in values])} ("
                   + ", ".join(f"seed {seed}: {v:,.1f}" for seed, v in values) + ")")
+
+    calibration = {variant: [(run["seed"], ratio) for run in by_variant[variant]
+                             if (ratio := realized_over_expected(run)) is not None] for variant in surrogate_variants}
+    if any(calibration.values()):
+        print("\nexpected-gain selection: QD-score its picks added / what it expected (every iteration but the last)")
+        for variant, values in calibration.items():
+            if values:
+                print(f"  {variant}: {mean_pm([v for _, v in values], '.2f')} ("
+                      + ", ".join(f"seed {seed}: {v:.2f}" for seed, v in values) + ")")
 
     print("\n4. Why: the surrogate free, and the simulator cost at which it pays for itself")
     baseline = by_variant[args.baseline]

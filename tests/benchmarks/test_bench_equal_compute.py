@@ -134,3 +134,14 @@ def test_a_pipelined_rows_evaluate_is_only_the_wait_beyond_the_overlapped_surrog
     (row,) = bench.phase_seconds(history, "wall")
     assert row["evaluate"] == 10.0 and row["train"] + row["exploit"] == 20.0
     assert sum(row[phase] for phase in bench.PHASES) == row["total"]
+
+
+def test_realized_over_expected_reads_every_iteration_but_the_last():
+    gain = run(2, [(100, 90.0, 10.0, 5.0), (300, 250.0, 40.0, 20.0), (500, 350.0, 70.0, 20.0),
+                   (520, 360.0, 75.0, 2.0)], "dsage_gain")
+    for row, expected in zip(gain["history"], [None, 200.0, 125.0, 50.0]):
+        if expected is not None:
+            row["selection_expected_gain"] = expected
+    # (250 - 90) + (350 - 250) added against 200 + 125 expected; the last, budget-cut iteration is left out.
+    assert bench.realized_over_expected(gain) == 260.0 / 325.0
+    assert bench.realized_over_expected(SURROGATE) is None
