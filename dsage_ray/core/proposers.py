@@ -23,8 +23,8 @@ import numpy as np
 from dsage_ray.config import RunConfig
 from dsage_ray.core.holdout import HeldOutLevels, head_label
 from dsage_ray.qd.archives import make_archive
-from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
 from dsage_ray.qd.gain import EvaluationCost, PickErrors, best_per_block, expected_outcomes
+from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
 from dsage_ray.qd.selection import gather_elites, select_solutions, skip_filled
 from dsage_ray.surrogate.models import encode_solutions
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions

@@ -46,11 +46,16 @@ class MazeConfig:
              "the 'regression' objective needs a reference agent spec, and only it uses one")
 
 
+#: The cost model of ``dsage_gain`` (read only with ``selection.expected_gain``), for 50 episodes per level: an
+#: evaluation's CPU time grows in proportion to the agent's mean path length, plus a fixed part worth about
+#: 74 steps (``benchmarks/bench_evaluation_cost.py`` on ACCEL: correlation 0.93-0.95).
+EVALUATION_COST: dict[str, Any] = {"selection.cost_measure": "mean_path_length", "selection.cost_offset": 74.0}
+
 #: ``paper`` reproduces the paper's numbers; ``cpu`` finishes well under an hour on 2 cores; ``demo``
 #: is the few-minute run of ``make run``; ``tiny`` is for tests and smoke runs.
 PRESETS: dict[str, dict[str, Any]] = {
     # The paper held no levels out; ``--set surrogate.holdout_levels=100`` adds 0.1% to its budget.
-    "paper": {"selection.cost_measure": "mean_path_length", "selection.cost_offset": 74.0},
+    "paper": {**EVALUATION_COST},
     # CPU presets scale the paper's loop down (SPEC §4: one paper inner loop is ~20 minutes of
     # surrogate predictions on 2 cores). A shorter inner loop fills a smaller surrogate archive,
     # so blocks are smaller to keep a useful number of picks per outer iteration, and a smaller
@@ -79,11 +84,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         # fresh seeds 11-17 of ACCEL the selected-batch error fell by 30% on every seed; the QD-score was
         # level on the seeds run after this choice (docs/results/surrogate_accuracy, "A random walker").
         "surrogate.prior_measure": "mean_path_length",
-        # dsage_gain's cost model: a 50-episode evaluation's CPU time grows in proportion to the agent's mean
-        # path length, plus a fixed part worth about 74 steps (benchmarks/bench_evaluation_cost.py on
-        # ACCEL, correlation 0.95). Read only with selection.expected_gain.
-        "selection.cost_measure": "mean_path_length",
-        "selection.cost_offset": 74.0,
+        **EVALUATION_COST,
     },
     "demo": {
         "budget": 500,
@@ -95,8 +96,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         "qd.exploit_iterations": 100,
         "selection.block": (4, 3),
         "selection.count": 50,
-        "selection.cost_measure": "mean_path_length",
-        "selection.cost_offset": 74.0,
+        **EVALUATION_COST,
     },
     "tiny": {
         "budget": 150,
