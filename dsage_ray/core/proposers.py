@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any, Callable, Protocol
 
 import numpy as np
 
-from dsage_ray.config import RunConfig
+from dsage_ray.config import ConfigError, RunConfig
 from dsage_ray.core.holdout import HeldOutLevels, head_label
 from dsage_ray.qd.archives import make_archive
 from dsage_ray.qd.gain import EvaluationCost, PickErrors, best_per_block, expected_outcomes
@@ -175,6 +175,22 @@ class DirectQD:
         self.archive = state["archive"]
 
 
+def _evaluation_cost(config: RunConfig, domain: Domain) -> EvaluationCost | None:
+    """``selection.cost_measure`` as the domain's measure index (None: not used, or every evaluation costs the same).
+
+    Raises:
+        ConfigError: The domain has no such measure (a domain passed in may not be the config's own).
+    """
+    selection = config.selection
+    if not selection.expected_gain or not selection.cost_measure:
+        return None
+    names = list(domain.measure_names)
+    if selection.cost_measure not in names:
+        raise ConfigError(f"selection.cost_measure: {selection.cost_measure!r} is not one of the domain's measures "
+                          f"{names}")
+    return EvaluationCost(measure=names.index(selection.cost_measure), offset=selection.cost_offset)
+
+
 class SurrogateAssisted:
     """DSAGE's proposals: train the surrogate, exploit it with an inner QD loop, select from its archive.
 
@@ -208,6 +224,7 @@ class SurrogateAssisted:
         self.prior_samples = 0
         #: The surrogate's errors on recent picks (``selection.expected_gain`` reads them).
         self.pick_errors = PickErrors(window=config.selection.gain_window)
+        self.evaluation_cost = _evaluation_cost(config, domain)
 
     def propose(self, *, outer_iteration: int) -> Proposal:
         proposal = Proposal(np.empty(0))
@@ -309,11 +326,9 @@ class SurrogateAssisted:
         selection = self.config.selection
         if selection.expected_gain and len(self.pick_errors):
             candidates = surrogate_archive.data(["index", "objective", "measures"])
-            cost = None if not selection.cost_measure else EvaluationCost(
-                measure=list(self.domain.measure_names).index(selection.cost_measure), offset=selection.cost_offset)
             outcomes = expected_outcomes(candidates["objective"], candidates["measures"],
                                          ground_truth_archive=self.archive, errors=self.pick_errors,
-                                         neighbours=selection.gain_neighbours, cost=cost)
+                                         neighbours=selection.gain_neighbours, cost=self.evaluation_cost)
             chosen = best_per_block(surrogate_archive, outcomes.gain_per_cost, block=selection.block,
                                     min_gain=selection.min_gain, rng=self.seeds.rng)
             picks = chosen.indices

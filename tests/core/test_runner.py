@@ -232,3 +232,12 @@ def test_expected_gain_config_is_checked(overrides, key):
 
     with pytest.raises(ConfigError, match=key):
         RunConfig.build({**SMALL, **overrides})
+
+
+def test_a_cost_measure_the_domain_lacks_is_refused_by_name():
+    from dsage_ray.config import ConfigError
+
+    # The config's own Maze section has a path length; the domain passed in does not.
+    with pytest.raises(ConfigError, match="selection.cost_measure: 'mean_path_length' is not one of the domain's"):
+        make_runner(variant="dsage_gain", **{"selection.cost_measure": "mean_path_length"})
+    make_runner(variant="dsage", **{"selection.cost_measure": "mean_path_length"})  # read only by dsage_gain
