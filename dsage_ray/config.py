@@ -372,9 +372,11 @@ class RunConfig:
         need(not self.surrogate.prior_measure or measure_names is None
              or self.surrogate.prior_measure in measure_names, "surrogate.prior_measure",
              f"{self.surrogate.prior_measure!r} is not one of the measures {list(measure_names or [])}")
-        need(not self.selection.cost_measure or measure_names is None
+        # Presets set a cost model that only expected_gain reads: other runs may choose other measures.
+        need(not self.selection.expected_gain or not self.selection.cost_measure or measure_names is None
              or self.selection.cost_measure in measure_names, "selection.cost_measure",
-             f"{self.selection.cost_measure!r} is not one of the measures {list(measure_names or [])}")
+             f"{self.selection.cost_measure!r} is not one of the measures {list(measure_names or [])}; "
+             "set it to one they grow with, or to '' (every evaluation costs the same)")
         for key in ("num_emitters", "batch_size", "exploit_iterations", "mutation_cells"):
             need(getattr(self.qd, key) >= 1, f"qd.{key}", "must be positive")
         need(self.qd.sigma0 > 0, "qd.sigma0", "must be positive")

@@ -187,7 +187,7 @@ def _evaluation_cost(config: RunConfig, domain: Domain) -> EvaluationCost | None
     names = list(domain.measure_names)
     if selection.cost_measure not in names:
         raise ConfigError(f"selection.cost_measure: {selection.cost_measure!r} is not one of the domain's measures "
-                          f"{names}")
+                          f"{names}; set it to one they grow with, or to '' (every evaluation costs the same)")
     return EvaluationCost(measure=names.index(selection.cost_measure), offset=selection.cost_offset)
 
 

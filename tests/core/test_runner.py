@@ -234,6 +234,17 @@ def test_expected_gain_config_is_checked(overrides, key):
         RunConfig.build({**SMALL, **overrides})
 
 
+def test_a_cost_measure_is_checked_only_where_expected_gain_reads_it():
+    from dsage_ray.config import ConfigError
+
+    # The Maze presets model the cost by the path length; an audit may search other measures.
+    other_measures = {**SMALL, "maze.measures": ["num_walls", "optimal_path_length"],
+                      "selection.cost_measure": "mean_path_length"}
+    RunConfig.build({**other_measures, "variant": "dsage"})
+    with pytest.raises(ConfigError, match="selection.cost_measure: 'mean_path_length' is not one of the measures"):
+        RunConfig.build({**other_measures, "variant": "dsage_gain"})
+
+
 def test_a_cost_measure_the_domain_lacks_is_refused_by_name():
     from dsage_ray.config import ConfigError
 
