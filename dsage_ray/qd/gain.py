@@ -19,6 +19,9 @@ mean path length, so a level the agent solves in 20 steps costs a tenth of one i
 :class:`EvaluationCost`, the same neighbours' real measures say what a candidate's evaluation will
 cost, and the gain is counted per evaluation of average cost. :func:`best_per_block` then keeps the
 most promising elite of each block and drops those below ``min_gain``.
+
+Measured on ACCEL (docs/results/equal_compute, section 9): level with uniform downsampling, per
+evaluation and per CPU second. Its picks realise about 0.87 of the gain it expects.
 """
 
 from __future__ import annotations
