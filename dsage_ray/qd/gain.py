@@ -15,7 +15,7 @@ predicted well, carries over). Each such sample lands in a ground-truth cell and
 candidate's expected gain (:func:`expected_outcomes`).
 
 Evaluations do not all cost the same: a Maze evaluation steps the agent about as many times as its
-mean path length, so a level the agent solves in 20 steps costs a tenth of one it fails. With an
+mean path length, so a level the agent solves in 20 steps costs about an eighth of one it fails. With an
 :class:`EvaluationCost`, the same neighbours' real measures say what a candidate's evaluation will
 cost, and the gain is counted per evaluation of average cost. :func:`best_per_block` then keeps the
 most promising elite of each block and drops those below ``min_gain``.
