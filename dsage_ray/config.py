@@ -372,7 +372,7 @@ class RunConfig:
         need(not self.surrogate.prior_measure or measure_names is None
              or self.surrogate.prior_measure in measure_names, "surrogate.prior_measure",
              f"{self.surrogate.prior_measure!r} is not one of the measures {list(measure_names or [])}")
-        # Presets set a cost model that only expected_gain reads: other runs may choose other measures.
+        # Only expected_gain reads the cost model: a run without it may set one its measures lack.
         need(not self.selection.expected_gain or not self.selection.cost_measure or measure_names is None
              or self.selection.cost_measure in measure_names, "selection.cost_measure",
              f"{self.selection.cost_measure!r} is not one of the measures {list(measure_names or [])}; "

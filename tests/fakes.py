@@ -18,7 +18,7 @@ SMALL_RUN = {
     "maze.archive_dims": (16, 8),
     "selection.block": (4, 2),
     "selection.count": 25,
-    # The Maze presets model an evaluation's cost by its path length; the bitmap domain has no such measure.
+    # The Maze's dsage_gain models an evaluation's cost by its path length; the bitmap domain has no such measure.
     "selection.cost_measure": "num_walls",
 }
 

@@ -325,16 +325,16 @@ class SurrogateAssisted:
         """Selection: downsample / random / full picks from the surrogate archive."""
         selection = self.config.selection
         if selection.expected_gain and len(self.pick_errors):
-            candidates = surrogate_archive.data(["index", "objective", "measures"])
+            candidates = surrogate_archive.data(["objective", "measures"])
             outcomes = expected_outcomes(candidates["objective"], candidates["measures"],
                                          ground_truth_archive=self.archive, errors=self.pick_errors,
                                          neighbours=selection.gain_neighbours, cost=self.evaluation_cost)
             chosen = best_per_block(surrogate_archive, outcomes.gain_per_cost, block=selection.block,
                                     min_gain=selection.min_gain, rng=self.seeds.rng)
             picks = chosen.indices
-            kept = np.isin(candidates["index"], picks)
-            metrics["selection_expected_gain"] = float(outcomes.gain[kept].sum())
-            metrics["selection_relative_cost"] = float(outcomes.cost[kept].mean()) if kept.any() else 0.0
+            metrics["selection_expected_gain"] = float(outcomes.gain[chosen.positions].sum())
+            metrics["selection_relative_cost"] = (float(outcomes.cost[chosen.positions].mean())
+                                                  if len(picks) else 0.0)
             metrics["selection_dropped"] = float(chosen.dropped)
             metrics["selection_fallback"] = float(chosen.fallback)
         else:

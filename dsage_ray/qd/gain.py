@@ -210,13 +210,13 @@ class GainPicks:
 
     Attributes:
         indices: Sorted archive indices to evaluate.
-        gains: Their ``gains``, same order.
+        positions: Where each of them is in ``archive.data("index")`` (and so in ``gains``), same order.
         dropped: Blocks whose best elite had ``gains`` below ``min_gain``.
         fallback: Every block's best was below ``min_gain``, so all of them were kept.
     """
 
     indices: np.ndarray
-    gains: np.ndarray
+    positions: np.ndarray
     dropped: int
     fallback: bool
 
@@ -251,7 +251,7 @@ def best_per_block(
     if gains.shape != indices.shape:
         raise ValueError(f"gains must hold one value per elite ({len(indices)}), got shape {gains.shape}")
     if len(indices) == 0:
-        return GainPicks(indices=indices, gains=gains, dropped=0, fallback=False)
+        return GainPicks(indices=indices, positions=np.empty(0, dtype=np.int64), dropped=0, fallback=False)
     blocks = block_ids(archive, indices, block)
     order = np.lexsort((rng.random(len(indices)), -gains, blocks))
     first_of_block = order[np.r_[True, blocks[order][1:] != blocks[order][:-1]]]
@@ -259,5 +259,5 @@ def best_per_block(
     fallback = not keep.any()
     chosen = first_of_block if fallback else first_of_block[keep]
     chosen = chosen[np.argsort(indices[chosen])]
-    return GainPicks(indices=indices[chosen], gains=gains[chosen], dropped=0 if fallback else int((~keep).sum()),
+    return GainPicks(indices=indices[chosen], positions=chosen, dropped=0 if fallback else int((~keep).sum()),
                      fallback=fallback)

@@ -141,7 +141,8 @@ def test_best_per_block_keeps_each_blocks_best_above_the_floor():
     chosen = best_per_block(archive, gains, block=(2, 2), min_gain=0.0, rng=np.random.default_rng(0))
     cells = sorted(tuple(c) for c in archive.int_to_grid_index(chosen.indices))
     assert cells == [(1, 0), (2, 1)] and chosen.dropped == 0 and not chosen.fallback
-    assert sorted(chosen.gains.tolist()) == [0.1, 0.9]
+    assert sorted(gains[chosen.positions].tolist()) == [0.1, 0.9]
+    assert archive.data("index")[chosen.positions].tolist() == chosen.indices.tolist()
 
     floored = best_per_block(archive, gains, block=(2, 2), min_gain=0.2, rng=np.random.default_rng(0))
     assert [tuple(c) for c in archive.int_to_grid_index(floored.indices)] == [(1, 0)] and floored.dropped == 1

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Callable, Literal
 
+from dsage_ray.config import COMMON_VARIANTS
 from dsage_ray.domains.registry import AgentKinds, AuditSpec, DomainSpec, ReportField
 
 #: Keys of :data:`dsage_ray.domains.maze.measures.OBJECTIVES`.
@@ -46,16 +47,11 @@ class MazeConfig:
              "the 'regression' objective needs a reference agent spec, and only it uses one")
 
 
-#: The cost model of ``dsage_gain`` (read only with ``selection.expected_gain``), for 50 episodes per level: an
-#: evaluation's CPU time grows in proportion to the agent's mean path length, plus a fixed part worth about
-#: 74 steps (``benchmarks/bench_evaluation_cost.py`` on ACCEL: correlation 0.93-0.95).
-EVALUATION_COST: dict[str, Any] = {"selection.cost_measure": "mean_path_length", "selection.cost_offset": 74.0}
-
 #: ``paper`` reproduces the paper's numbers; ``cpu`` finishes well under an hour on 2 cores; ``demo``
 #: is the few-minute run of ``make run``; ``tiny`` is for tests and smoke runs.
 PRESETS: dict[str, dict[str, Any]] = {
     # The paper held no levels out; ``--set surrogate.holdout_levels=100`` adds 0.1% to its budget.
-    "paper": {**EVALUATION_COST},
+    "paper": {},
     # CPU presets scale the paper's loop down (SPEC §4: one paper inner loop is ~20 minutes of
     # surrogate predictions on 2 cores). A shorter inner loop fills a smaller surrogate archive,
     # so blocks are smaller to keep a useful number of picks per outer iteration, and a smaller
@@ -84,7 +80,6 @@ PRESETS: dict[str, dict[str, Any]] = {
         # fresh seeds 11-17 of ACCEL the selected-batch error fell by 30% on every seed; the QD-score was
         # level on the seeds run after this choice (docs/results/surrogate_accuracy, "A random walker").
         "surrogate.prior_measure": "mean_path_length",
-        **EVALUATION_COST,
     },
     "demo": {
         "budget": 500,
@@ -96,7 +91,6 @@ PRESETS: dict[str, dict[str, Any]] = {
         "qd.exploit_iterations": 100,
         "selection.block": (4, 3),
         "selection.count": 50,
-        **EVALUATION_COST,
     },
     "tiny": {
         "budget": 150,
@@ -113,6 +107,11 @@ PRESETS: dict[str, dict[str, Any]] = {
 #: The paper's Maze QD baseline beside the DSAGE variants and DR (common to every domain).
 VARIANTS: dict[str, dict[str, Any]] = {
     "map_elites": {"surrogate.kind": "none", "qd.emitter": "map_elites", "qd.num_emitters": 5, "qd.batch_size": 30},
+    # With the Maze's cost model: a 50-episode evaluation's CPU time grows in proportion to the agent's mean
+    # path length, plus a fixed part worth about 74 steps (benchmarks/bench_evaluation_cost.py on ACCEL:
+    # correlation 0.93-0.95).
+    "dsage_gain": {**COMMON_VARIANTS["dsage_gain"], "selection.cost_measure": "mean_path_length",
+                   "selection.cost_offset": 74.0},
 }
 
 #: The Maze numbers of a collection entry the audit report shows (``MazeDomain.entry_fields``).
