@@ -23,17 +23,17 @@ import numpy as np
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("run", type=Path, help="a finished run folder (config.json, archive.csv)")
+    parser.add_argument("run", type=Path, help="a finished run folder (config.json, checkpoint.dsage)")
     parser.add_argument("--measure", default="mean_path_length", help="the measure the cost grows with")
     parser.add_argument("--levels", type=int, default=120, help="elites to evaluate")
     parser.add_argument("--seed", type=int, default=0, help="which elites, and the evaluation seeds")
     args = parser.parse_args(argv)
 
-    import pandas as pd
     import torch
     from tqdm import tqdm
 
     from dsage_ray.config import RunConfig
+    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint
     from dsage_ray.domains import build_domain
 
     torch.set_num_threads(1)
@@ -42,14 +42,13 @@ def main(argv: list[str] | None = None) -> int:
     names = list(domain.measure_names)
     if args.measure not in names:
         parser.error(f"--measure {args.measure!r} is not one of the run's measures {names}")
-    archive = pd.read_csv(args.run / "archive.csv")
-    solutions = archive[[c for c in archive.columns if c.startswith("solution_")]].to_numpy()
+    solutions = load_checkpoint(args.run / CHECKPOINT_NAME)["archive"].data("solution")
     rng = np.random.default_rng(args.seed)
-    rows = rng.choice(len(archive), size=min(args.levels, len(archive)), replace=False)
+    rows = rng.choice(len(solutions), size=min(args.levels, len(solutions)), replace=False)
     measure, seconds = [], []
     for i, row in enumerate(tqdm(rows, desc="evaluate", unit="level")):
         tic = time.process_time()
-        result = domain.evaluate(solutions[row].astype(domain.solution_dtype), int(args.seed * 100_000 + i))
+        result = domain.evaluate(solutions[row], int(args.seed * 100_000 + i))
         seconds.append(time.process_time() - tic)
         measure.append(float(result.measures[names.index(args.measure)]))
     measure, seconds = np.array(measure), np.array(seconds)
