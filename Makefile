@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: venv run test bench bench-run clean
+.PHONY: venv run test test-slow bench bench-run clean
 
 # Benchmarks that read a finished run (RUN=its folder, holding checkpoint.dsage) instead of making their own data.
 RUN_BENCHMARKS := benchmarks/bench_surrogate_training.py benchmarks/bench_surrogate_ceiling.py
@@ -32,6 +32,11 @@ JSIG := $(shell j=$$(readlink -f $$(command -v java) 2>/dev/null) && ls $$(dirna
 
 test: $(STAMP)
 	RAY_AUTH_MODE=disabled LD_PRELOAD=$(JSIG) $(BIN)/python -m pytest -q
+
+# The long tests the default suite leaves out (marked slow: end-to-end script runs whose parts the default
+# suite covers, and runs of the real ACCEL agent); about 5 minutes on 2 cores.
+test-slow: $(STAMP)
+	RAY_AUTH_MODE=disabled LD_PRELOAD=$(JSIG) $(BIN)/python -m pytest -q -m slow
 
 bench: $(STAMP)
 	for b in $(filter-out $(RUN_BENCHMARKS),$(wildcard benchmarks/bench_*.py)); do $(BIN)/python $$b || exit 1; done

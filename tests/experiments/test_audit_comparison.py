@@ -6,6 +6,8 @@ import importlib.util
 import json
 from pathlib import Path
 
+import pytest
+
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -16,6 +18,8 @@ def load_script():
     return module
 
 
+# Four audits in subprocesses; the audits themselves are covered by tests/audit, the arms by the tests below.
+@pytest.mark.slow
 def test_two_searches_two_seeds_one_table_and_a_rerun_runs_nothing(tmp_path, capsys):
     from dsage_ray.audit.collection_file import load_collection
     from dsage_ray.audit.summary import failure_summary

@@ -10,6 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from tests.ray.helpers import tensorboard_tags
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -21,6 +23,9 @@ def run(*args: str, timeout: int) -> subprocess.CompletedProcess:
                           timeout=timeout)
 
 
+# A fresh 2-CPU cluster and four trials: the ablation script on Ray is also covered by
+# tests/examples/test_gridpath.py, and summarize's tables by tests/test_summarize.py.
+@pytest.mark.slow
 def test_tiny_grid_ablation_writes_tensorboard_and_summarize_prints_a_row_per_grid_point(tmp_path):
     proc = run("experiments/ablation.py", "--preset", "tiny", "--storage", str(tmp_path), "--num-cpus", "2",
                "--name", "tiny", "--set", "budget=70", "--grid", "variant=dsage,map_elites",
