@@ -324,7 +324,7 @@ class SurrogateAssisted:
     def _select(self, surrogate_archive: "GridArchive", metrics: dict[str, float]) -> Solutions:
         """Selection: downsample / random / full picks from the surrogate archive."""
         selection = self.config.selection
-        if selection.expected_gain and len(self.pick_errors):
+        if selection.expected_gain:
             candidates = surrogate_archive.data(["objective", "measures"])
             outcomes = expected_outcomes(candidates["objective"], candidates["measures"],
                                          ground_truth_archive=self.archive, errors=self.pick_errors,

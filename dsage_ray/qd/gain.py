@@ -146,14 +146,14 @@ def expected_outcomes(
         objective: ``(n,)`` predicted objectives of the candidates.
         measures: ``(n, M)`` predicted measures.
         ground_truth_archive: The archive real evaluations enter.
-        errors: Recent picks' predictions and results (must hold at least one).
+        errors: Recent picks' predictions and results; empty: the predictions are taken as exact.
         neighbours: How many recent picks, nearest in predicted measures (scaled by the archive's
             ranges), lend their errors to a candidate; all of them if fewer are held.
         cost: How an evaluation's cost follows from its measures; None: every evaluation costs the same.
         chunk: Candidates scored at a time (bounds memory at ``chunk × len(errors)`` distances).
 
     Raises:
-        ValueError: ``errors`` is empty, ``neighbours < 1``, or the shapes do not match the archive.
+        ValueError: ``neighbours < 1``, or the shapes do not match the archive.
     """
     objective = np.asarray(objective, np.float64).reshape(-1)
     measures = np.asarray(measures, np.float64).reshape(len(objective), -1)
@@ -161,12 +161,20 @@ def expected_outcomes(
     if measures.shape[1] != dim or (len(errors) and errors.predicted.shape[1] != 1 + dim):
         raise ValueError(f"the archive has {dim} measures; candidates have {measures.shape[1]}, "
                          f"recent picks {errors.predicted.shape[1] - 1 if len(errors) else '-'}")
-    if len(errors) == 0:
-        raise ValueError("expected_outcomes needs the errors of at least one evaluated pick")
     if neighbours < 1:
         raise ValueError(f"neighbours must be positive (got {neighbours})")
     if cost is not None and not 0 <= cost.measure < dim:
         raise ValueError(f"cost measure index {cost.measure} is not one of the archive's {dim} measures")
+    cell_objective = _cell_objectives(ground_truth_archive)
+    if len(errors) == 0:
+        # Before any pick has been evaluated there are no errors to sample: take the predictions at their
+        # word, and the cost from the predicted measure relative to the candidates' mean.
+        gains = _added(ground_truth_archive, cell_objective, objective, measures)
+        costs = np.ones(len(objective))
+        if cost is not None and len(objective):
+            costs = np.maximum(cost.offset + measures[:, cost.measure], 0.0)
+            costs = costs / max(costs.mean(), 1e-12)
+        return Outcomes(gain=gains, cost=np.maximum(costs, 1e-6))
     scale = np.asarray(ground_truth_archive.upper_bounds, np.float64) - np.asarray(ground_truth_archive.lower_bounds,
                                                                                    np.float64)
     known = errors.predicted[:, 1:] / scale
@@ -175,7 +183,6 @@ def expected_outcomes(
              else np.maximum(cost.offset + errors.actual[:, 1 + cost.measure], 0.0))
     spent = spent / spent.mean()
     k = min(neighbours, len(errors))
-    cell_objective = _cell_objectives(ground_truth_archive)
     gains, costs = np.empty(len(objective)), np.empty(len(objective))
     for start in range(0, len(objective), chunk):
         part = slice(start, start + chunk)
@@ -185,15 +192,19 @@ def expected_outcomes(
         sampled = residuals[nearest]  # (chunk, k, 1 + M)
         sample_objective = objective[part, None] + sampled[:, :, 0]
         sample_measures = measures[part, None, :] + sampled[:, :, 1:]
-        cells = ground_truth_archive.index_of(sample_measures.reshape(-1, dim)).reshape(sample_objective.shape)
-        incumbent = cell_objective[cells]
-        empty = np.isnan(incumbent)
-        added = np.where(empty, sample_objective - ground_truth_archive.qd_score_offset,
-                         np.maximum(sample_objective - np.where(empty, 0.0, incumbent), 0.0))
-        gains[part] = added.mean(axis=1)
+        gains[part] = _added(ground_truth_archive, cell_objective, sample_objective, sample_measures).mean(axis=1)
         costs[part] = spent[nearest].mean(axis=1)
     # A neighbourhood of evaluations that cost nothing would make any gain infinitely cheap.
     return Outcomes(gain=gains, cost=np.maximum(costs, 1e-6))
+
+
+def _added(archive: GridArchive, cell_objective: np.ndarray, objective: np.ndarray, measures: np.ndarray) -> np.ndarray:
+    """What each outcome (``objective``: any shape S, ``measures``: S + (M,)) would add to the archive's QD-score."""
+    cells = archive.index_of(measures.reshape(-1, measures.shape[-1])).reshape(objective.shape)
+    incumbent = cell_objective[cells]
+    empty = np.isnan(incumbent)
+    return np.where(empty, objective - archive.qd_score_offset,
+                    np.maximum(objective - np.where(empty, 0.0, incumbent), 0.0))
 
 
 def _cell_objectives(archive: GridArchive) -> np.ndarray:

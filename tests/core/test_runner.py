@@ -202,12 +202,13 @@ def test_gain_variant_scores_the_picks_by_the_errors_of_the_picks_before(monkeyp
     monkeypatch.setattr(proposers_module, "best_per_block", spy)
     runner = make_runner(variant="dsage_gain", **{"selection.min_gain": 0.3, "selection.cost_measure": cost_measure})
     runner.step()
-    first = runner.step()  # no pick has been evaluated yet: plain downsampling
-    assert not calls and "selection_expected_gain" not in first
+    first = runner.step()  # no pick has been evaluated yet: the predictions are taken as exact
+    ((_, cold),) = calls
+    assert first["evaluated_this_iteration"] == len(cold.indices) and "selection_expected_gain" in first
     errors = len(runner.proposer.pick_errors)
     assert errors == first["evaluated_this_iteration"] - first.get("failed_evals", 0)
     second = runner.step()
-    ((chosen_gains, chosen),) = calls
+    (_, (chosen_gains, chosen)) = calls
     assert second["evaluated_this_iteration"] == len(chosen.indices)
     assert second["selection_dropped"] == chosen.dropped and second["selection_fallback"] == chosen.fallback
     assert chosen.fallback or chosen_gains.min() >= 0.3

@@ -109,11 +109,21 @@ def test_the_cost_is_that_of_the_neighbours_real_evaluations_relative_to_the_rec
                           cost=EvaluationCost(measure=1, offset=1.0))
 
 
+def test_before_any_pick_is_evaluated_the_predictions_are_taken_as_exact():
+    # Cell 1 holds 2.0: a candidate predicted there at 3.0 adds 1.0, one at 1.5 adds nothing, one in empty
+    # cell 4 adds its objective (the offset is 0). Costs follow the predicted measure over the candidates' mean.
+    truth = _line({1: 2.0})
+    outcomes = expected_outcomes(np.array([3.0, 1.5, 0.5]), np.array([[1.5], [1.2], [4.5]]), ground_truth_archive=truth,
+                                 errors=PickErrors(window=3), neighbours=4, cost=EvaluationCost(measure=0, offset=0.5))
+    np.testing.assert_allclose(outcomes.gain, [1.0, 0.0, 0.5])
+    np.testing.assert_allclose(outcomes.cost, np.array([2.0, 1.7, 5.0]) / np.mean([2.0, 1.7, 5.0]))
+    plain = expected_outcomes(np.array([3.0]), np.array([[1.5]]), ground_truth_archive=truth,
+                              errors=PickErrors(window=3), neighbours=1)
+    np.testing.assert_allclose(plain.cost, [1.0])
+
+
 def test_expected_outcomes_bad_input():
     truth = _line({})
-    with pytest.raises(ValueError, match="at least one"):
-        expected_outcomes(np.ones(1), np.ones((1, 1)), ground_truth_archive=truth, errors=PickErrors(window=3),
-                       neighbours=1)
     with pytest.raises(ValueError, match="neighbours"):
         expected_outcomes(np.ones(1), np.ones((1, 1)), ground_truth_archive=truth, errors=_errors([1.0], [1.0]),
                        neighbours=0)
