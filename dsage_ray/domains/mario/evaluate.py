@@ -98,6 +98,7 @@ class MarioEvaluation:
             "kills": self.kills,
             "status": self.statuses,
             "ticks": [e.ticks for e in self.episode_per_run()],
+            "search_iterations": [e.search_iterations for e in self.episode_per_run()],
             "deterministic": all(e.deterministic for e in self.episodes),
             "wall_s": sum(e.wall_s for e in self.episodes),
             "failed": self.failed,

@@ -270,6 +270,9 @@ class EpisodeResult:
         deterministic: Whether the iteration-count timer was used.
         error: The Java or timeout message when ``status`` is ``ERROR`` / ``WALL_CLOCK_TIMEOUT``.
         extra: Other ``MarioResult`` counters (coins, lives, stomps, ...).
+        search_iterations: A* search iterations the agent spent over the episode (with the iteration-count
+            timer; 0 with the stock one). With the ticks, what the episode cost, as a count that does not
+            depend on the machine.
     """
 
     status: str
@@ -282,6 +285,7 @@ class EpisodeResult:
     deterministic: bool
     error: str | None = None
     extra: dict[str, Any] = dataclasses.field(default_factory=dict)
+    search_iterations: int = 0
 
     @property
     def ok(self) -> bool:
@@ -347,12 +351,14 @@ class MarioSimulator:
         start = time.perf_counter()
         deadline = start + self.episode_timeout_s
         path: list[tuple[float, float]] = []
+        searched = 0
 
         def unfinished(status: str, error: str) -> EpisodeResult:
             # An episode that did not reach a game end has no completion; the evaluation fails.
             return EpisodeResult(status=status, completion=float("nan"), jumps=0, kills=0, ticks=len(path),
                                  path=np.asarray(path, dtype=np.float32).reshape(-1, 2),
-                                 wall_s=time.perf_counter() - start, deterministic=deterministic, error=error)
+                                 wall_s=time.perf_counter() - start, deterministic=deterministic, error=error,
+                                 search_iterations=searched)
 
         try:
             world = j.MarioWorld(None, 1)
@@ -370,7 +376,11 @@ class MarioSimulator:
                 if time.perf_counter() > deadline:
                     return unfinished(WALL_CLOCK_TIMEOUT, f"episode exceeded {self.episode_timeout_s:g} s of "
                                                           f"wall clock after {len(path)} ticks")
-                actions = agent.getActions(j.MarioForwardModel(world.clone()), make_timer())
+                timer = make_timer()
+                actions = agent.getActions(j.MarioForwardModel(world.clone()), timer)
+                if deterministic:
+                    # The timer is thrown away after the tick, so reading (and spending) what is left is free.
+                    searched += self.astar_iterations - int(timer.getRemainingTime())
                 world.update(actions)
                 game_events.addAll(world.lastFrameEvents)
                 mario = world.mario
@@ -388,6 +398,7 @@ class MarioSimulator:
                 path=np.asarray(path, dtype=np.float32).reshape(-1, 2),
                 wall_s=time.perf_counter() - start,
                 deterministic=deterministic,
+                search_iterations=searched,
                 extra={
                     "coins": int(result.getCurrentCoins()),
                     "lives": int(result.getCurrentLives()),

@@ -56,6 +56,8 @@ def test_deterministic_timer_repeats_exactly(obstacle_level):
     assert first.deterministic and first.ok
     assert first.ticks > 20 and first.jumps >= 1  # the gap and pipe need jumps: the test is not trivial
     assert _summary(first) == _summary(second)
+    # The search it cost is counted, and is as repeatable: at least one iteration a tick, at most the budget.
+    assert first.ticks <= first.search_iterations == second.search_iterations <= 300 * first.ticks
 
 
 @needs_javac
@@ -92,6 +94,7 @@ def test_iteration_budget_changes_the_agent():
     strong = MarioSimulator(timer=5, astar_iterations=300).play(level)
     assert strong.status == "WIN"
     assert _summary(weak) != _summary(strong)
+    assert weak.search_iterations == weak.ticks  # one iteration a tick: the budget, spent every time
 
 
 def test_small_mario_is_the_default(flat_level):
