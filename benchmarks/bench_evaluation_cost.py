@@ -1,7 +1,8 @@
 """What a real evaluation costs, as a function of one of its measures: the fit behind ``selection.cost_offset``.
 
 Evaluates ``--levels`` elites of a finished run's archive in this process, one at a time, and fits the CPU
-seconds each took as ``a + b · measure`` (least squares). ``selection.cost_measure`` / ``selection.cost_offset``
+seconds each took as ``a + b · measure`` (least squares); ``--measure`` may also name one of the domain's
+work counts (Maze ``steps``, Mario ``search_iterations``). ``selection.cost_measure`` / ``selection.cost_offset``
 model an evaluation's cost as ``offset + measure``, so the offset to set is ``a / b``: the cost of the fixed
 part of an evaluation (building the level, resetting the environment) in the measure's units. Elites are drawn
 uniformly over the archive, so the whole range of the measure is covered.
@@ -24,7 +25,7 @@ import numpy as np
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run", type=Path, help="a finished run folder (config.json, checkpoint.dsage)")
-    parser.add_argument("--measure", default="mean_path_length", help="the measure the cost grows with")
+    parser.add_argument("--measure", default="mean_path_length", help="the measure (or work count) the cost grows with")
     parser.add_argument("--levels", type=int, default=120, help="elites to evaluate")
     parser.add_argument("--seed", type=int, default=0, help="which elites, and the evaluation seeds")
     args = parser.parse_args(argv)
@@ -39,19 +40,24 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(1)
     config = RunConfig.from_file(args.run / "config.json")
     domain = build_domain(config)
-    names = list(domain.measure_names)
-    if args.measure not in names:
-        parser.error(f"--measure {args.measure!r} is not one of the run's measures {names}")
+    names, counts = list(domain.measure_names), list(getattr(domain, "work_names", ()))
+    if args.measure not in names + counts:
+        parser.error(f"--measure {args.measure!r} is neither one of the run's measures {names} nor one of its "
+                     f"work counts {counts}")
     solutions = load_checkpoint(args.run / CHECKPOINT_NAME)["archive"].data("solution")
     rng = np.random.default_rng(args.seed)
     rows = rng.choice(len(solutions), size=min(args.levels, len(solutions)), replace=False)
-    measure, seconds = [], []
+    candidates: dict[str, list[float]] = {name: [] for name in names + counts}
+    seconds = []
     for i, row in enumerate(tqdm(rows, desc="evaluate", unit="level")):
         tic = time.process_time()
         result = domain.evaluate(solutions[row], int(args.seed * 100_000 + i))
         seconds.append(time.process_time() - tic)
-        measure.append(float(result.measures[names.index(args.measure)]))
-    measure, seconds = np.array(measure), np.array(seconds)
+        values = dict(zip(names, result.measures.tolist())) | (domain.work_counts(result) if counts else {})
+        for name in candidates:
+            candidates[name].append(float(values[name]))
+    seconds = np.array(seconds)
+    measure = np.array(candidates[args.measure])
     slope, intercept = np.polyfit(measure, seconds, 1)
     residual = seconds - (intercept + slope * measure)
     print(f"{len(rows)} elites of {args.run} evaluated in this process ({config.domain}, agent "
@@ -63,6 +69,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"correlation {np.corrcoef(measure, seconds)[0, 1]:.3f}; fit seconds = {intercept:.4f} + {slope:.6f} · "
           f"{args.measure}; residual s.d. {residual.std():.3f} s")
     print(f"cost_offset = {intercept / slope:.1f} (selection.cost_measure={args.measure})")
+    print("correlation of the CPU seconds with each measure and work count: " + ", ".join(
+        f"{name} {np.corrcoef(values, seconds)[0, 1]:.3f}" if np.std(values) > 0 else f"{name} (constant)"
+        for name, values in candidates.items()))
     return 0
 
 

@@ -155,10 +155,11 @@ class SelectionConfig:
     gain_window: int = 1000
     #: ``expected_gain``: how many of them, nearest in predicted measures, lend a candidate their errors.
     gain_neighbours: int = 64
-    #: ``expected_gain``: a measure an evaluation's cost grows with in proportion; the gain is then
-    #: counted per evaluation of average cost ("": every evaluation costs the same).
+    #: ``expected_gain``: a measure an evaluation's cost grows with in proportion, or one of the domain's
+    #: work counts (Maze ``steps``, Mario ``search_iterations``); the gain is then counted per evaluation
+    #: of average cost ("": every evaluation costs the same).
     cost_measure: str = ""
-    #: ``cost_measure``: an evaluation's cost at measure 0, in the measure's units (must be > 0).
+    #: ``cost_measure``: an evaluation's cost at 0, in that measure's or count's units (must be > 0).
     cost_offset: float = 1.0
 
 
@@ -373,10 +374,12 @@ class RunConfig:
              or self.surrogate.prior_measure in measure_names, "surrogate.prior_measure",
              f"{self.surrogate.prior_measure!r} is not one of the measures {list(measure_names or [])}")
         # Only expected_gain reads the cost model: a run without it may set one its measures lack.
+        work_names = list(getattr(self.sections[self.domain], "work_names", ()))
         need(not self.selection.expected_gain or not self.selection.cost_measure or measure_names is None
-             or self.selection.cost_measure in measure_names, "selection.cost_measure",
-             f"{self.selection.cost_measure!r} is not one of the measures {list(measure_names or [])}; "
-             "set it to one they grow with, or to '' (every evaluation costs the same)")
+             or self.selection.cost_measure in [*measure_names, *work_names], "selection.cost_measure",
+             f"{self.selection.cost_measure!r} is neither one of the measures {list(measure_names or [])} nor one "
+             f"of the work counts {work_names}; set it to one an evaluation's cost grows with, or to '' (every "
+             "evaluation costs the same)")
         for key in ("num_emitters", "batch_size", "exploit_iterations", "mutation_cells"):
             need(getattr(self.qd, key) >= 1, f"qd.{key}", "must be positive")
         need(self.qd.sigma0 > 0, "qd.sigma0", "must be positive")

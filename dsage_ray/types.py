@@ -65,6 +65,10 @@ class Domain(Protocol):
     Optional: ``surrogate_prior(measure) -> Callable | None``, a parameter-free prior of a measure from the
     encoded levels ``(n, C, S, S)`` → ``(n,)``, which ``surrogate.prior_measure`` blends into the surrogate's
     prediction (:func:`dsage_ray.surrogate.surrogate.domain_prior`; Maze has one for ``mean_path_length``).
+
+    Optional: ``work_names`` and ``work_counts(result) -> {name: count}``, counts of the work an evaluation
+    did that do not depend on the machine (Maze: ``steps``; Mario: ``search_iterations``, ``ticks``), read
+    from its ``info``; ``selection.cost_measure`` may name one (:mod:`dsage_ray.qd.gain`).
     """
 
     name: str

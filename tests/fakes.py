@@ -60,6 +60,12 @@ class BitmapDomain:
         walls = np.asarray(solutions, dtype=np.float32).reshape(-1, 8, 8)
         return np.stack([1.0 - walls, walls], axis=1)
 
+    #: The fake's work count: its "agent" walks every empty cell.
+    work_names = ("steps",)
+
+    def work_counts(self, result: EvaluationResult) -> dict[str, float]:
+        return {"steps": float(result.occupancy.astype(bool).sum())}
+
     def evaluate(self, solution: np.ndarray, seed: int) -> EvaluationResult:
         self.calls += 1
         walls = np.asarray(solution).reshape(8, 8) > 0.5

@@ -175,20 +175,26 @@ class DirectQD:
         self.archive = state["archive"]
 
 
-def _evaluation_cost(config: RunConfig, domain: Domain) -> EvaluationCost | None:
-    """``selection.cost_measure`` as the domain's measure index (None: not used, or every evaluation costs the same).
+def _evaluation_cost(config: RunConfig, domain: Domain) -> tuple[EvaluationCost | None, str]:
+    """``selection.cost_measure`` as the domain's measure index, or as one of its work counts (then also
+    returned by name); None: not used, or every evaluation costs the same.
 
     Raises:
-        ConfigError: The domain has no such measure (a domain passed in may not be the config's own).
+        ConfigError: The domain has no such measure or work count (a domain passed in may not be the
+            config's own).
     """
     selection = config.selection
     if not selection.expected_gain or not selection.cost_measure:
-        return None
+        return None, ""
     names = list(domain.measure_names)
-    if selection.cost_measure not in names:
-        raise ConfigError(f"selection.cost_measure: {selection.cost_measure!r} is not one of the domain's measures "
-                          f"{names}; set it to one they grow with, or to '' (every evaluation costs the same)")
-    return EvaluationCost(measure=names.index(selection.cost_measure), offset=selection.cost_offset)
+    if selection.cost_measure in names:
+        return EvaluationCost(measure=names.index(selection.cost_measure), offset=selection.cost_offset), ""
+    counts = list(getattr(domain, "work_names", ()))
+    if selection.cost_measure not in counts:
+        raise ConfigError(f"selection.cost_measure: {selection.cost_measure!r} is neither one of the domain's measures "
+                          f"{names} nor one of its work counts {counts}; set it to one an evaluation's cost grows "
+                          "with, or to '' (every evaluation costs the same)")
+    return EvaluationCost(measure=None, offset=selection.cost_offset), selection.cost_measure
 
 
 class SurrogateAssisted:
@@ -224,7 +230,7 @@ class SurrogateAssisted:
         self.prior_samples = 0
         #: The surrogate's errors on recent picks (``selection.expected_gain`` reads them).
         self.pick_errors = PickErrors(window=config.selection.gain_window)
-        self.evaluation_cost = _evaluation_cost(config, domain)
+        self.evaluation_cost, self.work_name = _evaluation_cost(config, domain)
 
     def propose(self, *, outer_iteration: int) -> Proposal:
         proposal = Proposal(np.empty(0))
@@ -273,9 +279,12 @@ class SurrogateAssisted:
                 errors = self.surrogate.mae(encoded, batch.results, prediction=batch.predicted)
                 metrics.update({f"mae_{self._label(k)}": v for k, v in errors.items()})
                 self.last_predictions = (batch.predicted.measures[batch.ok], batch.measures)
+                work = None
+                if self.work_name:
+                    work = [self.domain.work_counts(batch.results[i])[self.work_name] for i in batch.ok]
                 self.pick_errors.add(predicted_objective=batch.predicted.objective[batch.ok],
                                      predicted_measures=batch.predicted.measures[batch.ok],
-                                     objective=batch.objective, measures=batch.measures)
+                                     objective=batch.objective, measures=batch.measures, work=work)
         return metrics
 
     # ---------------------------------------------------------------------------------- phases

@@ -43,11 +43,14 @@ class PickErrors:
         window: How many of the latest picks are kept.
         predicted: ``(n, 1 + M)``: predicted objective, then the M predicted measures.
         actual: ``(n, 1 + M)``: the real objective and measures, same order.
+        work: ``(n,)``: what each evaluation cost, as the count an :class:`EvaluationCost` without a
+            measure reads (NaN where none was recorded).
     """
 
     window: int
     predicted: np.ndarray = dataclasses.field(default_factory=lambda: np.empty((0, 0)))
     actual: np.ndarray = dataclasses.field(default_factory=lambda: np.empty((0, 0)))
+    work: np.ndarray = dataclasses.field(default_factory=lambda: np.empty(0))
 
     def __post_init__(self) -> None:
         if self.window < 1:
@@ -57,7 +60,7 @@ class PickErrors:
         return len(self.predicted)
 
     def add(self, *, predicted_objective: np.ndarray, predicted_measures: np.ndarray, objective: np.ndarray,
-            measures: np.ndarray) -> None:
+            measures: np.ndarray, work: np.ndarray | None = None) -> None:
         """Appends evaluated picks (row i of each array is pick i), then keeps the latest :attr:`window`.
 
         Raises:
@@ -71,34 +74,46 @@ class PickErrors:
             raise ValueError(f"predictions {predicted.shape} and results {actual.shape} differ in shape")
         if len(self) and predicted.shape[1] != self.predicted.shape[1]:
             raise ValueError(f"picks have {predicted.shape[1] - 1} measures, earlier ones {self.predicted.shape[1] - 1}")
+        work = np.full(len(predicted), np.nan) if work is None else np.asarray(work, np.float64).reshape(-1)
+        if len(work) != len(predicted):
+            raise ValueError(f"{len(work)} work counts for {len(predicted)} picks")
         if len(predicted) == 0:
             return
         if len(self):
             predicted, actual = np.concatenate([self.predicted, predicted]), np.concatenate([self.actual, actual])
-        self.predicted, self.actual = predicted[-self.window:], actual[-self.window:]
+            work = np.concatenate([self._work(), work])
+        self.predicted, self.actual, self.work = predicted[-self.window:], actual[-self.window:], work[-self.window:]
+
+    def _work(self) -> np.ndarray:
+        # Checkpoints written before work was recorded hold none.
+        return self.work if len(self.work) == len(self) else np.full(len(self), np.nan)
 
     def state_dict(self) -> dict[str, Any]:
         """Plain arrays, for a checkpoint."""
-        return {"window": self.window, "predicted": self.predicted.copy(), "actual": self.actual.copy()}
+        return {"window": self.window, "predicted": self.predicted.copy(), "actual": self.actual.copy(),
+                "work": self._work().copy()}
 
     @classmethod
     def from_state_dict(cls, state: dict[str, Any]) -> "PickErrors":
         return cls(window=int(state["window"]), predicted=np.asarray(state["predicted"], np.float64),
-                   actual=np.asarray(state["actual"], np.float64))
+                   actual=np.asarray(state["actual"], np.float64),
+                   work=np.asarray(state.get("work", np.empty(0)), np.float64))
 
 
 @dataclasses.dataclass(frozen=True)
 class EvaluationCost:
-    """What an evaluation costs, as a measure it grows with: ``offset + measure`` (e.g. the Maze's mean
-    path length, since the simulator steps the agent that many times per episode).
+    """What an evaluation costs: ``offset + x``, where ``x`` is a measure it grows with (e.g. the Maze's mean
+    path length, since the simulator steps the agent that many times per episode) or, without a measure,
+    the work count each evaluated pick recorded (:attr:`PickErrors.work`, e.g. Mario's A* search
+    iterations).
 
     Attributes:
-        measure: Index of the measure among the archive's measures.
-        offset: The cost of an evaluation whose measure is 0, in the measure's units (resetting and
-            building the level); must be positive.
+        measure: Index of the measure among the archive's measures; None: the recorded work.
+        offset: The cost of an evaluation whose ``x`` is 0, in ``x``'s units (resetting and building the
+            level); must be positive.
     """
 
-    measure: int
+    measure: int | None
     offset: float
 
     def __post_init__(self) -> None:
@@ -149,7 +164,8 @@ def expected_outcomes(
         errors: Recent picks' predictions and results; empty: the predictions are taken as exact.
         neighbours: How many recent picks, nearest in predicted measures (scaled by the archive's
             ranges), lend their errors to a candidate; all of them if fewer are held.
-        cost: How an evaluation's cost follows from its measures; None: every evaluation costs the same.
+        cost: How an evaluation's cost follows from its measures or recorded work; None: every evaluation
+            costs the same.
         chunk: Candidates scored at a time (bounds memory at ``chunk × len(errors)`` distances).
 
     Raises:
@@ -163,7 +179,7 @@ def expected_outcomes(
                          f"recent picks {errors.predicted.shape[1] - 1 if len(errors) else '-'}")
     if neighbours < 1:
         raise ValueError(f"neighbours must be positive (got {neighbours})")
-    if cost is not None and not 0 <= cost.measure < dim:
+    if cost is not None and cost.measure is not None and not 0 <= cost.measure < dim:
         raise ValueError(f"cost measure index {cost.measure} is not one of the archive's {dim} measures")
     cell_objective = _cell_objectives(ground_truth_archive)
     if len(errors) == 0:
@@ -171,7 +187,8 @@ def expected_outcomes(
         # word, and the cost from the predicted measure relative to the candidates' mean.
         gains = _added(ground_truth_archive, cell_objective, objective, measures)
         costs = np.ones(len(objective))
-        if cost is not None and len(objective):
+        # Work is only known once evaluated: before that, only a measure's prediction says anything.
+        if cost is not None and cost.measure is not None and len(objective):
             costs = np.maximum(cost.offset + measures[:, cost.measure], 0.0)
             costs = costs / max(costs.mean(), 1e-12)
         return Outcomes(gain=gains, cost=np.maximum(costs, 1e-6))
@@ -179,8 +196,13 @@ def expected_outcomes(
                                                                                    np.float64)
     known = errors.predicted[:, 1:] / scale
     residuals = errors.actual - errors.predicted
-    spent = (np.ones(len(errors)) if cost is None
-             else np.maximum(cost.offset + errors.actual[:, 1 + cost.measure], 0.0))
+    if cost is None:
+        spent = np.ones(len(errors))
+    else:
+        basis = errors.actual[:, 1 + cost.measure] if cost.measure is not None else errors._work()
+        # A pick without a recorded count (an older checkpoint's) costs what the others do on average.
+        basis = np.where(np.isnan(basis), np.nanmean(basis) if np.isfinite(basis).any() else 0.0, basis)
+        spent = np.maximum(cost.offset + basis, 0.0)
     spent = spent / spent.mean()
     k = min(neighbours, len(errors))
     gains, costs = np.empty(len(objective)), np.empty(len(objective))

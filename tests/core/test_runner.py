@@ -66,18 +66,19 @@ def test_same_seed_same_run_and_different_seed_differs():
     assert archive_snapshot(a.archive) != archive_snapshot(c.archive)
 
 
-@pytest.mark.parametrize("variant", ["dsage", "dsage_gain", "map_elites"])
-def test_resumed_run_continues_exactly(variant):
-    reference = make_runner(variant=variant)
+@pytest.mark.parametrize("variant, overrides", [("dsage", {}), ("dsage_gain", {}), ("map_elites", {}),
+                                                ("dsage_gain", {"selection.cost_measure": "steps"})])
+def test_resumed_run_continues_exactly(variant, overrides):
+    reference = make_runner(variant=variant, **overrides)
     reference.run()
 
-    interrupted = make_runner(variant=variant)
+    interrupted = make_runner(variant=variant, **overrides)
     interrupted.step()
     interrupted.step()
     state = pickle.loads(pickle.dumps(interrupted.state_dict()))
     del interrupted
 
-    resumed = make_runner(variant=variant)
+    resumed = make_runner(variant=variant, **overrides)
     resumed.load_state_dict(state)
     resumed.run()
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
@@ -187,7 +188,7 @@ def test_skip_filled_needs_a_surrogate():
         RunConfig.build({**SMALL, "variant": "map_elites", "selection.skip_filled": True})
 
 
-@pytest.mark.parametrize("cost_measure", ["", "num_walls"])
+@pytest.mark.parametrize("cost_measure", ["", "num_walls", "steps"])
 def test_gain_variant_scores_the_picks_by_the_errors_of_the_picks_before(monkeypatch, cost_measure):
     import dsage_ray.core.proposers as proposers_module
 
@@ -217,6 +218,12 @@ def test_gain_variant_scores_the_picks_by_the_errors_of_the_picks_before(monkeyp
         assert second["selection_relative_cost"] == 1.0
     else:
         assert second["selection_relative_cost"] > 0 and second["selection_expected_gain"] >= 0
+    # A work count is recorded per evaluated pick, as the domain counted it; a measure needs none.
+    work = runner.proposer.pick_errors.work
+    if cost_measure == "steps":
+        assert np.isfinite(work).all() and work.min() >= 0 and len(set(work.tolist())) > 1
+    else:
+        assert np.isnan(work).all()
 
 
 @pytest.mark.parametrize("overrides, key", [
@@ -242,7 +249,7 @@ def test_a_cost_measure_is_checked_only_where_expected_gain_reads_it():
     other_measures = {**SMALL, "maze.measures": ["num_walls", "optimal_path_length"],
                       "selection.cost_measure": "mean_path_length"}
     RunConfig.build({**other_measures, "variant": "dsage"})
-    with pytest.raises(ConfigError, match="selection.cost_measure: 'mean_path_length' is not one of the measures"):
+    with pytest.raises(ConfigError, match="selection.cost_measure: 'mean_path_length' is neither one of the measures"):
         RunConfig.build({**other_measures, "variant": "dsage_gain"})
 
 
@@ -250,6 +257,6 @@ def test_a_cost_measure_the_domain_lacks_is_refused_by_name():
     from dsage_ray.config import ConfigError
 
     # The config's own Maze section has a path length; the domain passed in does not.
-    with pytest.raises(ConfigError, match="selection.cost_measure: 'mean_path_length' is not one of the domain's"):
+    with pytest.raises(ConfigError, match="selection.cost_measure: 'mean_path_length' is neither one of the domain's measures"):
         make_runner(variant="dsage_gain", **{"selection.cost_measure": "mean_path_length"})
     make_runner(variant="dsage", **{"selection.cost_measure": "mean_path_length"})  # read only by dsage_gain

@@ -122,6 +122,36 @@ def test_before_any_pick_is_evaluated_the_predictions_are_taken_as_exact():
     np.testing.assert_allclose(plain.cost, [1.0])
 
 
+def test_a_cost_without_a_measure_reads_the_work_the_neighbours_recorded():
+    # Two picks predicted at 1.5 and 5.5, of work 3 and 9 (offset 1: costs 4 and 10, mean 7). A candidate
+    # costs what its nearest pick did; one recorded without work counts the mean of the others.
+    errors = PickErrors(window=10)
+    errors.add(predicted_objective=np.ones(2), predicted_measures=np.array([[1.5], [5.5]]), objective=np.ones(2),
+               measures=np.array([[1.5], [5.5]]), work=np.array([3.0, 9.0]))
+    cost = EvaluationCost(measure=None, offset=1.0)
+    outcomes = expected_outcomes(np.ones(2), np.array([[1.2], [5.8]]), ground_truth_archive=_line({}),
+                                 errors=errors, neighbours=1, cost=cost)
+    np.testing.assert_allclose(outcomes.cost, [4 / 7, 10 / 7])
+    errors.add(predicted_objective=np.ones(1), predicted_measures=np.array([[7.5]]), objective=np.ones(1),
+               measures=np.array([[7.5]]))
+    assert np.isnan(errors.work[-1])
+    restored = PickErrors.from_state_dict(errors.state_dict())
+    np.testing.assert_array_equal(restored.work, errors.work)
+    alone = expected_outcomes(np.ones(1), np.array([[7.4]]), ground_truth_archive=_line({}), errors=restored,
+                              neighbours=1, cost=cost)
+    np.testing.assert_allclose(alone.cost, [7 / 7])
+    # Before any pick, work is unknown: every candidate costs the same.
+    cold = expected_outcomes(np.ones(2), np.array([[1.2], [5.8]]), ground_truth_archive=_line({}),
+                             errors=PickErrors(window=3), neighbours=1, cost=cost)
+    np.testing.assert_allclose(cold.cost, [1.0, 1.0])
+    # A checkpoint written before work was recorded holds none: it reads as NaN.
+    old = PickErrors.from_state_dict({k: v for k, v in errors.state_dict().items() if k != "work"})
+    assert len(old.state_dict()["work"]) == len(old) and np.isnan(old.state_dict()["work"]).all()
+    with pytest.raises(ValueError, match="work counts"):
+        errors.add(predicted_objective=np.ones(1), predicted_measures=np.ones((1, 1)), objective=np.ones(1),
+                   measures=np.ones((1, 1)), work=np.ones(2))
+
+
 def test_expected_outcomes_bad_input():
     truth = _line({})
     with pytest.raises(ValueError, match="neighbours"):

@@ -61,6 +61,7 @@ class MarioDomain:
     def __init__(self, *, config: MarioConfig):
         self.config = config
         self.measure_names = tuple(config.measures)
+        self.work_names = tuple(config.work_names)
         unknown = [m for m in self.measure_names if m not in MEASURES]
         if unknown:
             raise ValueError(f"mario.measures: unknown measure(s) {unknown} (known: {sorted(MEASURES)})")
@@ -255,6 +256,12 @@ class MarioDomain:
     def is_valid(self, solution: Solution) -> bool:
         """Every latent decodes to a playable 16 × 56 level."""
         return True
+
+    def work_counts(self, result: EvaluationResult) -> dict[str, float]:
+        """Per run, on average: ``search_iterations``, the A* search iterations spent (what an evaluation's
+        time goes on: a stuck Mario searches to the budget every tick), and ``ticks``, the game ticks played."""
+        info = result.info
+        return {name: float(np.mean(info[name])) if len(info.get(name, ())) else 0.0 for name in self.work_names}
 
     def success_rate(self, result: EvaluationResult) -> float:
         """The share of the runs that reached the flag."""

@@ -7,7 +7,7 @@ neither torch nor JPype: the domain, the generator and the JVM load only when a 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable, Literal
+from typing import Any, Callable, ClassVar, Literal
 
 from dsage_ray.domains.registry import AgentKinds, AuditSpec, DomainSpec, ReportField
 
@@ -19,6 +19,8 @@ MarioObjective = Literal["completion", "incompletion"]
 class MarioConfig:
     """The Mario domain (SPEC §3)."""
 
+    #: Work counts its domain reports per evaluation (``work_counts``), which ``selection.cost_measure`` may name.
+    work_names: ClassVar[tuple[str, ...]] = ("search_iterations", "ticks")
     runs: int = 5
     timer: int = 20
     astar_iterations: int = 1000

@@ -37,6 +37,7 @@ class MazeDomain:
         self.height, self.width = config.height, config.width
         self.solution_dim = self.height * self.width
         self.measure_names = tuple(config.measures)
+        self.work_names = tuple(config.work_names)
         # Looked up now so a bad name fails at construction; kept by name so the domain pickles.
         measures = [get_measure(name) for name in self.measure_names]
         get_objective(config.objective)
@@ -241,6 +242,10 @@ class MazeDomain:
     def level_text(self, solution: Solution) -> str:
         """The layout file of a valid level (``dsage-ray maze eval --layout`` reads it)."""
         return format_layout(self.level(solution))
+
+    def work_counts(self, result: EvaluationResult) -> dict[str, float]:
+        """``steps``: the agent's steps over all the evaluation's episodes (what the simulator spent its time on)."""
+        return {"steps": float(sum(result.info.get("episode_lengths", ())))}
 
     def success_rate(self, result: EvaluationResult) -> float:
         """The share of the episodes that reached the goal."""

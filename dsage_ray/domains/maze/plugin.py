@@ -7,7 +7,7 @@ nothing heavy: the domain itself (MiniGrid, numba, the agents) loads only when a
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable, Literal
+from typing import Any, Callable, ClassVar, Literal
 
 from dsage_ray.config import COMMON_VARIANTS
 from dsage_ray.domains.registry import AgentKinds, AuditSpec, DomainSpec, ReportField
@@ -20,6 +20,8 @@ MazeObjective = Literal["validity", "failure_rate", "regret", "regression"]
 class MazeConfig:
     """The Maze domain (SPEC §2)."""
 
+    #: Work counts its domain reports per evaluation (``work_counts``), which ``selection.cost_measure`` may name.
+    work_names: ClassVar[tuple[str, ...]] = ("steps",)
     agent: str = "builtin:wall_follower"
     episodes: int = 50
     height: int = 16

@@ -68,6 +68,10 @@ def test_evaluate_end_to_end(rng):
     json.dumps(result.info)
     again = domain.evaluate(z, seed=1)
     assert again.objective == result.objective and (again.occupancy == result.occupancy).all()
+    # Its work, per run: the ticks played and the A* iterations spent on them (as repeatable as the rest).
+    work = domain.work_counts(result)
+    assert set(work) == set(domain.work_names) == {"search_iterations", "ticks"} and work == domain.work_counts(again)
+    assert work["ticks"] == result.info["ticks"][0] <= work["search_iterations"] <= 100 * work["ticks"]
 
 
 @needs_java

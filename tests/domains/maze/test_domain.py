@@ -57,6 +57,9 @@ def test_evaluate_loads_agent_once_and_is_deterministic(loads):
     assert {"success_rate", "episode_lengths", "successes", "optimal_path_length", "start", "goal",
             "valid"} <= set(a.info)
     assert len(a.info["episode_lengths"]) == 10
+    # Its work: every step of every episode, as selection.cost_measure = "steps" reads it.
+    assert domain.work_names == ("steps",)
+    assert domain.work_counts(a) == {"steps": float(sum(a.info["episode_lengths"]))} == domain.work_counts(b)
 
 
 def test_invalid_solution_scores_zero_without_loading_agent(loads):
@@ -64,6 +67,7 @@ def test_invalid_solution_scores_zero_without_loading_agent(loads):
     result = domain.evaluate(np.ones(16), seed=0)
     assert result.objective == 0.0 and result.measures.tolist() == [16.0, 0.0]
     assert loads == [] and result.info["valid"] is False
+    assert domain.work_counts(result) == {"steps": 0.0}
 
 
 def test_other_objectives(loads):
