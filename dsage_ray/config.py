@@ -147,7 +147,7 @@ class SelectionConfig:
     skip_filled: bool = False
     #: In each downsampling block, pick the elite expected to add most QD-score, judged by the
     #: surrogate's errors on recent picks, instead of a uniform one (the ``dsage_gain`` variant; see
-    #: :mod:`dsage_ray.qd.gain`). Until a pick has been evaluated, its predictions are taken as exact.
+    #: :mod:`dsage_ray.qd.gain`). The first selection goes by the surrogate's errors on the random first levels.
     expected_gain: bool = False
     #: ``expected_gain``: drop a block's pick expected to add less QD-score than this.
     min_gain: float = 0.0

@@ -231,6 +231,9 @@ class SurrogateAssisted:
         #: The surrogate's errors on recent picks (``selection.expected_gain`` reads them).
         self.pick_errors = PickErrors(window=config.selection.gain_window)
         self.evaluation_cost, self.work_name = _evaluation_cost(config, domain)
+        #: Evaluated levels nothing was predicted for (the random first batch), as dataset positions and
+        #: work counts: the first expected-gain selection predicts them, to learn the errors and costs from.
+        self.unpredicted = {"positions": np.empty(0, np.int64), "work": np.empty(0)}
 
     def propose(self, *, outer_iteration: int) -> Proposal:
         proposal = Proposal(np.empty(0))
@@ -273,19 +276,40 @@ class SurrogateAssisted:
         encoded = encode_solutions(self.domain, batch.solutions)
         if batch.ok:
             self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures, occupancy=batch.occupancy)
+            first = len(self.dataset)
             self.dataset.append(encoded=encoded, results=batch.results)
+            if batch.predicted is None and self.config.selection.expected_gain and not len(self.pick_errors):
+                work = self._work(batch)
+                self.unpredicted = {"positions": np.arange(first, len(self.dataset), dtype=np.int64),
+                                    "work": np.empty(0) if work is None else work}
             # A cold start's first batch is random: nothing was predicted for it.
             if batch.predicted is not None:
                 errors = self.surrogate.mae(encoded, batch.results, prediction=batch.predicted)
                 metrics.update({f"mae_{self._label(k)}": v for k, v in errors.items()})
                 self.last_predictions = (batch.predicted.measures[batch.ok], batch.measures)
-                work = None
-                if self.work_name:
-                    work = [self.domain.work_counts(batch.results[i])[self.work_name] for i in batch.ok]
                 self.pick_errors.add(predicted_objective=batch.predicted.objective[batch.ok],
                                      predicted_measures=batch.predicted.measures[batch.ok],
-                                     objective=batch.objective, measures=batch.measures, work=work)
+                                     objective=batch.objective, measures=batch.measures, work=self._work(batch))
         return metrics
+
+    def _work(self, batch: EvaluatedBatch) -> np.ndarray | None:
+        """The work count ``selection.cost_measure`` names, of each successful evaluation (None: not used)."""
+        if not self.work_name:
+            return None
+        return np.array([self.domain.work_counts(batch.results[i])[self.work_name] for i in batch.ok], np.float64)
+
+    def _errors_of_unpredicted(self) -> None:
+        """Before the first expected-gain selection: the surrogate, just trained, predicts the levels nothing was
+        predicted for, so that the selection has errors (optimistic: it trained on them) and real costs to go by."""
+        positions = self.unpredicted["positions"]
+        if len(self.pick_errors) or not len(positions) or positions.max() >= len(self.dataset):
+            return
+        prediction = self.surrogate.predict(self.dataset.levels(positions))
+        work = self.unpredicted["work"] if len(self.unpredicted["work"]) == len(positions) else None
+        self.pick_errors.add(predicted_objective=prediction.objective, predicted_measures=prediction.measures,
+                             objective=self.dataset.objective[positions], measures=self.dataset.measures[positions],
+                             work=work)
+        self.unpredicted = {"positions": np.empty(0, np.int64), "work": np.empty(0)}
 
     # ---------------------------------------------------------------------------------- phases
 
@@ -334,6 +358,7 @@ class SurrogateAssisted:
         """Selection: downsample / random / full picks from the surrogate archive."""
         selection = self.config.selection
         if selection.expected_gain:
+            self._errors_of_unpredicted()
             candidates = surrogate_archive.data(["objective", "measures"])
             outcomes = expected_outcomes(candidates["objective"], candidates["measures"],
                                          ground_truth_archive=self.archive, errors=self.pick_errors,
@@ -364,6 +389,7 @@ class SurrogateAssisted:
     def state_dict(self) -> dict[str, Any]:
         return {"scheduler": None, "surrogate": self.surrogate.state_dict(), "dataset": self.dataset.state_dict(),
                 "prior_samples": self.prior_samples, "pick_errors": self.pick_errors.state_dict(),
+                "unpredicted": {key: value.copy() for key, value in self.unpredicted.items()},
                 **self.holdout.state_dict()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -373,5 +399,7 @@ class SurrogateAssisted:
         self.prior_samples = state.get("prior_samples", 0)
         if state.get("pick_errors") is not None:  # checkpoints written before expected_gain have none
             self.pick_errors = PickErrors.from_state_dict(state["pick_errors"])
+        if state.get("unpredicted") is not None:
+            self.unpredicted = {key: np.asarray(value) for key, value in state["unpredicted"].items()}
         self.holdout.load_state_dict(state)
         self.last_predictions = state["last_predictions"]

@@ -66,15 +66,17 @@ def test_same_seed_same_run_and_different_seed_differs():
     assert archive_snapshot(a.archive) != archive_snapshot(c.archive)
 
 
-@pytest.mark.parametrize("variant, overrides", [("dsage", {}), ("dsage_gain", {}), ("map_elites", {}),
-                                                ("dsage_gain", {"selection.cost_measure": "steps"})])
-def test_resumed_run_continues_exactly(variant, overrides):
+@pytest.mark.parametrize("variant, overrides, steps", [
+    ("dsage", {}, 2), ("dsage_gain", {}, 2), ("map_elites", {}, 2),
+    # Stopped before its first selection: the random levels' work waits in the checkpoint to be predicted.
+    ("dsage_gain", {"selection.cost_measure": "steps"}, 1)])
+def test_resumed_run_continues_exactly(variant, overrides, steps):
     reference = make_runner(variant=variant, **overrides)
     reference.run()
 
     interrupted = make_runner(variant=variant, **overrides)
-    interrupted.step()
-    interrupted.step()
+    for _ in range(steps):
+        interrupted.step()
     state = pickle.loads(pickle.dumps(interrupted.state_dict()))
     del interrupted
 
@@ -202,12 +204,19 @@ def test_gain_variant_scores_the_picks_by_the_errors_of_the_picks_before(monkeyp
 
     monkeypatch.setattr(proposers_module, "best_per_block", spy)
     runner = make_runner(variant="dsage_gain", **{"selection.min_gain": 0.3, "selection.cost_measure": cost_measure})
-    runner.step()
-    first = runner.step()  # no pick has been evaluated yet: the predictions are taken as exact
+    random = runner.step()
+    # Nothing was predicted for the random levels: the first selection has the trained surrogate predict them,
+    # and starts from those errors (and, with a work count, from their real costs).
+    unpredicted = runner.proposer.unpredicted["positions"]
+    assert len(unpredicted) == random["evals"] - random.get("failed_evals", 0) and not len(runner.proposer.pick_errors)
+    first = runner.step()
     ((_, cold),) = calls
     assert first["evaluated_this_iteration"] == len(cold.indices) and "selection_expected_gain" in first
+    assert not len(runner.proposer.unpredicted["positions"])
     errors = len(runner.proposer.pick_errors)
-    assert errors == first["evaluated_this_iteration"] - first.get("failed_evals", 0)
+    assert errors == len(unpredicted) + first["evaluated_this_iteration"] - first.get("failed_evals", 0)
+    np.testing.assert_array_equal(runner.proposer.pick_errors.actual[:len(unpredicted), 0],
+                                  runner.proposer.dataset.objective[unpredicted])
     second = runner.step()
     (_, (chosen_gains, chosen)) = calls
     assert second["evaluated_this_iteration"] == len(chosen.indices)
