@@ -61,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     slope, intercept = np.polyfit(measure, seconds, 1)
     residual = seconds - (intercept + slope * measure)
     print(f"{len(rows)} elites of {args.run} evaluated in this process ({config.domain}, agent "
-          f"{getattr(config.domain_config, 'agent', '?')}), CPU seconds per evaluation against {args.measure}:")
+          f"{getattr(domain, 'agent_spec', '?')}), CPU seconds per evaluation against {args.measure}:")
     edges = np.quantile(measure, np.linspace(0, 1, 6))
     for lo, hi in zip(edges[:-1], edges[1:]):
         band = (measure >= lo) & (measure <= hi)
