@@ -8,6 +8,9 @@ STAMP := $(VENV)/.installed
 
 # Benchmarks that read a finished run (RUN=its folder, holding checkpoint.dsage) instead of making their own data.
 RUN_BENCHMARKS := benchmarks/bench_surrogate_training.py benchmarks/bench_surrogate_ceiling.py
+# Benchmarks that read the run folders of a published experiment (their commands are in docs/results).
+FOLDER_BENCHMARKS := benchmarks/bench_equal_compute.py benchmarks/bench_evaluation_cost.py \
+	benchmarks/bench_cost_prediction.py
 
 $(STAMP): pyproject.toml Makefile
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
@@ -39,7 +42,7 @@ test-slow: $(STAMP)
 	RAY_AUTH_MODE=disabled LD_PRELOAD=$(JSIG) $(BIN)/python -m pytest -q -m slow
 
 bench: $(STAMP)
-	for b in $(filter-out $(RUN_BENCHMARKS),$(wildcard benchmarks/bench_*.py)); do $(BIN)/python $$b || exit 1; done
+	for b in $(filter-out $(RUN_BENCHMARKS) $(FOLDER_BENCHMARKS),$(wildcard benchmarks/bench_*.py)); do $(BIN)/python $$b || exit 1; done
 
 # e.g. make bench-run RUN=tb_logs/maze_dsage   (a Maze surrogate run with held-out levels)
 bench-run: $(STAMP)
