@@ -155,9 +155,10 @@ class SelectionConfig:
     gain_window: int = 1000
     #: ``expected_gain``: how many of them, nearest in predicted measures, lend a candidate their errors.
     gain_neighbours: int = 64
-    #: ``expected_gain``: a measure an evaluation's cost grows with in proportion, or one of the domain's
-    #: work counts (Maze ``steps``, Mario ``search_iterations``); the gain is then counted per evaluation
-    #: of average cost ("": every evaluation costs the same).
+    #: ``expected_gain``: a measure an evaluation's cost grows with in proportion, one of the domain's
+    #: work counts (Maze ``steps``, Mario ``search_iterations``), or ``occupancy``: the occupancy sum (the
+    #: agent's time in the level), each candidate's own as the two-stage surrogate predicts it. The gain is
+    #: then counted per evaluation of average cost ("": every evaluation costs the same).
     cost_measure: str = ""
     #: ``cost_measure``: an evaluation's cost at 0, in that measure's or count's units (must be > 0).
     cost_offset: float = 1.0
@@ -374,7 +375,10 @@ class RunConfig:
              or self.surrogate.prior_measure in measure_names, "surrogate.prior_measure",
              f"{self.surrogate.prior_measure!r} is not one of the measures {list(measure_names or [])}")
         # Only expected_gain reads the cost model: a run without it may set one its measures lack.
-        work_names = list(getattr(self.sections[self.domain], "work_names", ()))
+        work_names = [*getattr(self.sections[self.domain], "work_names", ()), OCCUPANCY_COST]
+        need(not self.selection.expected_gain or self.selection.cost_measure != OCCUPANCY_COST
+             or self.surrogate.kind == "two_stage", "selection.cost_measure",
+             "'occupancy' is the two-stage surrogate's predicted occupancy sum; this surrogate predicts none")
         need(not self.selection.expected_gain or not self.selection.cost_measure or measure_names is None
              or self.selection.cost_measure in [*measure_names, *work_names], "selection.cost_measure",
              f"{self.selection.cost_measure!r} is neither one of the measures {list(measure_names or [])} nor one "
@@ -421,6 +425,9 @@ class RunConfig:
 
 
 # -------------------------------------------------------------------------------------- variants
+
+#: ``selection.cost_measure`` for a cost read from the surrogate's predicted occupancy sum.
+OCCUPANCY_COST = "occupancy"
 
 #: The DSAGE variants of every domain (its registration adds its QD baselines, e.g. ``map_elites``).
 #: Paper variants as data: each is a set of keys, never a code branch.

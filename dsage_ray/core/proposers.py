@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any, Callable, Protocol
 
 import numpy as np
 
-from dsage_ray.config import ConfigError, RunConfig
+from dsage_ray.config import OCCUPANCY_COST, ConfigError, RunConfig
 from dsage_ray.core.holdout import HeldOutLevels, head_label
 from dsage_ray.qd.archives import make_archive
 from dsage_ray.qd.gain import EvaluationCost, PickErrors, best_per_block, expected_outcomes
@@ -189,7 +189,7 @@ def _evaluation_cost(config: RunConfig, domain: Domain) -> tuple[EvaluationCost 
     names = list(domain.measure_names)
     if selection.cost_measure in names:
         return EvaluationCost(measure=names.index(selection.cost_measure), offset=selection.cost_offset), ""
-    counts = list(getattr(domain, "work_names", ()))
+    counts = [*getattr(domain, "work_names", ()), OCCUPANCY_COST]
     if selection.cost_measure not in counts:
         raise ConfigError(f"selection.cost_measure: {selection.cost_measure!r} is neither one of the domain's measures "
                           f"{names} nor one of its work counts {counts}; set it to one an evaluation's cost grows "
@@ -296,6 +296,8 @@ class SurrogateAssisted:
         """The work count ``selection.cost_measure`` names, of each successful evaluation (None: not used)."""
         if not self.work_name:
             return None
+        if self.work_name == OCCUPANCY_COST:
+            return batch.occupancy.reshape(len(batch.ok), -1).sum(axis=1).astype(np.float64)
         return np.array([self.domain.work_counts(batch.results[i])[self.work_name] for i in batch.ok], np.float64)
 
     def _errors_of_unpredicted(self) -> None:
@@ -359,10 +361,14 @@ class SurrogateAssisted:
         selection = self.config.selection
         if selection.expected_gain:
             self._errors_of_unpredicted()
-            candidates = surrogate_archive.data(["objective", "measures"])
+            candidates = surrogate_archive.data(["objective", "measures", "solution"])
+            work = None
+            if self.work_name == OCCUPANCY_COST:  # each candidate's own predicted time in the level
+                occupancy = self.surrogate.predict(encode_solutions(self.domain, candidates["solution"])).occupancy
+                work = occupancy.reshape(len(occupancy), -1).sum(axis=1)
             outcomes = expected_outcomes(candidates["objective"], candidates["measures"],
                                          ground_truth_archive=self.archive, errors=self.pick_errors,
-                                         neighbours=selection.gain_neighbours, cost=self.evaluation_cost)
+                                         neighbours=selection.gain_neighbours, cost=self.evaluation_cost, work=work)
             chosen = best_per_block(surrogate_archive, outcomes.gain_per_cost, block=selection.block,
                                     min_gain=selection.min_gain, rng=self.seeds.rng)
             picks = chosen.indices

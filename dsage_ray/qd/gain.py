@@ -148,6 +148,7 @@ def expected_outcomes(
     errors: PickErrors,
     neighbours: int,
     cost: EvaluationCost | None = None,
+    work: np.ndarray | None = None,
     chunk: int = 1024,
 ) -> Outcomes:
     """The QD-score each candidate is expected to add to ``ground_truth_archive``, and what it would cost.
@@ -166,6 +167,9 @@ def expected_outcomes(
             ranges), lend their errors to a candidate; all of them if fewer are held.
         cost: How an evaluation's cost follows from its measures or recorded work; None: every evaluation
             costs the same.
+        work: ``(n,)`` the candidates' own predicted work (e.g. their predicted occupancy sum), for a
+            ``cost`` without a measure; their cost is then ``cost.offset + work`` instead of what their
+            neighbours' evaluations cost.
         chunk: Candidates scored at a time (bounds memory at ``chunk × len(errors)`` distances).
 
     Raises:
@@ -187,10 +191,10 @@ def expected_outcomes(
         # word, and the cost from the predicted measure relative to the candidates' mean.
         gains = _added(ground_truth_archive, cell_objective, objective, measures)
         costs = np.ones(len(objective))
-        # Work is only known once evaluated: before that, only a measure's prediction says anything.
-        if cost is not None and cost.measure is not None and len(objective):
-            costs = np.maximum(cost.offset + measures[:, cost.measure], 0.0)
-            costs = costs / max(costs.mean(), 1e-12)
+        # Recorded work is only known once evaluated: before that, only a prediction says anything.
+        own = _own_costs(cost, measures, work)
+        if own is not None and len(objective):
+            costs = own / max(own.mean(), 1e-12)
         return Outcomes(gain=gains, cost=np.maximum(costs, 1e-6))
     scale = np.asarray(ground_truth_archive.upper_bounds, np.float64) - np.asarray(ground_truth_archive.lower_bounds,
                                                                                    np.float64)
@@ -203,6 +207,8 @@ def expected_outcomes(
         # A pick without a recorded count (an older checkpoint's) costs what the others do on average.
         basis = np.where(np.isnan(basis), np.nanmean(basis) if np.isfinite(basis).any() else 0.0, basis)
         spent = np.maximum(cost.offset + basis, 0.0)
+    own = _own_costs(cost, measures, work) if cost is not None and cost.measure is None else None
+    own = None if own is None else own / spent.mean()
     spent = spent / spent.mean()
     k = min(neighbours, len(errors))
     gains, costs = np.empty(len(objective)), np.empty(len(objective))
@@ -215,9 +221,23 @@ def expected_outcomes(
         sample_objective = objective[part, None] + sampled[:, :, 0]
         sample_measures = measures[part, None, :] + sampled[:, :, 1:]
         gains[part] = _added(ground_truth_archive, cell_objective, sample_objective, sample_measures).mean(axis=1)
-        costs[part] = spent[nearest].mean(axis=1)
+        costs[part] = spent[nearest].mean(axis=1) if own is None else own[part]
     # A neighbourhood of evaluations that cost nothing would make any gain infinitely cheap.
     return Outcomes(gain=gains, cost=np.maximum(costs, 1e-6))
+
+
+def _own_costs(cost: EvaluationCost | None, measures: np.ndarray, work: np.ndarray | None) -> np.ndarray | None:
+    """What each candidate's own prediction says its evaluation costs (unnormalised), if anything does."""
+    if cost is None:
+        return None
+    if cost.measure is not None:
+        return np.maximum(cost.offset + measures[:, cost.measure], 0.0)
+    if work is not None:
+        work = np.asarray(work, np.float64).reshape(-1)
+        if len(work) != len(measures):
+            raise ValueError(f"{len(work)} predicted work counts for {len(measures)} candidates")
+        return np.maximum(cost.offset + work, 0.0)
+    return None
 
 
 def _added(archive: GridArchive, cell_objective: np.ndarray, objective: np.ndarray, measures: np.ndarray) -> np.ndarray:

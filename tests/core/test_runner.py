@@ -69,7 +69,7 @@ def test_same_seed_same_run_and_different_seed_differs():
 @pytest.mark.parametrize("variant, overrides, steps", [
     ("dsage", {}, 2), ("dsage_gain", {}, 2), ("map_elites", {}, 2),
     # Stopped before its first selection: the random levels' work waits in the checkpoint to be predicted.
-    ("dsage_gain", {"selection.cost_measure": "steps"}, 1)])
+    ("dsage_gain", {"selection.cost_measure": "steps"}, 1), ("dsage_gain", {"selection.cost_measure": "occupancy"}, 2)])
 def test_resumed_run_continues_exactly(variant, overrides, steps):
     reference = make_runner(variant=variant, **overrides)
     reference.run()
@@ -190,7 +190,7 @@ def test_skip_filled_needs_a_surrogate():
         RunConfig.build({**SMALL, "variant": "map_elites", "selection.skip_filled": True})
 
 
-@pytest.mark.parametrize("cost_measure", ["", "num_walls", "steps"])
+@pytest.mark.parametrize("cost_measure", ["", "num_walls", "steps", "occupancy"])
 def test_gain_variant_scores_the_picks_by_the_errors_of_the_picks_before(monkeypatch, cost_measure):
     import dsage_ray.core.proposers as proposers_module
 
@@ -229,7 +229,7 @@ def test_gain_variant_scores_the_picks_by_the_errors_of_the_picks_before(monkeyp
         assert second["selection_relative_cost"] > 0 and second["selection_expected_gain"] >= 0
     # A work count is recorded per evaluated pick, as the domain counted it; a measure needs none.
     work = runner.proposer.pick_errors.work
-    if cost_measure == "steps":
+    if cost_measure in ("steps", "occupancy"):
         assert np.isfinite(work).all() and work.min() >= 0 and len(set(work.tolist())) > 1
     else:
         assert np.isnan(work).all()
@@ -243,6 +243,8 @@ def test_gain_variant_scores_the_picks_by_the_errors_of_the_picks_before(monkeyp
     ({"variant": "dsage_gain", "selection.gain_neighbours": 0}, "selection.gain_neighbours"),
     ({"variant": "dsage_gain", "selection.cost_offset": 0.0}, "selection.cost_offset"),
     ({"variant": "dsage_gain", "selection.cost_measure": "jumps"}, "selection.cost_measure"),
+    ({"variant": "dsage_gain", "selection.cost_measure": "occupancy", "surrogate.kind": "one_stage"},
+     "selection.cost_measure"),
 ])
 def test_expected_gain_config_is_checked(overrides, key):
     from dsage_ray.config import ConfigError

@@ -152,6 +152,24 @@ def test_a_cost_without_a_measure_reads_the_work_the_neighbours_recorded():
                    measures=np.ones((1, 1)), work=np.ones(2))
 
 
+def test_a_candidates_own_predicted_work_prices_it_over_its_neighbours_costs():
+    # The recent picks cost 1 + 3 and 1 + 9 (mean 7); candidates predicted to work 6 and 0 cost 7/7 and 1/7,
+    # whatever their neighbours cost. Before any pick, relative to each other (7 and 1, mean 4).
+    errors = PickErrors(window=10)
+    errors.add(predicted_objective=np.ones(2), predicted_measures=np.array([[1.5], [5.5]]), objective=np.ones(2),
+               measures=np.array([[1.5], [5.5]]), work=np.array([3.0, 9.0]))
+    cost = EvaluationCost(measure=None, offset=1.0)
+    outcomes = expected_outcomes(np.ones(2), np.array([[1.2], [5.8]]), ground_truth_archive=_line({}),
+                                 errors=errors, neighbours=1, cost=cost, work=np.array([6.0, 0.0]))
+    np.testing.assert_allclose(outcomes.cost, [1.0, 1 / 7])
+    cold = expected_outcomes(np.ones(2), np.array([[1.2], [5.8]]), ground_truth_archive=_line({}),
+                             errors=PickErrors(window=3), neighbours=1, cost=cost, work=np.array([6.0, 0.0]))
+    np.testing.assert_allclose(cold.cost, [7 / 4, 1 / 4])
+    with pytest.raises(ValueError, match="predicted work counts"):
+        expected_outcomes(np.ones(2), np.ones((2, 1)), ground_truth_archive=_line({}), errors=errors, neighbours=1,
+                          cost=cost, work=np.ones(3))
+
+
 def test_expected_outcomes_bad_input():
     truth = _line({})
     with pytest.raises(ValueError, match="neighbours"):
