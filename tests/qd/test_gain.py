@@ -122,13 +122,18 @@ def test_before_any_pick_is_evaluated_the_predictions_are_taken_as_exact():
     np.testing.assert_allclose(plain.cost, [1.0])
 
 
-def test_a_cost_without_a_measure_reads_the_work_the_neighbours_recorded():
-    # Two picks predicted at 1.5 and 5.5, of work 3 and 9 (offset 1: costs 4 and 10, mean 7). A candidate
-    # costs what its nearest pick did; one recorded without work counts the mean of the others.
+def _worked_picks() -> PickErrors:
+    """Two picks predicted (and landed) at 1.5 and 5.5, of work 3 and 9."""
     errors = PickErrors(window=10)
     errors.add(predicted_objective=np.ones(2), predicted_measures=np.array([[1.5], [5.5]]), objective=np.ones(2),
                measures=np.array([[1.5], [5.5]]), work=np.array([3.0, 9.0]))
-    cost = EvaluationCost(measure=None, offset=1.0)
+    return errors
+
+
+def test_a_cost_without_a_measure_reads_the_work_the_neighbours_recorded():
+    # Two picks predicted at 1.5 and 5.5, of work 3 and 9 (offset 1: costs 4 and 10, mean 7). A candidate
+    # costs what its nearest pick did; one recorded without work counts the mean of the others.
+    errors, cost = _worked_picks(), EvaluationCost(measure=None, offset=1.0)
     outcomes = expected_outcomes(np.ones(2), np.array([[1.2], [5.8]]), ground_truth_archive=_line({}),
                                  errors=errors, neighbours=1, cost=cost)
     np.testing.assert_allclose(outcomes.cost, [4 / 7, 10 / 7])
@@ -155,10 +160,7 @@ def test_a_cost_without_a_measure_reads_the_work_the_neighbours_recorded():
 def test_a_candidates_own_predicted_work_prices_it_over_its_neighbours_costs():
     # The recent picks cost 1 + 3 and 1 + 9 (mean 7); candidates predicted to work 6 and 0 cost 7/7 and 1/7,
     # whatever their neighbours cost. Before any pick, relative to each other (7 and 1, mean 4).
-    errors = PickErrors(window=10)
-    errors.add(predicted_objective=np.ones(2), predicted_measures=np.array([[1.5], [5.5]]), objective=np.ones(2),
-               measures=np.array([[1.5], [5.5]]), work=np.array([3.0, 9.0]))
-    cost = EvaluationCost(measure=None, offset=1.0)
+    errors, cost = _worked_picks(), EvaluationCost(measure=None, offset=1.0)
     outcomes = expected_outcomes(np.ones(2), np.array([[1.2], [5.8]]), ground_truth_archive=_line({}),
                                  errors=errors, neighbours=1, cost=cost, work=np.array([6.0, 0.0]))
     np.testing.assert_allclose(outcomes.cost, [1.0, 1 / 7])
