@@ -16,12 +16,15 @@ candidate's expected gain (:func:`expected_outcomes`).
 
 Evaluations do not all cost the same: a Maze evaluation steps the agent about as many times as its
 mean path length, so a level the agent solves in 20 steps costs about an eighth of one it fails. With an
-:class:`EvaluationCost`, the same neighbours' real measures say what a candidate's evaluation will
-cost, and the gain is counted per evaluation of average cost. :func:`best_per_block` then keeps the
-most promising elite of each block and drops those below ``min_gain``.
+:class:`EvaluationCost`, the same neighbours' real measures (or the work counts their evaluations
+recorded, e.g. Mario's A* search iterations) say what a candidate's evaluation will cost, unless the
+candidate's own predicted work is given; the gain is then counted per evaluation of average cost.
+:func:`best_per_block` keeps the most promising elite of each block and drops those below ``min_gain``.
 
 Measured on ACCEL (docs/results/equal_compute, section 9): level with uniform downsampling, per
-evaluation and per CPU second. Its picks realise about 0.87 of the gain it expects.
+evaluation and per CPU second. Its picks realise about 0.87 of the gain it expects. On Mario (section
+10, one tuning seed) no cost model helped: on levels it has not trained on, the surrogate cannot tell
+which will leave Mario stuck.
 """
 
 from __future__ import annotations
@@ -55,6 +58,8 @@ class PickErrors:
     def __post_init__(self) -> None:
         if self.window < 1:
             raise ValueError(f"window must be positive (got {self.window})")
+        if len(self.work) != len(self.predicted):  # a checkpoint written before work was recorded holds none
+            self.work = np.full(len(self.predicted), np.nan)
 
     def __len__(self) -> int:
         return len(self.predicted)
@@ -81,17 +86,13 @@ class PickErrors:
             return
         if len(self):
             predicted, actual = np.concatenate([self.predicted, predicted]), np.concatenate([self.actual, actual])
-            work = np.concatenate([self._work(), work])
+            work = np.concatenate([self.work, work])
         self.predicted, self.actual, self.work = predicted[-self.window:], actual[-self.window:], work[-self.window:]
-
-    def _work(self) -> np.ndarray:
-        # Checkpoints written before work was recorded hold none.
-        return self.work if len(self.work) == len(self) else np.full(len(self), np.nan)
 
     def state_dict(self) -> dict[str, Any]:
         """Plain arrays, for a checkpoint."""
         return {"window": self.window, "predicted": self.predicted.copy(), "actual": self.actual.copy(),
-                "work": self._work().copy()}
+                "work": self.work.copy()}
 
     @classmethod
     def from_state_dict(cls, state: dict[str, Any]) -> "PickErrors":
@@ -203,7 +204,7 @@ def expected_outcomes(
     if cost is None:
         spent = np.ones(len(errors))
     else:
-        basis = errors.actual[:, 1 + cost.measure] if cost.measure is not None else errors._work()
+        basis = errors.actual[:, 1 + cost.measure] if cost.measure is not None else errors.work
         # A pick without a recorded count (an older checkpoint's) costs what the others do on average.
         basis = np.where(np.isnan(basis), np.nanmean(basis) if np.isfinite(basis).any() else 0.0, basis)
         spent = np.maximum(cost.offset + basis, 0.0)
