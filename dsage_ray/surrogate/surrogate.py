@@ -30,6 +30,9 @@ from dsage_ray.surrogate.dataset import SurrogateDataset, Targets
 from dsage_ray.surrogate.models import LevelStatistics, ModelOutput, OneStageModel, TwoStageModel, encode_solutions
 from dsage_ray.types import EncodedLevels, EvaluationResult
 
+#: Encoded levels ``(n, C, S, S)`` → ``{measure name or "objective": (n,) values}``.
+LevelValues = Callable[[np.ndarray], dict[str, np.ndarray]]
+
 #: Surrogate kinds by name: ``two_stage`` predicts occupancy first (DSAGE), ``one_stage`` does not.
 #: With ``"none"`` (plain QD, no surrogate) these are the config's ``surrogate.kind`` names. Each is
 #: built from the input's shape and the config's architecture keys (``channels``, ``dilations``).
@@ -133,6 +136,9 @@ class Surrogate:
             ``(n, C, S, S)`` → ``(n,)`` (Maze: :func:`~dsage_ray.domains.maze.prior.walker_prior`).
         sum_residual: The ``occupancy_sum_measure`` is the occupancy sum *plus* its head's output, which then
             learns the sum's error, instead of the sum alone.
+        level_values: With ``config.exact_level_values``: the domain's values that are functions of the level
+            alone, encoded levels → ``{measure name or "objective": (n,)}``. They replace the predictions of the
+            same name; names that are not this surrogate's measures are ignored.
 
     ``statistics`` and ``sum_residual`` are not in the paper and no config key sets them:
     ``benchmarks/bench_surrogate_ceiling.py`` judges them (neither predicts a search's own levels better).
@@ -142,7 +148,8 @@ class Surrogate:
                  occupancy_shape: tuple[int, int], num_measures: int, config: SurrogateConfig, seed: int,
                  measure_ranges: Sequence[tuple[float, float]] | None = None,
                  measure_names: Sequence[str] | None = None, statistics: LevelStatistics | None = None,
-                 sum_residual: bool = False, prior: Callable[[torch.Tensor], torch.Tensor] | None = None) -> None:
+                 sum_residual: bool = False, prior: Callable[[torch.Tensor], torch.Tensor] | None = None,
+                 level_values: LevelValues | None = None) -> None:
         if kind not in KINDS:
             raise ValueError(f"surrogate kind must be one of {KINDS}, got {kind!r}")
         size, width = input_shape
@@ -163,6 +170,10 @@ class Surrogate:
         if self._prior_index is not None and prior is None:
             raise ValueError(f"prior_measure {config.prior_measure!r} needs the domain's prior (none was given)")
         self._prior = prior
+        if config.exact_level_values and level_values is None:
+            raise ValueError("exact_level_values needs the domain's level_values (none was given)")
+        self._level_values = level_values if config.exact_level_values else None
+        self._measure_columns = {name: i for i, name in enumerate(measure_names or ())}
         #: ``(intercept, slope)`` of the measure on ``log(1 + prior)``, fitted by :meth:`train`; None before.
         self._prior_fit: tuple[float, float] | None = None
         #: ``"fp32"`` or ``"bf16"``: what ``config.precision`` resolved to on this machine.
@@ -192,7 +203,8 @@ class Surrogate:
         return cls(kind=config.kind, input_channels=sample.shape[1], input_shape=tuple(sample.shape[2:]),
                    occupancy_shape=domain.occupancy_shape, num_measures=len(domain.measure_names), config=config,
                    seed=seed, measure_ranges=domain.measure_ranges, measure_names=domain.measure_names,
-                   prior=domain_prior(domain, config.prior_measure))
+                   prior=domain_prior(domain, config.prior_measure),
+                   level_values=domain_level_values(domain) if config.exact_level_values else None)
 
     @property
     def head_names(self) -> tuple[str, ...]:
@@ -362,8 +374,14 @@ class Surrogate:
             i = self._prior_index
             from_prior = intercept + slope * self._log_prior(encoded)
             measures[:, i] = (PRIOR_WEIGHT * from_prior + (1.0 - PRIOR_WEIGHT) * measures[:, i]).astype(np.float32)
-        return Prediction(objective.cpu().numpy(), measures,
-                          None if occupancy is None else occupancy.cpu().numpy())
+        objective = objective.cpu().numpy()
+        if self._level_values is not None:
+            for name, values in self._level_values(encoded).items():
+                column = objective if name == "objective" else (
+                    measures[:, self._measure_columns[name]] if name in self._measure_columns else None)
+                if column is not None:
+                    column[:] = values
+        return Prediction(objective, measures, None if occupancy is None else occupancy.cpu().numpy())
 
     def mae(self, encoded: EncodedLevels, results: Sequence[EvaluationResult],
             prediction: Prediction | None = None) -> dict[str, float]:
@@ -433,6 +451,19 @@ def domain_prior(domain: Any, measure: str) -> Callable[[torch.Tensor], torch.Te
         raise ValueError(f"surrogate.prior_measure {measure!r}: the {getattr(domain, 'name', '?')} domain has no "
                          "prior for it")
     return prior
+
+
+def domain_level_values(domain: Any) -> LevelValues:
+    """The ``Surrogate(level_values=...)`` of ``config.exact_level_values``: the domain's ``level_values``.
+
+    Raises:
+        ValueError: The domain computes nothing from the level alone.
+    """
+    hook = getattr(domain, "level_values", None)
+    if hook is None:
+        raise ValueError(f"surrogate.exact_level_values: the {getattr(domain, 'name', '?')} domain computes no "
+                         "measure from the level alone (it has no level_values)")
+    return hook
 
 
 def _occupancy_sum_index(name: str, kind: str, measure_names: Sequence[str] | None,

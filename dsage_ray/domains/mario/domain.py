@@ -12,7 +12,7 @@ from dsage_ray.domains.mario.encoding import PADDED_SIZE, one_hot_levels
 from dsage_ray.domains.mario.evaluate import MEASURES, MarioEvaluation, evaluate_level
 from dsage_ray.domains.mario.plugin import DOMAIN, MarioConfig
 from dsage_ray.domains.mario.render import level_png
-from dsage_ray.domains.mario.tiles import LEVEL_HEIGHT, LEVEL_WIDTH, NUM_TILES, indices_to_string
+from dsage_ray.domains.mario.tiles import EMPTY, LEVEL_HEIGHT, LEVEL_WIDTH, NUM_TILES, SKY_ROWS, indices_to_string
 from dsage_ray.types import EncodedLevels, EvaluationResult, Solution, Solutions
 
 #: Natural range of each measure, used when the config gives no ``measure_ranges``.
@@ -133,6 +133,11 @@ class MarioDomain:
     def encode(self, solutions: Solutions) -> EncodedLevels:
         """One-hot ``(n, 17, 64, 64)`` levels, padding on channel 0."""
         return one_hot_levels(self.levels(solutions), size=PADDED_SIZE)
+
+    def level_values(self, encoded: EncodedLevels) -> dict[str, np.ndarray]:
+        """What a level fixes by itself, from its encoding (:meth:`encode`): ``sky_tiles``."""
+        sky = np.asarray(encoded)[:, EMPTY, :SKY_ROWS, :LEVEL_WIDTH]
+        return {"sky_tiles": SKY_ROWS * LEVEL_WIDTH - sky.sum(axis=(1, 2))}
 
     def run(self, solution: Solution, seed: int = 0) -> MarioEvaluation:
         """The full evaluation of one latent. ``seed`` is unused: the engine has no RNG, and

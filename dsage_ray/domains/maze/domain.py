@@ -8,7 +8,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dsage_ray.domains.maze.encoding import CHANNELS, PATH_CHANNELS, SPARE, encode_levels
+from dsage_ray.domains.maze.encoding import CHANNELS, PATH_CHANNELS, SPARE, START, WALL, encode_levels
 from dsage_ray.domains.maze.evaluate import MazeEvaluation, evaluate
 from dsage_ray.domains.maze.layout import format_layout, load_layout
 from dsage_ray.domains.maze.level import MazeLevel, max_steps_for
@@ -207,6 +207,17 @@ class MazeDomain:
         from dsage_ray.domains.maze.prior import walker_prior
 
         return walker_prior(measure)
+
+    def level_values(self, encoded: EncodedLevels) -> dict[str, np.ndarray]:
+        """What a level fixes by itself, from its encoding: ``num_walls``, and the ``validity`` objective.
+
+        An encoded level has a start (and a goal) only when two empty cells connect, which is what makes it valid.
+        """
+        encoded = np.asarray(encoded)
+        values = {"num_walls": encoded[:, WALL].sum(axis=(1, 2))}
+        if self.config.objective == "validity":
+            values["objective"] = (encoded[:, START].sum(axis=(1, 2)) > 0).astype(np.float32)
+        return values
 
     def preflight(self) -> None:
         """Loads the agent (and the reference) now, so a bad spec fails in one line before any search.
