@@ -52,20 +52,23 @@ def test_the_key_needs_the_domains_values_and_off_ignores_them():
     np.testing.assert_array_equal(make(False).predict(levels).measures, make(False, None).predict(levels).measures)
 
 
-def test_maze_values_are_the_wall_count_and_validity_of_each_level():
-    domain = MazeDomain(config=MazeConfig(height=8, width=8, path_channels=True))
-    solutions = domain.random_solutions(30, np.random.default_rng(0))
+@pytest.mark.parametrize("size", [8, 6])  # 6x6 is padded to 8x8 for the surrogate
+def test_maze_values_are_the_wall_count_optimal_path_and_validity_of_each_level(size):
+    config = MazeConfig(height=size, width=size, path_channels=True, measures=("num_walls", "optimal_path_length"))
+    domain = MazeDomain(config=config)
+    solutions = domain.random_solutions(40, np.random.default_rng(0))
     solutions[0] = 1  # all walls: no start, invalid
-    solutions[1] = 0
-    solutions[1, :7] = 1
-    solutions[1, 8:] = 1  # one free cell: invalid
+    solutions[1] = 1
+    solutions[1, 3] = 0  # one free cell: invalid
     values = domain.level_values(encode_solutions(domain, solutions))
     levels = [domain.level(s) for s in solutions]
     np.testing.assert_array_equal(values["num_walls"], [level.num_walls for level in levels])
+    np.testing.assert_array_equal(values["optimal_path_length"], [level.optimal_path_length for level in levels])
     np.testing.assert_array_equal(values["objective"], [float(level.valid) for level in levels])
-    assert values["objective"][:2].tolist() == [0.0, 0.0] and values["objective"].sum() > 0
-    audit = MazeDomain(config=MazeConfig(height=8, width=8, objective="failure_rate"))
-    assert "objective" not in audit.level_values(encode_solutions(audit, solutions))
+    assert values["objective"][:2].tolist() == [0.0, 0.0] and values["objective"].sum() > 10
+    assert values["optimal_path_length"].max() > 2
+    audit = MazeDomain(config=MazeConfig(height=size, width=size, objective="failure_rate"))
+    assert set(audit.level_values(encode_solutions(audit, solutions))) == {"num_walls"}
 
 
 def test_mario_sky_tiles_come_from_the_one_hot_level():

@@ -8,11 +8,12 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dsage_ray.domains.maze.encoding import CHANNELS, PATH_CHANNELS, SPARE, START, WALL, encode_levels
+from dsage_ray.domains.maze.encoding import CHANNELS, GOAL, PATH_CHANNELS, SPARE, START, WALL, encode_levels
 from dsage_ray.domains.maze.evaluate import MazeEvaluation, evaluate
 from dsage_ray.domains.maze.layout import format_layout, load_layout
 from dsage_ray.domains.maze.level import MazeLevel, max_steps_for
 from dsage_ray.domains.maze.measures import NEEDS_REFERENCE, get_measure, get_objective
+from dsage_ray.domains.maze.paths import pair_distances
 from dsage_ray.domains.maze.plugin import DOMAIN, MazeConfig
 from dsage_ray.types import EncodedLevels, EvaluationResult, Solution, Solutions
 
@@ -209,14 +210,21 @@ class MazeDomain:
         return walker_prior(measure)
 
     def level_values(self, encoded: EncodedLevels) -> dict[str, np.ndarray]:
-        """What a level fixes by itself, from its encoding: ``num_walls``, and the ``validity`` objective.
+        """What a level fixes by itself, from its encoding: ``num_walls``, ``optimal_path_length`` and the
+        ``validity`` objective.
 
         An encoded level has a start (and a goal) only when two empty cells connect, which is what makes it valid.
         """
-        encoded = np.asarray(encoded)
+        encoded = np.asarray(encoded)[:, :, :self.config.height, :self.config.width]
         values = {"num_walls": encoded[:, WALL].sum(axis=(1, 2))}
+        flat = encoded.reshape(len(encoded), encoded.shape[1], -1)
+        valid = flat[:, START].max(axis=1, initial=0.0) > 0.5
+        if "optimal_path_length" in self.measure_names:
+            starts = np.where(valid, flat[:, START].argmax(axis=1), -1)
+            lengths = pair_distances(encoded[:, WALL] > 0.5, starts, flat[:, GOAL].argmax(axis=1))
+            values["optimal_path_length"] = np.maximum(lengths, 0).astype(np.float32)
         if self.config.objective == "validity":
-            values["objective"] = (encoded[:, START].sum(axis=(1, 2)) > 0).astype(np.float32)
+            values["objective"] = valid.astype(np.float32)
         return values
 
     def preflight(self) -> None:

@@ -135,3 +135,38 @@ def path_masks(walls: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     """
     walls = np.asarray(walls, dtype=bool)
     return _path_masks(np.ascontiguousarray(~walls), np.ascontiguousarray(pairs, dtype=np.int64))
+
+
+@numba.njit(cache=True, nogil=True)
+def _pair_distances(empty: np.ndarray, starts: np.ndarray, goals: np.ndarray) -> np.ndarray:  # pragma: no cover
+    n, height, width = empty.shape
+    size = height * width
+    out = np.full(n, -1, dtype=np.int64)
+    dist = np.full(size, -1, dtype=np.int64)
+    queue = np.empty(size, dtype=np.int64)
+    for m in range(n):
+        if starts[m] < 0 or not empty[m].ravel()[starts[m]]:
+            continue
+        tail = _bfs(empty[m].ravel(), height, width, starts[m], dist, queue)
+        out[m] = dist[goals[m]]
+        for k in range(tail):
+            dist[queue[k]] = -1
+    return out
+
+
+def pair_distances(walls: np.ndarray, starts: np.ndarray, goals: np.ndarray) -> np.ndarray:
+    """Shortest 4-neighbour path lengths from each maze's start to its goal.
+
+    Args:
+        walls: ``(n, H, W)`` bool wall bitmaps.
+        starts: ``(n,)`` flat (row-major) start cells; ``-1`` for a maze without one.
+        goals: ``(n,)`` flat goal cells.
+
+    Returns:
+        ``(n,)`` int64 forward moves; ``-1`` where there is no start or the goal is not reachable from it.
+    """
+    walls = np.asarray(walls, dtype=bool)
+    if walls.ndim != 3:
+        raise ValueError(f"expected (n, H, W) bitmaps, got shape {walls.shape}")
+    return _pair_distances(np.ascontiguousarray(~walls), np.ascontiguousarray(starts, dtype=np.int64),
+                           np.ascontiguousarray(goals, dtype=np.int64))
