@@ -33,8 +33,9 @@ run: $(STAMP)
 # The JDK's libjsig.so lets the in-process JVM (Mario) chain signal handlers with Python's.
 JSIG := $(shell j=$$(readlink -f $$(command -v java) 2>/dev/null) && ls $$(dirname $$(dirname $$j))/lib/libjsig.so 2>/dev/null)
 
+# --durations: every CI log lists the slowest tests, to keep the suite under its 15 minutes.
 test: $(STAMP)
-	RAY_AUTH_MODE=disabled LD_PRELOAD=$(JSIG) $(BIN)/python -m pytest -q
+	RAY_AUTH_MODE=disabled LD_PRELOAD=$(JSIG) $(BIN)/python -m pytest -q --durations=20
 
 # The long tests the default suite leaves out (marked slow: end-to-end script runs whose parts the default
 # suite covers, and runs of the real ACCEL agent); about 3 minutes on 2 cores (6 tests in 142 s, measured).
