@@ -168,6 +168,12 @@ def test_a_cpu_audit_predicts_the_path_length_as_the_occupancy_sum_only_when_it_
     assert audit_config(agent=AUDITED, preset="cpu", variant="map_elites").surrogate.kind == "none"
 
 
+def test_maze_audits_take_the_level_values_from_the_level_unless_told_otherwise():
+    assert audit_config(agent=AUDITED, preset="cpu").surrogate.exact_level_values
+    told = audit_config(agent=AUDITED, preset="cpu", overrides={"surrogate.exact_level_values": False})
+    assert not told.surrogate.exact_level_values
+
+
 def test_audits_hold_no_levels_out_unless_asked():
     assert audit_config(agent=AUDITED, preset="cpu").surrogate.holdout_levels == 0
     asked = audit_config(agent=AUDITED, preset="cpu", overrides={"surrogate.holdout_levels": 30})

@@ -194,8 +194,11 @@ class MazeDomain:
             low, high = get_measure(name).natural_range(16, 16)
             return 50 if high - low <= 1 else int(round(high - low))
 
+        # The default measures (wall count, optimal path) are properties of the level: taken from it, every pick
+        # lands in the cell the inner loop chose it for (docs/results/equal_compute, section 11).
         values = {"maze.agent": agent, "maze.reference": reference or "", "maze.objective": objective,
-                  "maze.measures": measures, "maze.archive_dims": tuple(cells(m) for m in measures)}
+                  "maze.measures": measures, "maze.archive_dims": tuple(cells(m) for m in measures),
+                  "surrogate.exact_level_values": True}
         if "mean_path_length" not in measures:
             # The cpu preset predicts the path length as the occupancy sum, blended with the random walker's
             # prior; without that measure there is neither.
