@@ -91,9 +91,10 @@ class SurrogateConfig:
     #: ``log(1 + prior)`` fitted to the training window after each training. Empty (the paper): the network alone.
     prior_measure: str = ""
     #: Take the measures (and objective) that are functions of the level alone from the level itself, not from
-    #: the network (Maze: ``num_walls`` and the ``validity`` objective; Mario: ``sky_tiles``), through the
-    #: domain's ``level_values``. The network still trains on them. Off (the paper): everything is predicted,
-    #: so a pick can land a few wall counts away from the cell the inner loop chose it for.
+    #: the network (Maze: ``num_walls``, ``optimal_path_length`` and the ``validity`` objective; Mario: ``sky_tiles``),
+    #: through the domain's ``level_values``. The network still trains on them. Off (the paper): everything is
+    #: predicted, so a pick can land a few wall counts away from the cell the inner loop chose it for. Maze audits
+    #: turn it on (their default measures are both properties of the level).
     exact_level_values: bool = False
     #: Width of the networks (the first convolution of both predictors); 64 is the paper's. The residual
     #: blocks' cost grows as its square (benchmarks/bench_surrogate.py prints FLOPs and predictions/s).

@@ -67,9 +67,9 @@ class Domain(Protocol):
     prediction (:func:`dsage_ray.surrogate.surrogate.domain_prior`; Maze has one for ``mean_path_length``).
 
     Optional: ``level_values(encoded) -> {name: (n,) array}``, the values that are functions of the level alone,
-    read from encoded levels ``(n, C, S, S)``; keys are measure names or ``"objective"`` (Maze: ``num_walls``, and
-    the ``validity`` objective; Mario: ``sky_tiles``). ``surrogate.exact_level_values`` puts them in place of the
-    surrogate's predictions (:func:`dsage_ray.surrogate.surrogate.domain_level_values`).
+    read from encoded levels ``(n, C, S, S)``; keys are measure names or ``"objective"`` (Maze: ``num_walls``,
+    ``optimal_path_length`` and the ``validity`` objective; Mario: ``sky_tiles``). ``surrogate.exact_level_values``
+    puts them in place of the surrogate's predictions (:func:`dsage_ray.surrogate.surrogate.domain_level_values`).
 
     Optional: ``work_names`` and ``work_counts(result) -> {name: count}``, counts of the work an evaluation
     did that do not depend on the machine (Maze: ``steps``; Mario: ``search_iterations``, ``ticks``), read
