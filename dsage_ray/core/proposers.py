@@ -32,7 +32,7 @@ from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
 if TYPE_CHECKING:
     from ribs.archives import GridArchive
 
-    from dsage_ray.surrogate.surrogate import Prediction
+    from dsage_ray.surrogate.surrogate import Prediction, Surrogate
 
     from dsage_ray.core.seeds import RunSeeds
 
@@ -66,7 +66,7 @@ class Proposal:
 
     @classmethod
     def from_state_dict(cls, state: dict[str, Any]) -> "Proposal":
-        from dsage_ray.surrogate.surrogate import Prediction
+        from dsage_ray.surrogate.surrogate import Prediction, Surrogate
 
         predicted = state.get("predicted")
         return cls(solutions=state["solutions"], metrics=dict(state["metrics"]), times=dict(state["times"]),
@@ -175,9 +175,9 @@ class DirectQD:
         self.archive = state["archive"]
 
 
-def _evaluation_cost(config: RunConfig, domain: Domain) -> tuple[EvaluationCost | None, str]:
+def _evaluation_cost(config: RunConfig, domain: Domain) -> tuple[EvaluationCost | None, "_WorkCount"]:
     """``selection.cost_measure`` as the domain's measure index, or as one of its work counts (then also
-    returned by name); None: not used, or every evaluation costs the same.
+    returned as a :class:`_WorkCount`); None: not used, or every evaluation costs the same.
 
     Raises:
         ConfigError: The domain has no such measure or work count (a domain passed in may not be the
@@ -185,16 +185,50 @@ def _evaluation_cost(config: RunConfig, domain: Domain) -> tuple[EvaluationCost 
     """
     selection = config.selection
     if not selection.expected_gain or not selection.cost_measure:
-        return None, ""
+        return None, _WorkCount(name="", domain=domain)
     names = list(domain.measure_names)
     if selection.cost_measure in names:
-        return EvaluationCost(measure=names.index(selection.cost_measure), offset=selection.cost_offset), ""
+        cost = EvaluationCost(measure=names.index(selection.cost_measure), offset=selection.cost_offset)
+        return cost, _WorkCount(name="", domain=domain)
     counts = [*getattr(domain, "work_names", ()), OCCUPANCY_COST]
     if selection.cost_measure not in counts:
         raise ConfigError(f"selection.cost_measure: {selection.cost_measure!r} is neither one of the domain's measures "
                           f"{names} nor one of its work counts {counts}; set it to one an evaluation's cost grows "
                           "with, or to '' (every evaluation costs the same)")
-    return EvaluationCost(measure=None, offset=selection.cost_offset), selection.cost_measure
+    return (EvaluationCost(measure=None, offset=selection.cost_offset),
+            _WorkCount(name=selection.cost_measure, domain=domain))
+
+
+@dataclasses.dataclass(frozen=True)
+class _WorkCount:
+    """The work count an expected-gain selection prices evaluations by: what each evaluation recorded of it,
+    and, where the surrogate predicts it, what each candidate will need.
+
+    Attributes:
+        name: One of the domain's ``work_names``, or :data:`~dsage_ray.config.OCCUPANCY_COST` (the agent's
+            time in the level: the occupancy sum, which the two-stage surrogate also predicts per level);
+            empty: none.
+        domain: The domain whose ``work_counts(result)`` records the named counts.
+    """
+
+    name: str
+    domain: Domain
+
+    def recorded(self, batch: EvaluatedBatch) -> np.ndarray | None:
+        """The count of each successful evaluation of ``batch`` (None: no count is used)."""
+        if not self.name:
+            return None
+        if self.name == OCCUPANCY_COST:
+            return batch.occupancy.reshape(len(batch.ok), -1).sum(axis=1).astype(np.float64)
+        return np.array([self.domain.work_counts(batch.results[i])[self.name] for i in batch.ok], np.float64)
+
+    def predicted(self, surrogate: "Surrogate", solutions: Solutions) -> np.ndarray | None:
+        """Each candidate's own predicted count, where the surrogate predicts it (None: the selection takes
+        the count its nearest recent picks recorded)."""
+        if self.name != OCCUPANCY_COST:
+            return None
+        occupancy = surrogate.predict(encode_solutions(self.domain, solutions)).occupancy
+        return occupancy.reshape(len(occupancy), -1).sum(axis=1)
 
 
 class SurrogateAssisted:
@@ -230,7 +264,7 @@ class SurrogateAssisted:
         self.prior_samples = 0
         #: The surrogate's errors on recent picks (``selection.expected_gain`` reads them).
         self.pick_errors = PickErrors(window=config.selection.gain_window)
-        self.evaluation_cost, self.work_name = _evaluation_cost(config, domain)
+        self.evaluation_cost, self.work_count = _evaluation_cost(config, domain)
         #: Evaluated levels nothing was predicted for (the random first batch), as dataset positions and
         #: work counts: the first expected-gain selection predicts them, to learn the errors and costs from.
         self.unpredicted = {"positions": np.empty(0, np.int64), "work": np.empty(0)}
@@ -279,7 +313,7 @@ class SurrogateAssisted:
             first = len(self.dataset)
             self.dataset.append(encoded=encoded, results=batch.results)
             if batch.predicted is None and self.config.selection.expected_gain and not len(self.pick_errors):
-                work = self._work(batch)
+                work = self.work_count.recorded(batch)
                 self.unpredicted = {"positions": np.arange(first, len(self.dataset), dtype=np.int64),
                                     "work": np.empty(0) if work is None else work}
             # A cold start's first batch is random: nothing was predicted for it.
@@ -289,16 +323,8 @@ class SurrogateAssisted:
                 self.last_predictions = (batch.predicted.measures[batch.ok], batch.measures)
                 self.pick_errors.add(predicted_objective=batch.predicted.objective[batch.ok],
                                      predicted_measures=batch.predicted.measures[batch.ok],
-                                     objective=batch.objective, measures=batch.measures, work=self._work(batch))
+                                     objective=batch.objective, measures=batch.measures, work=self.work_count.recorded(batch))
         return metrics
-
-    def _work(self, batch: EvaluatedBatch) -> np.ndarray | None:
-        """The work count ``selection.cost_measure`` names, of each successful evaluation (None: not used)."""
-        if not self.work_name:
-            return None
-        if self.work_name == OCCUPANCY_COST:
-            return batch.occupancy.reshape(len(batch.ok), -1).sum(axis=1).astype(np.float64)
-        return np.array([self.domain.work_counts(batch.results[i])[self.work_name] for i in batch.ok], np.float64)
 
     def _errors_of_unpredicted(self) -> None:
         """Before the first expected-gain selection: the surrogate, just trained, predicts the levels nothing was
@@ -362,10 +388,7 @@ class SurrogateAssisted:
         if selection.expected_gain:
             self._errors_of_unpredicted()
             candidates = surrogate_archive.data(["objective", "measures", "solution"])
-            work = None
-            if self.work_name == OCCUPANCY_COST:  # each candidate's own predicted time in the level
-                occupancy = self.surrogate.predict(encode_solutions(self.domain, candidates["solution"])).occupancy
-                work = occupancy.reshape(len(occupancy), -1).sum(axis=1)
+            work = self.work_count.predicted(self.surrogate, candidates["solution"])
             outcomes = expected_outcomes(candidates["objective"], candidates["measures"],
                                          ground_truth_archive=self.archive, errors=self.pick_errors,
                                          neighbours=selection.gain_neighbours, cost=self.evaluation_cost, work=work)

@@ -235,6 +235,29 @@ def test_gain_variant_scores_the_picks_by_the_errors_of_the_picks_before(monkeyp
         assert np.isnan(work).all()
 
 
+@pytest.mark.parametrize("cost_measure", ["steps", "occupancy"])
+def test_a_work_count_is_read_from_each_result_and_predicted_only_where_the_surrogate_can(cost_measure):
+    from dsage_ray.core.proposers import EvaluatedBatch, Proposal
+    from dsage_ray.surrogate.models import encode_solutions
+
+    runner = make_runner(variant="dsage_gain", **{"selection.cost_measure": cost_measure})
+    runner.step()
+    runner.step()
+    proposer, domain = runner.proposer, runner.proposer.domain
+    solutions = domain.random_solutions(6, np.random.default_rng(0))
+    results = [domain.evaluate(solution, seed=k) for k, solution in enumerate(solutions)]
+    batch = EvaluatedBatch.collect(Proposal(solutions), results, domain=domain, outer_iteration=2)
+    recorded = proposer.work_count.recorded(batch)
+    predicted = proposer.work_count.predicted(proposer.surrogate, solutions)
+    if cost_measure == "steps":
+        np.testing.assert_array_equal(recorded, [domain.work_counts(r)["steps"] for r in results])
+        assert predicted is None  # the selection then takes what the nearest recent picks recorded
+    else:
+        np.testing.assert_allclose(recorded, [r.occupancy.sum() for r in results], rtol=1e-6)
+        own = proposer.surrogate.predict(encode_solutions(domain, solutions)).occupancy
+        np.testing.assert_allclose(predicted, own.reshape(6, -1).sum(axis=1), rtol=1e-6)
+
+
 @pytest.mark.parametrize("overrides, key", [
     ({"variant": "map_elites", "selection.expected_gain": True}, "selection.expected_gain"),
     ({"variant": "dsage_gain", "selection.method": "random"}, "selection.expected_gain"),
