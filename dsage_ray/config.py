@@ -151,6 +151,12 @@ class SelectionConfig:
     #: Drop picks predicted to land in a ground-truth cell that already holds an objective at least
     #: as high (the ``dsage_novel`` variant; see :func:`dsage_ray.qd.selection.skip_filled`).
     skip_filled: bool = False
+    #: In each downsampling block, pick uniformly among the elites predicted to land in a cell the
+    #: ground-truth archive does not hold yet, where the block has any (not in the paper). Where the
+    #: measures are exact (``surrogate.exact_level_values``, e.g. the default Maze audit), "predicted" is
+    #: exact too, and a pick is never spent on a cell the search has already filled while the block has
+    #: an empty one.
+    prefer_new_cells: bool = False
     #: In each downsampling block, pick the elite expected to add most QD-score, judged by the
     #: surrogate's errors on recent picks, instead of a uniform one (the ``dsage_gain`` variant; see
     #: :mod:`dsage_ray.qd.gain`). The first selection goes by the surrogate's errors on the random first levels.
@@ -402,6 +408,13 @@ class RunConfig:
              "needs a surrogate (surrogate.kind = 'none' selects nothing)")
         need(self.selection.method == "downsample" or not self.selection.expected_gain, "selection.expected_gain",
              f"chooses within downsampling blocks; selection.method is {self.selection.method!r}")
+        need(self.uses_surrogate or not self.selection.prefer_new_cells, "selection.prefer_new_cells",
+             "needs a surrogate (surrogate.kind = 'none' selects nothing)")
+        need(self.selection.method == "downsample" or not self.selection.prefer_new_cells,
+             "selection.prefer_new_cells", f"chooses within downsampling blocks; selection.method is "
+             f"{self.selection.method!r}")
+        need(not (self.selection.prefer_new_cells and self.selection.expected_gain), "selection.prefer_new_cells",
+             "and selection.expected_gain both choose within each block; set one of them")
         need(self.selection.min_gain >= 0, "selection.min_gain", "must be >= 0 (0: keep every block's pick)")
         need(self.selection.gain_window >= 1, "selection.gain_window", "must be positive")
         need(self.selection.gain_neighbours >= 1, "selection.gain_neighbours", "must be positive")

@@ -237,7 +237,8 @@ class SurrogateAssisted:
     Args:
         config: The run's config (``surrogate``, ``qd``, ``selection``, ``n_rand``).
         domain: The domain.
-        archive: The ground-truth archive (``selection.skip_filled`` reads it; :meth:`learn` fills it).
+        archive: The ground-truth archive (``selection.skip_filled``, ``prefer_new_cells`` and
+            ``expected_gain`` read it; :meth:`learn` fills it).
         seeds: The run's seed streams.
         evaluator: Evaluates the held-out levels, if any.
         progress: Optional progress callback (``holdout``, ``exploit`` phases).
@@ -402,7 +403,8 @@ class SurrogateAssisted:
             metrics["selection_fallback"] = float(chosen.fallback)
         else:
             picks = select_solutions(surrogate_archive, method=selection.method, block=selection.block,
-                                     count=selection.count, rng=self.seeds.rng)
+                                     count=selection.count, rng=self.seeds.rng,
+                                     new_cells=self.archive if selection.prefer_new_cells else None)
         if selection.skip_filled:
             skipped = skip_filled(surrogate_archive, picks, self.archive)
             picks = skipped.kept

@@ -19,12 +19,14 @@ def select_solutions(
     block: Sequence[int],
     count: int,
     rng: np.random.Generator,
+    new_cells: GridArchive | None = None,
 ) -> np.ndarray:
     """Picks elites of ``archive`` for real evaluation.
 
     - ``downsample``: the cell grid is cut into blocks of ``block`` cells per measure (edge blocks may
       be smaller when a block size does not divide the grid), and one occupied elite is chosen
-      uniformly at random per occupied block.
+      uniformly at random per occupied block. With ``new_cells``, only among the block's elites whose
+      cells that archive does not hold yet, where the block has any.
     - ``random``: ``count`` elites uniformly without replacement (all of them if fewer).
     - ``full``: every elite.
 
@@ -37,23 +39,39 @@ def select_solutions(
         block: Cells per block along each measure (``downsample`` only).
         count: Elites to pick (``random`` only).
         rng: Source of randomness; ``full`` does not draw from it.
+        new_cells: ``downsample`` only: an archive over the same cells, usually the ground truth.
+            A pick in a cell it already holds is spent on a level that can at best replace that
+            cell's elite, so the elites of cells it lacks go first.
 
     Returns:
         Sorted integer archive indices of the chosen elites; read their data with :func:`gather_elites`.
 
     Raises:
-        ValueError: Unknown method, or ``block`` not one positive entry per measure.
+        ValueError: Unknown method, ``block`` not one positive entry per measure, or ``new_cells`` with
+            another method or other cells.
     """
     if method not in SELECTION_METHODS:
         raise ConfigError(f"selection.method: unknown method {method!r} (known: {', '.join(SELECTION_METHODS)})"
                           f"{did_you_mean(method, SELECTION_METHODS)}")
     indices = np.sort(np.asarray(archive.data("index"), dtype=np.int64))
-    return np.sort(indices[SELECTION_METHODS[method](archive, indices, block, count, rng)])
+    if new_cells is None:
+        return np.sort(indices[SELECTION_METHODS[method](archive, indices, block, count, rng)])
+    if method != "downsample":
+        raise ValueError(f"new_cells applies to downsampling only (method {method!r})")
+    _check_same_cells(archive, new_cells, "new_cells")
+    held = new_cells.retrieve(gather_elites(archive, indices)["measures"])[0]
+    return np.sort(indices[_one_per_block(archive, indices, block, rng, preferred=~held)])
 
 
 def _downsample(archive: GridArchive, indices: np.ndarray, block: Sequence[int], count: int,
                 rng: np.random.Generator) -> np.ndarray:
     return _one_per_block(archive, indices, block, rng)
+
+
+def _check_same_cells(archive: GridArchive, other: GridArchive, name: str) -> None:
+    if (tuple(archive.dims) != tuple(other.dims)
+            or not all(np.allclose(a, b) for a, b in zip(archive.boundaries, other.boundaries))):
+        raise ValueError(f"{name} needs a surrogate and a ground-truth archive with the same cells")
 
 
 def _full(archive: GridArchive, indices: np.ndarray, block: Sequence[int], count: int,
@@ -92,15 +110,17 @@ def block_ids(archive: GridArchive, indices: np.ndarray, block: Sequence[int]) -
 
 
 def _one_per_block(
-    archive: GridArchive, indices: np.ndarray, block: Sequence[int], rng: np.random.Generator
+    archive: GridArchive, indices: np.ndarray, block: Sequence[int], rng: np.random.Generator,
+    preferred: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Positions into ``indices`` (sorted) of one uniformly chosen elite per occupied block."""
+    """Positions into ``indices`` (sorted) of one uniformly chosen elite per occupied block: among the
+    block's ``preferred`` elites (a mask over ``indices``) where it has any."""
     blocks = block_ids(archive, indices, block)
     if len(indices) == 0:
         return np.empty(0, dtype=np.int64)
     # Each elite gets an i.i.d. uniform key; the smallest key in a block is a uniform pick within it.
     keys = rng.random(len(indices))
-    order = np.lexsort((keys, blocks))
+    order = np.lexsort((keys, blocks) if preferred is None else (keys, ~preferred, blocks))
     first_of_block = np.r_[True, blocks[order][1:] != blocks[order][:-1]]
     return np.sort(order[first_of_block])
 
@@ -141,9 +161,7 @@ def skip_filled(surrogate_archive: GridArchive, picks: np.ndarray, ground_truth_
         ValueError: The two archives do not have the same cells.
         KeyError: A pick is not occupied.
     """
-    if (tuple(surrogate_archive.dims) != tuple(ground_truth_archive.dims)
-            or not all(np.allclose(a, b) for a, b in zip(surrogate_archive.boundaries, ground_truth_archive.boundaries))):
-        raise ValueError("skip_filled needs a surrogate and a ground-truth archive with the same cells")
+    _check_same_cells(surrogate_archive, ground_truth_archive, "skip_filled")
     picks = np.sort(np.asarray(picks, dtype=np.int64))
     if len(picks) == 0:
         return FilledSkip(kept=picks, filled=0, fallback=False)

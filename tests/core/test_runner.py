@@ -235,6 +235,34 @@ def test_gain_variant_scores_the_picks_by_the_errors_of_the_picks_before(monkeyp
         assert np.isnan(work).all()
 
 
+def test_prefer_new_cells_spends_no_pick_on_a_filled_cell_while_its_block_has_an_empty_one(monkeypatch):
+    import dsage_ray.core.proposers as proposers_module
+    from dsage_ray.qd.selection import block_ids, gather_elites
+
+    checked = []
+    original = proposers_module.select_solutions
+
+    def spy(archive, **kwargs):
+        picks = original(archive, **kwargs)
+        truth = kwargs["new_cells"]
+        assert truth is runner.archive
+        # As the ground truth stood at this selection: a pick in a filled cell only from a block with no empty one.
+        indices = np.sort(archive.data("index"))
+        held = truth.retrieve(gather_elites(archive, indices)["measures"])[0]
+        blocks = block_ids(archive, indices, kwargs["block"])
+        at = np.searchsorted(indices, picks)
+        for block in blocks[at][held[at]]:
+            assert held[blocks == block].all()
+        checked.append((int(held[at].sum()), int((~held).sum())))
+        return picks
+
+    monkeypatch.setattr(proposers_module, "select_solutions", spy)
+    runner = make_runner(**{"selection.prefer_new_cells": True, "selection.block": (2, 2)})
+    for _ in range(4):
+        runner.step()
+    assert len(checked) == 3 and any(empty for _, empty in checked)
+
+
 @pytest.mark.parametrize("cost_measure", ["steps", "occupancy"])
 def test_a_work_count_is_read_from_each_result_and_predicted_only_where_the_surrogate_can(cost_measure):
     from dsage_ray.core.proposers import EvaluatedBatch, Proposal
@@ -266,6 +294,9 @@ def test_a_work_count_is_read_from_each_result_and_predicted_only_where_the_surr
     ({"variant": "dsage_gain", "selection.gain_neighbours": 0}, "selection.gain_neighbours"),
     ({"variant": "dsage_gain", "selection.cost_offset": 0.0}, "selection.cost_offset"),
     ({"variant": "dsage_gain", "selection.cost_measure": "jumps"}, "selection.cost_measure"),
+    ({"variant": "map_elites", "selection.prefer_new_cells": True}, "selection.prefer_new_cells"),
+    ({"variant": "dsage_rsample", "selection.prefer_new_cells": True}, "selection.prefer_new_cells"),
+    ({"variant": "dsage_gain", "selection.prefer_new_cells": True}, "selection.prefer_new_cells"),
     ({"variant": "dsage_gain", "selection.cost_measure": "occupancy", "surrogate.kind": "one_stage"},
      "selection.cost_measure"),
 ])

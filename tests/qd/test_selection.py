@@ -156,3 +156,30 @@ def test_skip_filled_after_downsampling_and_bad_input():
         skip_filled(surrogate, picks, _grid_archive([], dims=(4, 2)))
     with pytest.raises(KeyError):
         skip_filled(_grid_archive([], occupancy=False), [3], ground_truth)
+
+
+def test_downsample_prefers_the_cells_a_given_archive_lacks():
+    # One 2x2 block: (0,0), (0,1) and (1,0) are held by the ground truth, (1,1) is not.
+    ground_truth = _grid_archive([((0, 0), 1.0), ((0, 1), 0.0), ((1, 0), 0.2)])
+    surrogate = _grid_archive([((0, 0), 0.5), ((0, 1), 0.5), ((1, 0), 0.5), ((1, 1), 0.5), ((2, 2), 0.5),
+                               ((3, 3), 0.5)], occupancy=False)
+    new = _cell_index(surrogate, (1, 1))
+    for seed in range(20):
+        picks = select_solutions(surrogate, method="downsample", block=(2, 2), count=0,
+                                 rng=np.random.default_rng(seed), new_cells=ground_truth)
+        assert new in picks.tolist() and len(picks) == 2  # blocks (0,0) and (1,1)
+    # A block whose every cell is held still gets its uniform pick.
+    full_block = _grid_archive([((0, 0), 1.0), ((0, 1), 1.0), ((1, 0), 1.0), ((1, 1), 1.0)])
+    seen = {int(select_solutions(surrogate, method="downsample", block=(2, 2), count=0, rng=np.random.default_rng(s),
+                                 new_cells=full_block)[0]) for s in range(40)}
+    assert seen == {_cell_index(surrogate, c) for c in [(0, 0), (0, 1), (1, 0), (1, 1)]}
+
+
+def test_new_cells_needs_downsampling_and_the_same_cells():
+    surrogate = _grid_archive([((0, 0), 0.5)], occupancy=False)
+    with pytest.raises(ValueError, match="downsampling only"):
+        select_solutions(surrogate, method="random", block=(2, 2), count=1, rng=np.random.default_rng(0),
+                         new_cells=_grid_archive([]))
+    with pytest.raises(ValueError, match="same cells"):
+        select_solutions(surrogate, method="downsample", block=(2, 2), count=0, rng=np.random.default_rng(0),
+                         new_cells=_grid_archive([], dims=(4, 2)))
