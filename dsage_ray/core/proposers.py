@@ -66,7 +66,7 @@ class Proposal:
 
     @classmethod
     def from_state_dict(cls, state: dict[str, Any]) -> "Proposal":
-        from dsage_ray.surrogate.surrogate import Prediction, Surrogate
+        from dsage_ray.surrogate.surrogate import Prediction
 
         predicted = state.get("predicted")
         return cls(solutions=state["solutions"], metrics=dict(state["metrics"]), times=dict(state["times"]),
@@ -324,7 +324,8 @@ class SurrogateAssisted:
                 self.last_predictions = (batch.predicted.measures[batch.ok], batch.measures)
                 self.pick_errors.add(predicted_objective=batch.predicted.objective[batch.ok],
                                      predicted_measures=batch.predicted.measures[batch.ok],
-                                     objective=batch.objective, measures=batch.measures, work=self.work_count.recorded(batch))
+                                     objective=batch.objective, measures=batch.measures,
+                                     work=self.work_count.recorded(batch))
         return metrics
 
     def _errors_of_unpredicted(self) -> None:
