@@ -239,28 +239,41 @@ def test_prefer_new_cells_spends_no_pick_on_a_filled_cell_while_its_block_has_an
     import dsage_ray.core.proposers as proposers_module
     from dsage_ray.qd.selection import block_ids, gather_elites
 
+    block = np.array((4, 2))
+    runner = make_runner(**{"selection.prefer_new_cells": True, "selection.block": tuple(block)})
+    runner.step()  # the random first levels fill some cells of the ground truth
+    truth, domain = runner.archive, runner.proposer.domain
+    # A surrogate archive with an elite in every cell of every block the ground truth has a level in: each such
+    # block then holds filled and (unless the truth fills it all) empty cells.
+    cells = {tuple(corner + offset) for corner in truth.int_to_grid_index(truth.data("index")) // block * block
+             for offset in np.ndindex(*block)}
+    cells = np.array(sorted(cells))
+    lower, upper = np.asarray(truth.lower_bounds), np.asarray(truth.upper_bounds)
+    measures = lower + (cells + 0.5) * (upper - lower) / np.asarray(truth.dims)
+    surrogate_archive = proposers_module.domain_archive(domain, with_occupancy=False, seed=0)
+    surrogate_archive.add(domain.random_solutions(len(cells), np.random.default_rng(0)), np.full(len(cells), 0.5),
+                          measures)
+    monkeypatch.setattr(runner.proposer, "_exploit", lambda: surrogate_archive)
     checked = []
     original = proposers_module.select_solutions
 
     def spy(archive, **kwargs):
         picks = original(archive, **kwargs)
-        truth = kwargs["new_cells"]
-        assert truth is runner.archive
-        # As the ground truth stood at this selection: a pick in a filled cell only from a block with no empty one.
+        assert archive is surrogate_archive and kwargs["new_cells"] is truth
         indices = np.sort(archive.data("index"))
         held = truth.retrieve(gather_elites(archive, indices)["measures"])[0]
         blocks = block_ids(archive, indices, kwargs["block"])
-        at = np.searchsorted(indices, picks)
-        for block in blocks[at][held[at]]:
-            assert held[blocks == block].all()
-        checked.append((int(held[at].sum()), int((~held).sum())))
+        for pick in np.searchsorted(indices, picks):
+            in_block = blocks == blocks[pick]
+            checked.append((bool(held[in_block].any() and not held[in_block].all()), bool(held[pick])))
+            assert not held[pick] or held[in_block].all()
         return picks
 
     monkeypatch.setattr(proposers_module, "select_solutions", spy)
-    runner = make_runner(**{"selection.prefer_new_cells": True, "selection.block": (2, 2)})
-    for _ in range(4):
-        runner.step()
-    assert len(checked) == 3 and any(empty for _, empty in checked)
+    runner.step()
+    # Every block got its pick, and blocks holding both kinds of cell, where the preference decides, came up.
+    assert len(checked) == len(set(block_ids(surrogate_archive, surrogate_archive.data("index"), block)))
+    assert any(mixed for mixed, _ in checked)
 
 
 @pytest.mark.parametrize("cost_measure", ["steps", "occupancy"])
