@@ -402,17 +402,12 @@ class RunConfig:
         need(self.selection.count >= 1, "selection.count", "must be positive")
         need(self.uses_surrogate or not self.pipeline, "pipeline",
              "pipelines the surrogate's phases with the evaluations; this variant has no surrogate")
-        need(self.uses_surrogate or not self.selection.skip_filled, "selection.skip_filled",
-             "needs a surrogate (surrogate.kind = 'none' selects nothing)")
-        need(self.uses_surrogate or not self.selection.expected_gain, "selection.expected_gain",
-             "needs a surrogate (surrogate.kind = 'none' selects nothing)")
-        need(self.selection.method == "downsample" or not self.selection.expected_gain, "selection.expected_gain",
-             f"chooses within downsampling blocks; selection.method is {self.selection.method!r}")
-        need(self.uses_surrogate or not self.selection.prefer_new_cells, "selection.prefer_new_cells",
-             "needs a surrogate (surrogate.kind = 'none' selects nothing)")
-        need(self.selection.method == "downsample" or not self.selection.prefer_new_cells,
-             "selection.prefer_new_cells", f"chooses within downsampling blocks; selection.method is "
-             f"{self.selection.method!r}")
+        for key in ("skip_filled", "expected_gain", "prefer_new_cells"):
+            need(self.uses_surrogate or not getattr(self.selection, key), f"selection.{key}",
+                 "needs a surrogate (surrogate.kind = 'none' selects nothing)")
+        for key in ("expected_gain", "prefer_new_cells"):
+            need(self.selection.method == "downsample" or not getattr(self.selection, key), f"selection.{key}",
+                 f"chooses within downsampling blocks; selection.method is {self.selection.method!r}")
         need(not (self.selection.prefer_new_cells and self.selection.expected_gain), "selection.prefer_new_cells",
              "and selection.expected_gain both choose within each block; set one of them")
         need(self.selection.min_gain >= 0, "selection.min_gain", "must be >= 0 (0: keep every block's pick)")

@@ -59,7 +59,8 @@ def select_solutions(
     if method != "downsample":
         raise ValueError(f"new_cells applies to downsampling only (method {method!r})")
     _check_same_cells(archive, new_cells, "new_cells")
-    held = new_cells.retrieve(gather_elites(archive, indices)["measures"])[0]
+    data = archive.data(["index", "measures"])  # only the measures: no copy of every elite's solution
+    held = new_cells.retrieve(data["measures"][np.argsort(data["index"])])[0]
     return np.sort(indices[_one_per_block(archive, indices, block, rng, preferred=~held)])
 
 
