@@ -174,6 +174,15 @@ class SelectionConfig:
     cost_measure: str = ""
     #: ``cost_measure``: an evaluation's cost at 0, in that measure's or count's units (must be > 0).
     cost_offset: float = 1.0
+    #: Each outer iteration after the first, also evaluate this many mutants of the ground-truth archive's best
+    #: elites (``elite_share``), beside the surrogate's picks (not in the paper; :mod:`dsage_ray.qd.mutants`).
+    #: The mutation is MAP-Elites' (``qd.mutation_cells``) for bitmaps, Gaussian (``qd.sigma0``) for CMA-ME's
+    #: latents. An audit's never-solved levels are the best elites, and a mutant of one is often never solved
+    #: too, which the surrogate cannot predict within a cell. 0 (the paper): only the surrogate's picks.
+    elite_mutants: int = 0
+    #: ``elite_mutants``: the parents are drawn uniformly among this share of the ground-truth elites, the
+    #: best by objective (ties with the last one included).
+    elite_share: float = 0.05
 
 
 @dataclasses.dataclass
@@ -410,6 +419,12 @@ class RunConfig:
                  f"chooses within downsampling blocks; selection.method is {self.selection.method!r}")
         need(not (self.selection.prefer_new_cells and self.selection.expected_gain), "selection.prefer_new_cells",
              "and selection.expected_gain both choose within each block; set one of them")
+        need(self.selection.elite_mutants >= 0, "selection.elite_mutants", "must be >= 0 (0: none)")
+        need(self.uses_surrogate or not self.selection.elite_mutants, "selection.elite_mutants",
+             "adds mutants to a surrogate's picks; this variant's QD search mutates its elites already")
+        need(self.qd.emitter != "random" or not self.selection.elite_mutants, "selection.elite_mutants",
+             "mutates with qd.emitter's operator; 'random' has none (use map_elites or cma_me)")
+        need(0.0 < self.selection.elite_share <= 1.0, "selection.elite_share", "must be in (0, 1]")
         need(self.selection.min_gain >= 0, "selection.min_gain", "must be >= 0 (0: keep every block's pick)")
         need(self.selection.gain_window >= 1, "selection.gain_window", "must be positive")
         need(self.selection.gain_neighbours >= 1, "selection.gain_neighbours", "must be positive")

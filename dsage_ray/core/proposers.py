@@ -24,6 +24,7 @@ from dsage_ray.config import OCCUPANCY_COST, ConfigError, RunConfig
 from dsage_ray.core.holdout import HeldOutLevels, head_label
 from dsage_ray.qd.archives import make_archive
 from dsage_ray.qd.gain import EvaluationCost, PickErrors, best_per_block, expected_outcomes
+from dsage_ray.qd.mutants import elite_mutants
 from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
 from dsage_ray.qd.selection import gather_elites, select_solutions, skip_filled
 from dsage_ray.surrogate.models import encode_solutions
@@ -237,8 +238,8 @@ class SurrogateAssisted:
     Args:
         config: The run's config (``surrogate``, ``qd``, ``selection``, ``n_rand``).
         domain: The domain.
-        archive: The ground-truth archive (``selection.skip_filled``, ``prefer_new_cells`` and
-            ``expected_gain`` read it; :meth:`learn` fills it).
+        archive: The ground-truth archive (``selection.skip_filled``, ``prefer_new_cells``, ``expected_gain``
+            and ``elite_mutants`` read it; :meth:`learn` fills it).
         seeds: The run's seed streams.
         evaluator: Evaluates the held-out levels, if any.
         progress: Optional progress callback (``holdout``, ``exploit`` phases).
@@ -301,6 +302,11 @@ class SurrogateAssisted:
             keep = np.sort(self.seeds.rng.choice(len(proposal.solutions), size=cap, replace=False))
             proposal.solutions = proposal.solutions[keep]
             proposal.metrics["selection_capped"] = float(cap)
+        if self.config.selection.elite_mutants:
+            mutants = elite_mutants(self.archive, count=self.config.selection.elite_mutants,
+                                    share=self.config.selection.elite_share, qd=self.config.qd, rng=self.seeds.rng)
+            proposal.solutions = np.concatenate([proposal.solutions, mutants])
+            proposal.metrics["selection_elite_mutants"] = float(len(mutants))
         proposal.predicted = self.surrogate.predict(encode_solutions(self.domain, proposal.solutions))
         proposal.times["select"] = time.perf_counter() - tic
         proposal.metrics["surrogate_archive_size"] = float(len(surrogate_archive))

@@ -30,6 +30,36 @@ def _dtype_bounds(archive: ArchiveBase) -> tuple[np.ndarray, np.ndarray]:
     return (np.full(archive.solution_dim, low, dtype=dtype), np.full(archive.solution_dim, high, dtype=dtype))
 
 
+def mutate_bitmaps(parents: np.ndarray, *, cells: int, rng: np.random.Generator) -> np.ndarray:
+    """MAP-Elites' bitmap mutation: each row with ``cells`` distinct random cells set to random 0/1 values.
+
+    Args:
+        parents: ``(n, solution_dim)`` 0/1 bitmaps; not modified.
+        cells: Distinct cells redrawn per row (a cell can be redrawn to its old value).
+        rng: Picks the cells and their values.
+
+    Returns:
+        The offspring, in the parents' dtype.
+    """
+    offspring = np.array(parents, copy=True)
+    # argpartition of uniform keys = a uniformly random k-subset per row, without a Python loop.
+    chosen = np.argpartition(rng.random(offspring.shape), cells - 1, axis=1)[:, :cells]
+    np.put_along_axis(offspring, chosen, rng.integers(0, 2, size=chosen.shape).astype(offspring.dtype), axis=1)
+    return offspring
+
+
+def mutate_gaussian(parents: np.ndarray, *, sigma: float, rng: np.random.Generator) -> np.ndarray:
+    """Isotropic Gaussian mutation of continuous solutions (latent vectors), as pyribs' ``GaussianEmitter``.
+
+    Args:
+        parents: ``(n, solution_dim)`` solutions; not modified.
+        sigma: Standard deviation of the noise added to every coordinate.
+        rng: Draws the noise.
+    """
+    parents = np.asarray(parents)
+    return (parents + rng.normal(scale=sigma, size=parents.shape)).astype(parents.dtype)
+
+
 class MapElitesBitmapEmitter(EmitterBase):
     """MAP-Elites for binary bitmaps, as DSAGE's Maze baseline and inner loop (SPEC §5).
 
@@ -104,13 +134,8 @@ class MapElitesBitmapEmitter(EmitterBase):
         self._asks += 1
         if initial or self.archive.empty:
             return self._rng.integers(0, 2, size=shape).astype(dtype)
-        # sample_elites already returns a copy, so mutating it in place is safe.
-        offspring = np.asarray(self.archive.sample_elites(self._batch_size)["solution"], dtype=dtype)
-        # argpartition of uniform keys = a uniformly random k-subset per row, without a Python loop.
-        cells = np.argpartition(self._rng.random(shape), self._mutation_cells - 1, axis=1)[:, : self._mutation_cells]
-        values = self._rng.integers(0, 2, size=cells.shape).astype(dtype)
-        np.put_along_axis(offspring, cells, values, axis=1)
-        return offspring
+        parents = np.asarray(self.archive.sample_elites(self._batch_size)["solution"], dtype=dtype)
+        return mutate_bitmaps(parents, cells=self._mutation_cells, rng=self._rng)
 
 
 class RandomEmitter(EmitterBase):

@@ -276,6 +276,50 @@ def test_prefer_new_cells_spends_no_pick_on_a_filled_cell_while_its_block_has_an
     assert any(checked)
 
 
+def test_elite_mutants_are_evaluated_beside_the_picks_and_are_mutants_of_the_best_real_elites(monkeypatch):
+    import dsage_ray.core.proposers as proposers_module
+    from dsage_ray.qd.mutants import best_elites
+
+    runner = make_runner(**{"selection.elite_mutants": 7, "selection.elite_share": 0.1, "qd.mutation_cells": 3,
+                            "budget": 400})
+    first = runner.step()
+    assert "selection_elite_mutants" not in first  # the random first batch has no elites to mutate
+    parents_seen = []
+    original = proposers_module.elite_mutants
+
+    def spy(archive, **kwargs):
+        assert archive is runner.archive
+        parents_seen.append(archive.data("solution")[best_elites(archive, share=kwargs["share"])].copy())
+        return original(archive, **kwargs)
+
+    monkeypatch.setattr(proposers_module, "elite_mutants", spy)
+    proposal = runner.proposer.propose(outer_iteration=1)
+    mutants = proposal.solutions[-7:]
+    assert proposal.metrics["selection_elite_mutants"] == 7
+    distance = np.abs(mutants[:, None, :].astype(int) - parents_seen[0][None].astype(int)).sum(axis=2).min(axis=1)
+    assert 0 < distance.max() <= 3
+    # Without the key the same proposal holds only the picks: the mutants come on top of them.
+    plain = make_runner(budget=400)
+    plain.step()
+    assert len(plain.proposer.propose(outer_iteration=1).solutions) == len(proposal.solutions) - 7
+
+
+def test_a_run_with_elite_mutants_spends_its_budget_and_resumes_exactly():
+    overrides = {"selection.elite_mutants": 5, "budget": 120}
+    reference = make_runner(**overrides)
+    history = reference.run()
+    assert reference.evals == 120 and history[-1]["evals"] == 120
+    assert [h.get("selection_elite_mutants") for h in history] == [None] + [5.0] * (len(history) - 1)
+    interrupted = make_runner(**overrides)
+    interrupted.step()
+    interrupted.step()
+    state = pickle.loads(pickle.dumps(interrupted.state_dict()))
+    resumed = make_runner(**overrides)
+    resumed.load_state_dict(state)
+    resumed.run()
+    assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
+
+
 @pytest.mark.parametrize("cost_measure", ["steps", "occupancy"])
 def test_a_work_count_is_read_from_each_result_and_predicted_only_where_the_surrogate_can(cost_measure):
     from dsage_ray.core.proposers import EvaluatedBatch, Proposal
@@ -312,6 +356,11 @@ def test_a_work_count_is_read_from_each_result_and_predicted_only_where_the_surr
     ({"variant": "dsage_gain", "selection.prefer_new_cells": True}, "selection.prefer_new_cells"),
     ({"variant": "dsage_gain", "selection.cost_measure": "occupancy", "surrogate.kind": "one_stage"},
      "selection.cost_measure"),
+    ({"variant": "map_elites", "selection.elite_mutants": 10}, "selection.elite_mutants"),
+    ({"variant": "dsage", "selection.elite_mutants": -1}, "selection.elite_mutants"),
+    ({"variant": "dsage", "selection.elite_mutants": 10, "qd.emitter": "random"}, "selection.elite_mutants"),
+    ({"variant": "dsage", "selection.elite_share": 0.0}, "selection.elite_share"),
+    ({"variant": "dsage", "selection.elite_share": 1.5}, "selection.elite_share"),
 ])
 def test_expected_gain_config_is_checked(overrides, key):
     from dsage_ray.config import ConfigError

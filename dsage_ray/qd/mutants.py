@@ -1,0 +1,65 @@
+"""Mutants of the ground-truth archive's best elites: real-evaluation picks beside DSAGE's downsampling.
+
+The surrogate proposes levels spread over the measure space, but it cannot tell which level of a cell the agent
+fails (within a cell it ranks the failure rate hardly better than chance). A real elite that the agent never
+solves is better evidence: a MAP-Elites mutant of one is often never solved too. ``selection.elite_mutants``
+spends part of each outer iteration on such mutants (not in the paper).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from ribs.archives import ArchiveBase
+
+from dsage_ray.config import QDConfig
+from dsage_ray.qd.emitters import mutate_bitmaps, mutate_gaussian
+
+
+def best_elites(archive: ArchiveBase, *, share: float) -> np.ndarray:
+    """Positions (in ``archive.data()`` order) of the elites among the best ``share`` by objective.
+
+    At least one elite is taken, and every elite tied with the worst one taken: an audit's never-solved
+    levels all share the objective 1, so they are all parents or none is.
+
+    Args:
+        archive: A non-empty archive.
+        share: The fraction of its elites to take, in (0, 1].
+    """
+    objective = np.asarray(archive.data("objective"), dtype=np.float64)
+    count = max(1, math.ceil(share * len(objective)))
+    threshold = np.sort(objective)[::-1][count - 1]
+    return np.flatnonzero(objective >= threshold)
+
+
+def elite_mutants(archive: ArchiveBase, *, count: int, share: float, qd: QDConfig,
+                  rng: np.random.Generator) -> np.ndarray:
+    """``count`` mutants of parents drawn uniformly (with replacement) among :func:`best_elites`.
+
+    The mutation is the one of the configured direct search: ``qd.mutation_cells`` cells redrawn for
+    ``map_elites`` (0/1 bitmaps), Gaussian noise of ``qd.sigma0`` for ``cma_me`` (latent vectors).
+
+    Args:
+        archive: The ground-truth archive; nothing is drawn when it is empty.
+        count: Mutants to return.
+        share: See :func:`best_elites`.
+        qd: The run's QD config (its emitter names the mutation).
+        rng: Draws the parents and the mutations.
+
+    Returns:
+        ``(count, solution_dim)`` solutions in the archive's solution dtype, or none when the archive is empty.
+
+    Raises:
+        ValueError: ``qd.emitter`` has no mutation (``random`` draws fresh levels).
+    """
+    dtype = archive.dtypes["solution"]
+    if count == 0 or archive.empty:
+        return np.empty((0, archive.solution_dim), dtype=dtype)
+    solutions = np.asarray(archive.data("solution"), dtype=dtype)
+    parents = solutions[rng.choice(best_elites(archive, share=share), size=count)]
+    if qd.emitter == "map_elites":
+        return mutate_bitmaps(parents, cells=qd.mutation_cells, rng=rng)
+    if qd.emitter == "cma_me":
+        return mutate_gaussian(parents, sigma=qd.sigma0, rng=rng)
+    raise ValueError(f"qd.emitter {qd.emitter!r} has no mutation to make elite mutants with")

@@ -1,0 +1,57 @@
+import numpy as np
+import pytest
+
+from dsage_ray.config import QDConfig
+from dsage_ray.qd.mutants import best_elites, elite_mutants
+from tests.qd.helpers import DIM, bitmap_predict, latent_predict
+
+
+def _add(archive, solutions, objective):
+    _, measures, extra = bitmap_predict(solutions)
+    archive.add(solutions, np.asarray(objective, dtype=np.float64), measures, **extra)
+
+
+def _distinct_bitmaps(n):
+    # Distinct wall counts put every bitmap in its own cell.
+    return np.array([[1] * k + [0] * (DIM - k) for k in range(n)], dtype=np.int8)
+
+
+def test_best_elites_takes_the_share_and_every_tie_with_its_last_member(bitmap_archive):
+    _add(bitmap_archive, _distinct_bitmaps(10), [1.0, 1.0, 1.0, 0.9, 0.5, 0.5, 0.2, 0.1, 0.0, 0.0])
+    objective = bitmap_archive.data("objective")
+    assert sorted(objective[best_elites(bitmap_archive, share=0.1)]) == [1.0, 1.0, 1.0]  # 1 taken, 2 tied with it
+    assert sorted(objective[best_elites(bitmap_archive, share=0.4)]) == [0.9, 1.0, 1.0, 1.0]
+    assert len(best_elites(bitmap_archive, share=0.5)) == 6  # 0.5 tied: both taken
+    assert len(best_elites(bitmap_archive, share=1.0)) == 10
+
+
+def test_bitmap_mutants_are_within_mutation_cells_of_a_best_elite_only(bitmap_archive):
+    bitmaps = _distinct_bitmaps(12)
+    _add(bitmap_archive, bitmaps, [1.0, 1.0] + [0.3] * 10)
+    best = bitmaps[:2]
+    qd = QDConfig(emitter="map_elites", mutation_cells=2)
+    mutants = elite_mutants(bitmap_archive, count=200, share=0.1, qd=qd, rng=np.random.default_rng(0))
+    assert mutants.shape == (200, DIM) and mutants.dtype == np.int8 and set(np.unique(mutants)) <= {0, 1}
+    distance_to_best = np.abs(mutants[:, None, :] - best[None]).sum(axis=2).min(axis=1)
+    assert distance_to_best.max() <= 2 and distance_to_best.max() > 0
+    # Both parents are drawn: some mutants are nearer the one, some nearer the other.
+    nearer_first = np.abs(mutants - best[0]).sum(axis=1) < np.abs(mutants - best[1]).sum(axis=1)
+    assert 0 < nearer_first.sum() < 200
+
+
+def test_latent_mutants_add_gaussian_noise_of_sigma0(latent_archive):
+    parent = np.full((1, latent_archive.solution_dim), 0.25)
+    objective, measures, extra = latent_predict(parent)
+    latent_archive.add(parent, objective, measures, **extra)
+    mutants = elite_mutants(latent_archive, count=4000, share=1.0, qd=QDConfig(emitter="cma_me", sigma0=0.3),
+                            rng=np.random.default_rng(1))
+    noise = mutants - parent
+    assert abs(noise.mean()) < 0.01 and noise.std() == pytest.approx(0.3, rel=0.02)
+
+
+def test_no_mutant_of_an_empty_archive_and_none_without_an_operator(bitmap_archive):
+    rng = np.random.default_rng(0)
+    assert elite_mutants(bitmap_archive, count=5, share=0.1, qd=QDConfig(), rng=rng).shape == (0, DIM)
+    _add(bitmap_archive, _distinct_bitmaps(3), [1.0, 0.5, 0.0])
+    with pytest.raises(ValueError, match="'random' has no mutation"):
+        elite_mutants(bitmap_archive, count=5, share=0.1, qd=QDConfig(emitter="random"), rng=rng)
