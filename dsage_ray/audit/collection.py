@@ -86,7 +86,8 @@ def audit_config(
         seed: Run seed; also seeds the collection's re-evaluations.
         name: Run name, the Tune experiment folder (default ``audit_<agent>``).
         overrides: Further dotted config keys (``--set``), applied last. Audits hold no levels out
-            (``surrogate.holdout_levels = 0``) unless these say otherwise.
+            (``surrogate.holdout_levels = 0``) unless these say otherwise, and a DSAGE search also takes the
+            registration's ``audit.surrogate_keys`` (Maze: ``selection.elite_mutants = 150``).
 
     Raises:
         ValueError: An unknown domain, an agent of a kind the domain does not play, or an objective or
@@ -109,8 +110,10 @@ def audit_config(
     # The held-out levels are a diagnostic of the surrogate for research runs (about 10% of a cpu run's
     # time); an audit wants failures, so it holds none out unless asked (--set surrogate.holdout_levels=100).
     values["surrogate.holdout_levels"] = 0
-    values.update(overrides or {})
-    return RunConfig.build(values)
+    config = RunConfig.build({**values, **(overrides or {})})
+    if spec.audit.surrogate_keys and config.uses_surrogate and config.qd.emitter != "random":
+        config = RunConfig.build({**values, **spec.audit.surrogate_keys, **(overrides or {})})
+    return config
 
 
 def audit_spec(domain: str):

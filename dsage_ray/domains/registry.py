@@ -110,6 +110,8 @@ class AuditSpec:
         upgrade: A function as ``"module:function"``, imported when a collection of the domain is read:
             ``function(collection, folder=Path)`` fills in, in place, what a collection written by an older
             version lacks.
+        surrogate_keys: Dotted config keys an audit adds when its search is a DSAGE variant (one with a
+            surrogate and a QD emitter that mutates), under the user's own keys; other searches leave them out.
     """
 
     objectives: tuple[str, ...]
@@ -119,6 +121,7 @@ class AuditSpec:
     columns: tuple[ReportField, ...] = ()
     settings: tuple[ReportField, ...] = ()
     upgrade: str | None = None
+    surrogate_keys: Mapping[str, Any] = dataclasses.field(default_factory=dict)
 
     def upgrade_collection(self, collection: dict[str, Any], *, folder: Any) -> None:
         """Runs :attr:`upgrade` on a collection just read from ``folder`` (nothing when there is none)."""

@@ -57,7 +57,15 @@ def elite_mutants(archive: ArchiveBase, *, count: int, share: float, qd: QDConfi
     if count == 0 or archive.empty:
         return np.empty((0, archive.solution_dim), dtype=dtype)
     solutions = np.asarray(archive.data("solution"), dtype=dtype)
-    parents = solutions[rng.choice(best_elites(archive, share=share), size=count)]
+    return mutate(solutions[rng.choice(best_elites(archive, share=share), size=count)], qd=qd, rng=rng)
+
+
+def mutate(parents: np.ndarray, *, qd: QDConfig, rng: np.random.Generator) -> np.ndarray:
+    """One mutant of each parent, with the operator of ``qd.emitter`` (see :func:`elite_mutants`).
+
+    Raises:
+        ValueError: ``qd.emitter`` has no mutation (``random`` draws fresh levels).
+    """
     if qd.emitter == "map_elites":
         return mutate_bitmaps(parents, cells=qd.mutation_cells, rng=rng)
     if qd.emitter == "cma_me":

@@ -174,6 +174,18 @@ def test_maze_audits_take_the_level_values_from_the_level_unless_told_otherwise(
     assert not told.surrogate.exact_level_values
 
 
+def test_a_dsage_maze_audit_mutates_its_best_elites_and_other_searches_do_not():
+    assert audit_config(agent=AUDITED, preset="cpu").selection.elite_mutants == 150
+    assert audit_config(agent=AUDITED, preset="cpu", variant="dsage_novel").selection.elite_mutants == 150
+    told = audit_config(agent=AUDITED, preset="cpu", overrides={"selection.elite_mutants": 0})
+    assert told.selection.elite_mutants == 0
+    # A search without a surrogate would refuse the key; it is simply not added.
+    for variant in ("map_elites", "dr"):
+        assert audit_config(agent=AUDITED, preset="cpu", variant=variant).selection.elite_mutants == 0
+    # Mario's registration declares no such key (not measured there).
+    assert audit_config(domain="mario", agent="astar", preset="tiny").selection.elite_mutants == 0
+
+
 def test_audits_hold_no_levels_out_unless_asked():
     assert audit_config(agent=AUDITED, preset="cpu").surrogate.holdout_levels == 0
     asked = audit_config(agent=AUDITED, preset="cpu", overrides={"surrogate.holdout_levels": 30})

@@ -82,3 +82,14 @@ def test_a_resume_continues_from_the_saved_next_picks(reference):
 def test_pipeline_needs_a_surrogate():
     with pytest.raises(ConfigError, match="pipeline"):
         RunConfig.build({**PIPELINED, "variant": "map_elites"})
+
+
+def test_elite_mutants_are_chosen_alike_whether_or_not_the_evaluations_overlap():
+    keys = {"selection.elite_mutants": 4}
+    in_process, elsewhere = make_runner(**keys), make_runner(ElsewhereEvaluator, **keys)
+    in_process.run()
+    elsewhere.run()
+    assert archive_snapshot(elsewhere.archive) == archive_snapshot(in_process.archive)
+    assert untimed(elsewhere.history) == untimed(in_process.history)
+    assert [row.get("selection_elite_mutants") for row in in_process.history][1:] == [4.0] * (
+        len(in_process.history) - 1)

@@ -148,6 +148,9 @@ DOMAIN = DomainSpec(
         columns=COLUMNS,
         settings=(ReportField(key="max_steps", label="step limit", format="{} steps per episode"),),
         upgrade="dsage_ray.domains.maze.domain:upgrade_collection",
+        # Mutants of the never-solved mazes found so far, beside the surrogate's picks: at equal search time
+        # they multiplied the never-solved mazes an audit finds (docs/results/equal_compute, section 13).
+        surrogate_keys={"selection.elite_mutants": 150},
     ),
     # The policies of dsage_ray.agents (MiniGrid observations): built in, shipped and plug-in kinds.
     agents=AgentKinds(policies=True),

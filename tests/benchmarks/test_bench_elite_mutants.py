@@ -1,0 +1,31 @@
+"""benchmarks/bench_elite_mutants.py on a real (tiny) Maze run."""
+
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
+sys.path.insert(0, str(BENCHMARKS))
+
+import bench_elite_mutants as bench  # noqa: E402
+from tests.benchmarks.test_bench_cost_prediction import tiny_run  # noqa: E402
+
+
+def test_each_pool_of_parents_gets_a_line_of_its_mutants(tmp_path, capsys):
+    run = tiny_run(tmp_path, **{"maze.objective": "failure_rate"})
+    assert bench.main([str(run), "--levels", "6"]) == 0
+    printed = capsys.readouterr().out
+    assert re.search(r"\d+ elites, best objective [\d.]+ \(\d+ elites\), top share 0.05 \(\d+ elites\); 6 mutants "
+                     r"per pool, map_elites mutation", printed), printed
+    for pool in ("best", "top share", "uniform"):
+        assert re.search(rf"{pool}: 6 mutants, mean objective [\d.]+, \d+% at the best .*% in a new cell, "
+                         r"[\d.]+ CPU s per evaluation", printed), (pool, printed)
+
+
+def test_a_folder_without_a_checkpoint_is_refused(tmp_path):
+    with pytest.raises(SystemExit, match="no checkpoint.dsage"):
+        bench.main([str(tmp_path)])
