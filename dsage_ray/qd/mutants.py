@@ -21,7 +21,7 @@ def best_elites(archive: ArchiveBase, *, share: float) -> np.ndarray:
     """Positions (in ``archive.data()`` order) of the elites among the best ``share`` by objective.
 
     At least one elite is taken, and every elite tied with the worst one taken: an audit's never-solved
-    levels all share the objective 1, so they are all parents or none is.
+    levels all share the best objective, 1, so every one of them is among the parents however many there are.
 
     Args:
         archive: A non-empty archive.
