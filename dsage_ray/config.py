@@ -40,6 +40,8 @@ class ConfigError(InputError):
 
 #: Keys of :data:`dsage_ray.qd.optimizer.EMITTERS`.
 EmitterName = Literal["map_elites", "cma_me", "random"]
+#: The emitters with a mutation, the keys of :data:`dsage_ray.qd.mutants.MUTATIONS` (``selection.elite_mutants``).
+MutatingEmitter = Literal["map_elites", "cma_me"]
 #: Keys of :data:`dsage_ray.qd.selection.SELECTION_METHODS`.
 SelectionMethod = Literal["downsample", "random", "full"]
 #: Surrogate kinds: ancillary occupancy (``two_stage``), without it (``one_stage``), none (plain QD).
@@ -352,6 +354,11 @@ class RunConfig:
     def uses_surrogate(self) -> bool:
         return self.surrogate.kind != "none"
 
+    @property
+    def mutates_elites(self) -> bool:
+        """A surrogate search whose QD emitter has a mutation: ``selection.elite_mutants`` can apply."""
+        return self.uses_surrogate and self.qd.emitter in typing.get_args(MutatingEmitter)
+
     def validate(self) -> None:
         """Raises :class:`ConfigError` naming the first key with an impossible value."""
         def need(cond: bool, key: str, why: str) -> None:
@@ -422,8 +429,9 @@ class RunConfig:
         need(self.selection.elite_mutants >= 0, "selection.elite_mutants", "must be >= 0 (0: none)")
         need(self.uses_surrogate or not self.selection.elite_mutants, "selection.elite_mutants",
              "adds mutants to a surrogate's picks; this variant's QD search mutates its elites already")
-        need(self.qd.emitter != "random" or not self.selection.elite_mutants, "selection.elite_mutants",
-             "mutates with qd.emitter's operator; 'random' has none (use map_elites or cma_me)")
+        need(self.mutates_elites or not self.selection.elite_mutants, "selection.elite_mutants",
+             f"mutates with qd.emitter's operator; {self.qd.emitter!r} has none (use "
+             f"{' or '.join(typing.get_args(MutatingEmitter))})")
         need(0.0 < self.selection.elite_share <= 1.0, "selection.elite_share", "must be in (0, 1]")
         need(self.selection.min_gain >= 0, "selection.min_gain", "must be >= 0 (0: keep every block's pick)")
         need(self.selection.gain_window >= 1, "selection.gain_window", "must be positive")

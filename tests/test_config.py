@@ -6,7 +6,8 @@ import typing
 
 import pytest
 
-from dsage_ray.config import ConfigError, EmitterName, RunConfig, SelectionMethod, SurrogateKind, presets, variants
+from dsage_ray.config import (ConfigError, EmitterName, MutatingEmitter, RunConfig, SelectionMethod, SurrogateKind,
+                               presets, variants)
 from dsage_ray.domains import domain_names
 from dsage_ray.domains.maze.plugin import MazeObjective
 
@@ -14,6 +15,7 @@ from dsage_ray.domains.maze.plugin import MazeObjective
 @pytest.mark.parametrize("names, table", [
     (EmitterName, ("dsage_ray.qd.optimizer", "EMITTERS")),
     (SelectionMethod, ("dsage_ray.qd.selection", "SELECTION_METHODS")),
+    (MutatingEmitter, ("dsage_ray.qd.mutants", "MUTATIONS")),
     (MazeObjective, ("dsage_ray.domains.maze.measures", "OBJECTIVES")),
 ])
 def test_each_config_name_set_is_its_tables_keys(names, table):

@@ -111,7 +111,7 @@ def audit_config(
     # time); an audit wants failures, so it holds none out unless asked (--set surrogate.holdout_levels=100).
     values["surrogate.holdout_levels"] = 0
     config = RunConfig.build({**values, **(overrides or {})})
-    if spec.audit.surrogate_keys and config.uses_surrogate and config.qd.emitter != "random":
+    if spec.audit.surrogate_keys and config.mutates_elites:
         config = RunConfig.build({**values, **spec.audit.surrogate_keys, **(overrides or {})})
     return config
 

@@ -110,8 +110,8 @@ class AuditSpec:
         upgrade: A function as ``"module:function"``, imported when a collection of the domain is read:
             ``function(collection, folder=Path)`` fills in, in place, what a collection written by an older
             version lacks.
-        surrogate_keys: Dotted config keys an audit adds when its search is a DSAGE variant (one with a
-            surrogate and a QD emitter that mutates), under the user's own keys; other searches leave them out.
+        surrogate_keys: Dotted config keys an audit adds when its search is a DSAGE variant whose QD emitter
+            mutates (``RunConfig.mutates_elites``), under the user's own keys; other searches leave them out.
     """
 
     objectives: tuple[str, ...]

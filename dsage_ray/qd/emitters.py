@@ -48,18 +48,6 @@ def mutate_bitmaps(parents: np.ndarray, *, cells: int, rng: np.random.Generator)
     return offspring
 
 
-def mutate_gaussian(parents: np.ndarray, *, sigma: float, rng: np.random.Generator) -> np.ndarray:
-    """Isotropic Gaussian mutation of continuous solutions (latent vectors), as pyribs' ``GaussianEmitter``.
-
-    Args:
-        parents: ``(n, solution_dim)`` solutions; not modified.
-        sigma: Standard deviation of the noise added to every coordinate.
-        rng: Draws the noise.
-    """
-    parents = np.asarray(parents)
-    return (parents + rng.normal(scale=sigma, size=parents.shape)).astype(parents.dtype)
-
-
 class MapElitesBitmapEmitter(EmitterBase):
     """MAP-Elites for binary bitmaps, as DSAGE's Maze baseline and inner loop (SPEC §5).
 

@@ -9,12 +9,14 @@ spends part of each outer iteration on such mutants (not in the paper).
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import numpy as np
 from ribs.archives import ArchiveBase
+from ribs.emitters.operators import GaussianOperator
 
-from dsage_ray.config import QDConfig
-from dsage_ray.qd.emitters import mutate_bitmaps, mutate_gaussian
+from dsage_ray.config import MutatingEmitter, QDConfig
+from dsage_ray.qd.emitters import mutate_bitmaps
 
 
 def best_elites(archive: ArchiveBase, *, share: float) -> np.ndarray:
@@ -60,14 +62,29 @@ def elite_mutants(archive: ArchiveBase, *, count: int, share: float, qd: QDConfi
     return mutate(solutions[rng.choice(best_elites(archive, share=share), size=count)], qd=qd, rng=rng)
 
 
+def _gaussian(parents: np.ndarray, qd: QDConfig, rng: np.random.Generator) -> np.ndarray:
+    # pyribs' operator draws from its own generator; seeding it from ours keeps the run reproducible.
+    return GaussianOperator(sigma=qd.sigma0, seed=int(rng.integers(2**63))).ask(parents)
+
+
+def _bitmap(parents: np.ndarray, qd: QDConfig, rng: np.random.Generator) -> np.ndarray:
+    return mutate_bitmaps(parents, cells=qd.mutation_cells, rng=rng)
+
+
+#: The mutation of each ``qd.emitter`` that has one: ``mutation(parents, qd, rng)``. Its keys are the config's
+#: :data:`~dsage_ray.config.MutatingEmitter` (``random`` draws fresh levels and has none).
+MUTATIONS: dict[MutatingEmitter, Callable[[np.ndarray, QDConfig, np.random.Generator], np.ndarray]] = {
+    "map_elites": _bitmap,
+    "cma_me": _gaussian,
+}
+
+
 def mutate(parents: np.ndarray, *, qd: QDConfig, rng: np.random.Generator) -> np.ndarray:
     """One mutant of each parent, with the operator of ``qd.emitter`` (see :func:`elite_mutants`).
 
     Raises:
         ValueError: ``qd.emitter`` has no mutation (``random`` draws fresh levels).
     """
-    if qd.emitter == "map_elites":
-        return mutate_bitmaps(parents, cells=qd.mutation_cells, rng=rng)
-    if qd.emitter == "cma_me":
-        return mutate_gaussian(parents, sigma=qd.sigma0, rng=rng)
-    raise ValueError(f"qd.emitter {qd.emitter!r} has no mutation to make elite mutants with")
+    if qd.emitter not in MUTATIONS:
+        raise ValueError(f"qd.emitter {qd.emitter!r} has no mutation to make elite mutants with")
+    return MUTATIONS[qd.emitter](parents, qd, rng)
