@@ -638,6 +638,19 @@ def _coerce(key: str, value: Any, annotation: Any) -> Any:
     return value
 
 
+def shown_value(value: Any) -> str:
+    """A config value as a message shows it: numbers plainly (600, not 600.0), the rest as JSON."""
+    is_number = isinstance(value, (int, float)) and not isinstance(value, bool)
+    return f"{value:g}" if is_number else json.dumps(value)
+
+
+def changed_keys(stored: "RunConfig", asked: "RunConfig") -> list[str]:
+    """``key = stored, not asked`` for each dotted key whose value differs between two configs."""
+    before, after = stored.to_flat(), asked.to_flat()
+    return [f"{key} = {shown_value(before.get(key))}, not {shown_value(after.get(key))}"
+            for key in sorted(before.keys() | after.keys()) if before.get(key) != after.get(key)]
+
+
 def parse_override(text: str) -> tuple[str, Any]:
     """Parses ``key=value`` from the command line; the value is read as TOML, else kept as a string."""
     if "=" not in text:

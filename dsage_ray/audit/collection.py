@@ -68,6 +68,7 @@ def audit_config(
     seed: int = 0,
     name: str | None = None,
     overrides: dict[str, Any] | None = None,
+    started: RunConfig | None = None,
 ) -> RunConfig:
     """The run config of an audit: DSAGE on ``domain`` with one of the domain's failure-eliciting objectives.
 
@@ -88,6 +89,9 @@ def audit_config(
         overrides: Further dotted config keys (``--set``), applied last. Audits hold no levels out
             (``surrogate.holdout_levels = 0``) unless these say otherwise, and a DSAGE search also takes the
             registration's ``audit.surrogate_keys`` (Maze: ``selection.elite_mutants = 150``).
+        started: The config of the search this audit continues (``--resume``). The registration's
+            ``audit.surrogate_keys`` then keep the values it was started with, so an audit begun under an
+            earlier default continues as it began; ``overrides`` still win.
 
     Raises:
         ValueError: An unknown domain, an agent of a kind the domain does not play, or an objective or
@@ -112,7 +116,11 @@ def audit_config(
     values["surrogate.holdout_levels"] = 0
     config = RunConfig.build({**values, **(overrides or {})})
     if spec.audit.surrogate_keys and config.mutates_elites:
-        config = RunConfig.build({**values, **spec.audit.surrogate_keys, **(overrides or {})})
+        defaults = dict(spec.audit.surrogate_keys)
+        if started is not None:
+            begun = started.to_flat()
+            defaults = {key: begun[key] for key in defaults}
+        config = RunConfig.build({**values, **defaults, **(overrides or {})})
     return config
 
 

@@ -13,7 +13,7 @@ from typing import Any, Mapping, Sequence
 
 from dsage_ray.audit.collection import agent_slug, audit_config, audit_spec, build_collection
 from dsage_ray.audit.results import Collection
-from dsage_ray.config import RunConfig, presets
+from dsage_ray.config import ConfigError, RunConfig, presets
 from dsage_ray.errors import InputError
 from dsage_ray.results import RunResult
 
@@ -101,14 +101,27 @@ def run_audit(
     if collect_only and out is None:
         raise InputError("collect_only needs the out folder of the search to collect from")
     spec = audit_spec(domain)  # an unknown domain, or one without audits, before its presets are read
+    started = _started(out) if resume or collect_only else None
     config = audit_config(domain=domain, agent=agent, reference=reference,
                           preset=preset or default_preset(domain, agent=agent), variant=variant,
                           objective=objective, measures=measures, budget=budget, seed=seed,
-                          overrides=dict(overrides or {}))
+                          overrides=dict(overrides or {}), started=started)
     if out is None:
         out = Path("tb_logs") / f"audit-{agent_slug(agent or spec.audit.default_agent)}-{time.strftime('%Y%m%d-%H%M%S')}"
     return search_and_collect(config, out_dir=out, local=local, workers=workers, address=address, resume=resume,
                               episodes=episodes, max_levels=max_levels, collect_only=collect_only)
+
+
+def _started(out: str | Path | None) -> RunConfig | None:
+    """The config of the search an audit folder holds, or None when it holds none to continue yet."""
+    from dsage_ray.core.checkpoint import CheckpointError
+
+    if out is None or not (Path(out) / SEARCH_DIR).is_dir():
+        return None  # check_audit_folder names the problem
+    try:
+        return search_on_disk(Path(out) / SEARCH_DIR).config
+    except CheckpointError:
+        return None  # no checkpoint yet: the search starts afresh
 
 
 def check_audit_folder(out_dir: str | Path, *, resume: bool = False, collect_only: bool = False) -> None:
@@ -185,24 +198,37 @@ def search_and_collect(
     return Collection.load(collection_dir)
 
 
-def search_on_disk(search_dir: Path, *, config: RunConfig) -> RunResult:
-    """The search an earlier audit left in ``search_dir``, for ``collect_only`` (the one folder reader).
+def search_on_disk(search_dir: Path, *, config: RunConfig | None = None) -> RunResult:
+    """The search an earlier audit left in ``search_dir``, for ``collect_only`` and ``resume`` (the one folder
+    reader).
 
     A finished search is returned by :func:`dsage_ray.run`; this reads what an interrupted or earlier
     one left: the checkpoint file of a ``local`` search, or the latest ``checkpoint_NNNNNN`` folder of
     the Tune trial in ``search_dir/<name>/<trial>``.
 
+    Args:
+        search_dir: The ``search`` folder of an audit.
+        config: The config to report (default: the one the search wrote beside its checkpoint, ``config.json``).
+
     Raises:
-        CheckpointError: The search left no checkpoint.
+        CheckpointError: The search left no checkpoint, or (without ``config``) no readable config beside it.
     """
     from dsage_ray.core.checkpoint import CHECKPOINT_NAME, CheckpointError
+    from dsage_ray.core.outputs import CONFIG_FILE
 
     local = search_dir / CHECKPOINT_NAME
-    if local.is_file():
-        return RunResult(config=config, path=search_dir, checkpoint=local)
     in_tune = sorted(search_dir.glob(f"*/*/checkpoint_*/{CHECKPOINT_NAME}"),
                      key=lambda p: int(p.parent.name.rsplit("_", 1)[-1]))
-    if not in_tune:
+    if local.is_file():
+        run_dir, checkpoint = search_dir, local
+    elif in_tune:
+        run_dir, checkpoint = in_tune[-1].parent.parent, in_tune[-1]
+    else:
         raise CheckpointError(f"{search_dir}: the search left no checkpoint ({CHECKPOINT_NAME}) to read the "
                               f"archive from")
-    return RunResult(config=config, path=in_tune[-1].parent.parent, checkpoint=in_tune[-1])
+    if config is None:
+        try:
+            config = RunConfig.from_file(run_dir / CONFIG_FILE)
+        except ConfigError as exc:
+            raise CheckpointError(f"the search's config does not load: {exc}") from None
+    return RunResult(config=config, path=run_dir, checkpoint=checkpoint)

@@ -61,7 +61,7 @@ from typing import Any
 
 import numpy as np
 
-from dsage_ray.config import RunConfig
+from dsage_ray.config import RunConfig, changed_keys
 from dsage_ray.core.evaluation import InProcessEvaluator, PendingEvaluation
 from dsage_ray.core.outputs import write_outputs
 from dsage_ray.core.proposers import (DirectQD, EvaluatedBatch, ProgressCallback, Proposal, Proposer,
@@ -321,8 +321,9 @@ class DSAGE:
         it (or lower it) to continue a run its time budget ended.
         """
         saved = RunConfig.build(state["config"]).replace(time_budget=self.config.time_budget)
-        if saved.to_dict() != self.config.to_dict():
-            raise ValueError("checkpoint was written by a run with a different config")
+        changes = changed_keys(saved, self.config)
+        if changes:
+            raise ValueError(f"checkpoint was written by a run with a different config: {'; '.join(changes)}")
         state = copy.deepcopy(state)
         self.evals = state["evals"]
         self.outer_iteration = state["outer_iteration"]

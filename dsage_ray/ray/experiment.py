@@ -26,7 +26,7 @@ from ray import tune
 from ray.air.constants import EXPR_ERROR_FILE
 from ray.tune.logger import CSVLoggerCallback, JsonLoggerCallback
 
-from dsage_ray.config import ConfigError, RunConfig, key_hint, paper_comparison, parse_override
+from dsage_ray.config import ConfigError, RunConfig, key_hint, paper_comparison, parse_override, shown_value
 from dsage_ray.core.checkpoint import CHECKPOINT_NAME
 from dsage_ray.domains import build_domain
 from dsage_ray.errors import InputError, Interrupted, TrialFailed
@@ -330,21 +330,15 @@ def refuse_changed_config(experiment_path: Path, param_space: Mapping[str, Any])
             asked = json.loads(json.dumps(asked))  # tuples read back from params.json as lists
         except TypeError:
             continue  # a Tune sampler object
-        differing = sorted({_shown(trial[key]) for trial in stored if key in trial and trial[key] != asked})
+        differing = sorted({shown_value(trial[key]) for trial in stored if key in trial and trial[key] != asked})
         if differing:
-            changes.append(f"{key} = {', '.join(differing)}, not {_shown(asked)}")
+            changes.append(f"{key} = {', '.join(differing)}, not {shown_value(asked)}")
     if changes:
         raise InputError(
             f"--resume continues {experiment_path.name!r} as its trials were started: {'; '.join(changes)} (Tune "
             f"restores a trial with its own config and never reopens a finished one). Resume without changing "
             f"them, start a new experiment (another --out), or run in-process (--local), where --resume takes a "
             f"new time budget")
-
-
-def _shown(value: Any) -> str:
-    """A config value as a message shows it: numbers plainly (600, not 600.0), the rest as JSON."""
-    is_number = isinstance(value, (int, float)) and not isinstance(value, bool)
-    return f"{value:g}" if is_number else json.dumps(value)
 
 
 def _run_result(config: dict[str, Any], path: str, checkpoint: tune.Checkpoint | None) -> RunResult:

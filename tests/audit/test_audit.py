@@ -186,6 +186,18 @@ def test_a_dsage_maze_audit_mutates_its_best_elites_and_other_searches_do_not():
     assert audit_config(domain="mario", agent="astar", preset="tiny").selection.elite_mutants == 0
 
 
+def test_an_audit_resumes_with_the_defaults_it_began_with_and_names_a_changed_key(tmp_path, capsys):
+    # An audit begun before the mutants became the default (as if) continues without them.
+    args = ["audit", "--agent", AUDITED, "--preset", "tiny", "--budget", "24", "--set", "n_rand=24",
+            "--set", "maze.episodes=4", "--local", "--out", str(tmp_path)]
+    assert main([*args, "--set", "selection.elite_mutants=0"]) == 0
+    assert main([*args, "--resume"]) == 0
+    assert json.loads((tmp_path / "search" / "config.json").read_text())["selection"]["elite_mutants"] == 0
+    capsys.readouterr()
+    assert main([*args, "--resume", "--seed", "5"]) == 2
+    assert "different config: seed = 0, not 5" in capsys.readouterr().err
+
+
 def test_audits_hold_no_levels_out_unless_asked():
     assert audit_config(agent=AUDITED, preset="cpu").surrogate.holdout_levels == 0
     asked = audit_config(agent=AUDITED, preset="cpu", overrides={"surrogate.holdout_levels": 30})

@@ -89,7 +89,7 @@ def test_resumed_run_continues_exactly(variant, overrides, steps):
 
 def test_state_from_another_config_is_refused():
     state = make_runner().state_dict()
-    with pytest.raises(ValueError, match="different config"):
+    with pytest.raises(ValueError, match="different config: seed = 0, not 5$"):
         make_runner(seed=5).load_state_dict(state)
 
 
