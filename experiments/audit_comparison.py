@@ -11,9 +11,9 @@
 Every (arm, seed) is one audit (``dsage-ray audit --local --variant V --seed K``) in ``OUT/V_seedK``:
 the same agent, objective, measures and budget, and a collection whose elites are all re-evaluated
 with recorded seeds, so the counts compare searches, not the luck of the search's own episodes. The
-table (``OUT/summary.md``, mean ± standard error over seeds) holds the failure-diversity numbers of
-each collection (``dsage_ray.audit.summary``): never-solved levels, distinct archive cells with a
-level failing at least half the time, levels with any failure. Audits run ``--jobs`` at a time, each
+table (``OUT/summary.md``: mean ± standard error over seeds, then every audit's own row) holds the
+failure-diversity numbers of each collection (``dsage_ray.audit.summary``): never-solved levels, distinct
+archive cells with a level failing at least half the time, levels with any failure. Audits run ``--jobs`` at a time, each
 in its own process on one thread; one already collected is skipped and an interrupted one resumes,
 so the command can be run again after a stop. An arm is a variant, or ``LABEL=VARIANT`` with its own
 config keys (``--arm-set LABEL:KEY=VALUE``), so one search can be compared with itself under other
@@ -167,6 +167,16 @@ def summarize(out: Path, variants: list[str], seeds: list[int]) -> str:
         cells = [format_mean_se(*mean_se(s[key] for s in summaries), ",.1f") for key, _ in COLUMNS]
         lines.append(f"| {variant} | {len(summaries)} | " + " | ".join(cells) + " |")
     (out / "summary.json").write_text(json.dumps(per_run, indent=1))
+    return "\n".join(lines) + "\n\nPer audit:\n\n" + per_seed_table(per_run)
+
+
+def per_seed_table(per_run: dict[str, list[dict]]) -> str:
+    """Every audit's own numbers, a row per arm and seed, so that what holds on each seed is printed too."""
+    lines = ["| Variant | Seed | " + " | ".join(title for _, title in COLUMNS) + " |", "|---" * (len(COLUMNS) + 2) + "|"]
+    for variant, summaries in per_run.items():
+        for run in summaries:
+            cells = [f"{float(run[key]):,.{1 if key == 'search_minutes' else 0}f}" for key, _ in COLUMNS]
+            lines.append(f"| {variant} | {run['seed']} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 

@@ -32,7 +32,9 @@ def test_two_searches_two_seeds_one_table_and_a_rerun_runs_nothing(tmp_path, cap
     printed = capsys.readouterr().out
     assert "4 audits to run" in printed and printed.count(": done in ") == 4, printed
     table = (out / "summary.md").read_text()
-    rows = {line.split("|")[1].strip(): line for line in table.splitlines()[2:] if line.startswith("| ")}
+    means, per_audit = table.split("\n\nPer audit:\n\n")
+    rows = {line.split("|")[1].strip(): line for line in means.splitlines()[2:]}
+    assert len(per_audit.splitlines()) == 2 + 4
     assert set(rows) == {"dsage", "dr"}
     runs = json.loads((out / "summary.json").read_text())
     for variant in ("dsage", "dr"):
@@ -48,6 +50,17 @@ def test_two_searches_two_seeds_one_table_and_a_rerun_runs_nothing(tmp_path, cap
     # Everything collected: a second call only rebuilds the table.
     assert script.main(argv) == 0
     assert "0 audits to run" in capsys.readouterr().out
+
+
+def test_the_table_prints_every_audit_beside_the_means():
+    script = load_script()
+    run = {"never_solved": 12, "failure_cells": 340, "with_failures": 700, "levels": 1_500, "search_minutes": 7.04,
+           "search_cpu_s": 417.9}
+    table = script.per_seed_table({"elite": [run | {"seed": 22}, run | {"seed": 23, "never_solved": 9}],
+                                   "map_elites": [run | {"seed": 22, "levels": 999}]})
+    assert table.splitlines()[2:] == ["| elite | 22 | 12 | 340 | 700 | 1,500 | 7.0 | 418 |",
+                                      "| elite | 23 | 9 | 340 | 700 | 1,500 | 7.0 | 418 |",
+                                      "| map_elites | 22 | 12 | 340 | 700 | 999 | 7.0 | 418 |"]
 
 
 def test_arms_are_labelled_variants_with_their_own_keys_on_the_seeds_asked_for(tmp_path):
