@@ -208,13 +208,12 @@ def search_on_disk(search_dir: Path, *, config: RunConfig | None = None) -> RunR
 
     Args:
         search_dir: The ``search`` folder of an audit.
-        config: The config to report (default: the one the search wrote beside its checkpoint, ``config.json``).
+        config: The config to report (default: the one its checkpoint holds).
 
     Raises:
-        CheckpointError: The search left no checkpoint, or (without ``config``) no readable config beside it.
+        CheckpointError: The search left no checkpoint, or (without ``config``) one that does not load.
     """
-    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, CheckpointError
-    from dsage_ray.core.outputs import CONFIG_FILE
+    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, CheckpointError, load_checkpoint
 
     local = search_dir / CHECKPOINT_NAME
     in_tune = sorted(search_dir.glob(f"*/*/checkpoint_*/{CHECKPOINT_NAME}"),
@@ -228,7 +227,7 @@ def search_on_disk(search_dir: Path, *, config: RunConfig | None = None) -> RunR
                               f"archive from")
     if config is None:
         try:
-            config = RunConfig.from_file(run_dir / CONFIG_FILE)
+            config = RunConfig.build(load_checkpoint(checkpoint)["config"])
         except ConfigError as exc:
-            raise CheckpointError(f"the search's config does not load: {exc}") from None
+            raise CheckpointError(f"{checkpoint}: the search's config does not load here ({exc})") from None
     return RunResult(config=config, path=run_dir, checkpoint=checkpoint)

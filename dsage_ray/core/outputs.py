@@ -14,9 +14,6 @@ from dsage_ray.io import atomic_write_bytes, atomic_write_json, atomic_write_tex
 if TYPE_CHECKING:
     from dsage_ray.core.snapshot import RunSnapshot
 
-#: The run's config in a run folder (``RunConfig.to_dict``), rewritten with every checkpoint.
-CONFIG_FILE = "config.json"
-
 
 def heatmap_png(archive, *, title: str = "", measure_names: tuple[str, ...] = (), zoom: bool = False) -> bytes:
     """The ground-truth archive as a PNG heatmap of objective values.
@@ -104,7 +101,7 @@ def write_outputs(run: "RunSnapshot", run_dir: str | Path, *, num_elites: int = 
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     domain = run.domain
-    atomic_write_json(run_dir / CONFIG_FILE, run.config.to_dict())
+    atomic_write_json(run_dir / "config.json", run.config.to_dict())
     atomic_write_json(run_dir / "metrics.json", list(run.history))
     atomic_write_json(run_dir / "failures.json", list(run.failures))
     atomic_write_text(run_dir / "archive.csv", archive_to_dataframe(run.archive).to_csv(index=False))

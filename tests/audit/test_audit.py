@@ -191,8 +191,9 @@ def test_an_audit_resumes_with_the_defaults_it_began_with_and_names_a_changed_ke
     args = ["audit", "--agent", AUDITED, "--preset", "tiny", "--budget", "24", "--set", "n_rand=24",
             "--set", "maze.episodes=4", "--local", "--out", str(tmp_path)]
     assert main([*args, "--set", "selection.elite_mutants=0"]) == 0
+    (tmp_path / "search" / "config.json").unlink()  # as an interrupted search, which has written only its checkpoint
     assert main([*args, "--resume"]) == 0
-    assert json.loads((tmp_path / "search" / "config.json").read_text())["selection"]["elite_mutants"] == 0
+    assert load_collection(tmp_path / "collection")["config"]["selection"]["elite_mutants"] == 0
     capsys.readouterr()
     assert main([*args, "--resume", "--seed", "5"]) == 2
     assert "different config: seed = 0, not 5" in capsys.readouterr().err
