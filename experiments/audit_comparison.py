@@ -13,9 +13,9 @@ the same agent, objective, measures and budget, and a collection whose elites ar
 with recorded seeds, so the counts compare searches, not the luck of the search's own episodes. The
 table (``OUT/summary.md``: mean ± standard error over seeds, then every audit's own row) holds the
 failure-diversity numbers of each collection (``dsage_ray.audit.summary``): never-solved levels, distinct
-archive cells with a level failing at least half the time, levels with any failure. Audits run ``--jobs`` at a time, each
-in its own process on one thread; one already collected is skipped and an interrupted one resumes,
-so the command can be run again after a stop. An arm is a variant, or ``LABEL=VARIANT`` with its own
+archive cells with a level failing at least half the time, levels with any failure. Audits run ``--jobs``
+at a time, each in its own process on one thread; one already collected is skipped and an interrupted one
+resumes, so the command can be run again after a stop. An arm is a variant, or ``LABEL=VARIANT`` with its own
 config keys (``--arm-set LABEL:KEY=VALUE``), so one search can be compared with itself under other
 settings; its folders and rows are named by the label. The table also gives each search's wall time
 (minutes of its ``wall_time``: compare it only on a quiet machine at ``--jobs 1``) and its CPU seconds (the
