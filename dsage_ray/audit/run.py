@@ -213,7 +213,7 @@ def search_on_disk(search_dir: Path, *, config: RunConfig | None = None) -> RunR
     Raises:
         CheckpointError: The search left no checkpoint, or (without ``config``) one that does not load.
     """
-    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, CheckpointError, load_checkpoint
+    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, CheckpointError, load_checkpoint, read_header
 
     local = search_dir / CHECKPOINT_NAME
     in_tune = sorted(search_dir.glob(f"*/*/checkpoint_*/{CHECKPOINT_NAME}"),
@@ -226,8 +226,8 @@ def search_on_disk(search_dir: Path, *, config: RunConfig | None = None) -> RunR
         raise CheckpointError(f"{search_dir}: the search left no checkpoint ({CHECKPOINT_NAME}) to read the "
                               f"archive from")
     if config is None:
-        try:
-            config = RunConfig.build(load_checkpoint(checkpoint)["config"])
+        try:  # checkpoints written before the header held the config need the whole state read
+            config = RunConfig.build(read_header(checkpoint).get("config") or load_checkpoint(checkpoint)["config"])
         except ConfigError as exc:
             raise CheckpointError(f"{checkpoint}: the search's config does not load here ({exc})") from None
     return RunResult(config=config, path=run_dir, checkpoint=checkpoint)

@@ -102,13 +102,16 @@ def save_checkpoint(state: Mapping[str, Any], path: str | Path) -> Path:
         "payload_bytes": len(payload),
         "payload_sha256": hashlib.sha256(payload).hexdigest(),
     }
+    if isinstance(state.get("config"), Mapping):
+        header["config"] = state["config"]  # read_header gives a run's config without unpickling its state
     path = Path(path)
     atomic_write_bytes(path, _MAGIC + json.dumps(header, sort_keys=True).encode() + b"\n" + payload)
     return path
 
 
 def read_header(path: str | Path) -> dict[str, Any]:
-    """The header of the checkpoint at ``path`` (format, library versions, payload size), unpickling nothing.
+    """The header of the checkpoint at ``path`` (format, library versions, payload size, and the run's config
+    where the state had one), unpickling nothing.
 
     Raises:
         CheckpointError: No such file, or not a dsage_ray checkpoint of a format this version reads.

@@ -199,6 +199,17 @@ def test_an_audit_resumes_with_the_defaults_it_began_with_and_names_a_changed_ke
     assert "different config: seed = 0, not 5" in capsys.readouterr().err
 
 
+def test_a_search_on_disk_reports_its_config_from_the_checkpoint_header_or_an_older_checkpoints_state(
+        collection, monkeypatch):
+    from dsage_ray.audit.run import search_on_disk
+    from dsage_ray.core import checkpoint
+
+    assert search_on_disk(collection.parent / "search").config.seed == 3
+    header = checkpoint.read_header  # a checkpoint written before the header held the config
+    monkeypatch.setattr(checkpoint, "read_header", lambda path: {k: v for k, v in header(path).items() if k != "config"})
+    assert search_on_disk(collection.parent / "search").config.seed == 3
+
+
 def test_audits_hold_no_levels_out_unless_asked():
     assert audit_config(agent=AUDITED, preset="cpu").surrogate.holdout_levels == 0
     asked = audit_config(agent=AUDITED, preset="cpu", overrides={"surrogate.holdout_levels": 30})

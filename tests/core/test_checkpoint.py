@@ -46,6 +46,13 @@ def test_round_trip_is_exact_and_the_header_names_format_and_versions(tmp_path, 
     header = read_header(path)
     assert header["format"] == checkpoint.FORMAT_VERSION
     assert set(header["libraries"]) == {"dsage_ray", "ribs", "numpy", "torch"}
+    assert "config" not in header  # a state without a run config
+
+
+def test_the_header_carries_the_runs_config_so_it_reads_without_the_state(tmp_path, state):
+    config = {"domain": "maze", "seed": 7, "selection": {"elite_mutants": 0}}
+    path = save_checkpoint({**state, "config": config}, tmp_path / "c.dsage")
+    assert read_header(path)["config"] == config
 
 
 def test_save_is_atomic_and_replaces_the_previous_file(tmp_path, state, monkeypatch):
