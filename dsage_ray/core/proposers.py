@@ -26,6 +26,7 @@ from dsage_ray.qd.archives import make_archive
 from dsage_ray.qd.gain import EvaluationCost, PickErrors, best_per_block, expected_outcomes
 from dsage_ray.qd.mutants import elite_mutants
 from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
+from dsage_ray.qd.screen import screen_picks
 from dsage_ray.qd.selection import gather_elites, select_solutions, skip_filled
 from dsage_ray.surrogate.models import encode_solutions
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
@@ -267,6 +268,9 @@ class SurrogateAssisted:
         #: The surrogate's errors on recent picks (``selection.expected_gain`` reads them).
         self.pick_errors = PickErrors(window=config.selection.gain_window)
         self.evaluation_cost, self.work_count = _evaluation_cost(config, domain)
+        if config.selection.screen_episodes and not callable(getattr(domain, "screen", None)):
+            raise ConfigError(f"selection.screen_episodes: the {domain.name!r} domain cannot screen levels (it has no "
+                              "screen method; Maze has); set selection.screen_episodes = 0")
         #: Evaluated levels nothing was predicted for (the random first batch), as dataset positions and
         #: work counts: the first expected-gain selection predicts them, to learn the errors and costs from.
         self.unpredicted = {"positions": np.empty(0, np.int64), "work": np.empty(0)}
@@ -296,7 +300,7 @@ class SurrogateAssisted:
         surrogate_archive = self._exploit()
         proposal.times["exploit"] = time.perf_counter() - tic
         tic = time.perf_counter()
-        proposal.solutions = self._select(surrogate_archive, proposal.metrics)
+        proposal.solutions = self._select(surrogate_archive, proposal.metrics, proposal.times)
         cap = self.config.surrogate.init_first_picks
         if outer_iteration == 0 and cap and len(proposal.solutions) > cap:
             keep = np.sort(self.seeds.rng.choice(len(proposal.solutions), size=cap, replace=False))
@@ -390,8 +394,10 @@ class SurrogateAssisted:
         run_inner_loop(scheduler, predict, self.config.qd.exploit_iterations, progress=progress)
         return archive
 
-    def _select(self, surrogate_archive: "GridArchive", metrics: dict[str, float]) -> Solutions:
-        """Selection: downsample / random / full picks from the surrogate archive."""
+    def _select(self, surrogate_archive: "GridArchive", metrics: dict[str, float],
+                times: dict[str, float]) -> Solutions:
+        """Selection: downsample / random / full picks from the surrogate archive (``times["screen"]``: the part
+        of it spent screening)."""
         selection = self.config.selection
         if selection.expected_gain:
             self._errors_of_unpredicted()
@@ -417,7 +423,24 @@ class SurrogateAssisted:
             picks = skipped.kept
             metrics["selection_filled"] = float(skipped.filled)
             metrics["selection_fallback"] = float(skipped.fallback)
+        if selection.screen_episodes:
+            tic = time.perf_counter()
+            screened = screen_picks(surrogate_archive, picks, self.archive, screen=self._screen,
+                                    pool=selection.screen_pool, rng=self.seeds.rng)
+            times["screen"] = time.perf_counter() - tic
+            picks = screened.kept
+            metrics.update({"selection_screened": float(screened.screened),
+                            "selection_screened_new": float(screened.new),
+                            "selection_screen_fallback": float(screened.fallback)})
         return gather_elites(surrogate_archive, picks)["solution"]
+
+    def _screen(self, solutions: Solutions) -> tuple[np.ndarray, np.ndarray]:
+        """The domain's cheap estimate of each solution's objective and measures (``selection.screen_episodes``)."""
+        seed = int(self.seeds.rng.integers(2**31 - 1))
+        results = self.domain.screen(solutions, episodes=self.config.selection.screen_episodes, seed=seed)
+        return (np.array([result.objective for result in results], dtype=np.float64),
+                np.array([result.measures for result in results], dtype=np.float64).reshape(
+                    len(results), len(self.domain.measure_names)))
 
     def _label(self, head: str) -> str:
         return head_label(head, self.domain.measure_names)

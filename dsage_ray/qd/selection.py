@@ -58,7 +58,7 @@ def select_solutions(
         return np.sort(indices[SELECTION_METHODS[method](archive, indices, block, count, rng)])
     if method != "downsample":
         raise ValueError(f"new_cells applies to downsampling only (method {method!r})")
-    _check_same_cells(archive, new_cells, "new_cells")
+    check_same_cells(archive, new_cells, "new_cells")
     data = archive.data(["index", "measures"])  # only the measures: no copy of every elite's solution
     held = new_cells.retrieve(data["measures"][np.argsort(data["index"])])[0]
     return np.sort(indices[_one_per_block(archive, indices, block, rng, preferred=~held)])
@@ -69,7 +69,7 @@ def _downsample(archive: GridArchive, indices: np.ndarray, block: Sequence[int],
     return _one_per_block(archive, indices, block, rng)
 
 
-def _check_same_cells(archive: GridArchive, other: GridArchive, name: str) -> None:
+def check_same_cells(archive: GridArchive, other: GridArchive, name: str) -> None:
     if (tuple(archive.dims) != tuple(other.dims)
             or not all(np.allclose(a, b) for a, b in zip(archive.boundaries, other.boundaries))):
         raise ValueError(f"{name} needs a surrogate and a ground-truth archive with the same cells")
@@ -162,7 +162,7 @@ def skip_filled(surrogate_archive: GridArchive, picks: np.ndarray, ground_truth_
         ValueError: The two archives do not have the same cells.
         KeyError: A pick is not occupied.
     """
-    _check_same_cells(surrogate_archive, ground_truth_archive, "skip_filled")
+    check_same_cells(surrogate_archive, ground_truth_archive, "skip_filled")
     picks = np.sort(np.asarray(picks, dtype=np.int64))
     if len(picks) == 0:
         return FilledSkip(kept=picks, filled=0, fallback=False)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -93,26 +93,63 @@ def evaluate(
         seed: Seeds all randomness.
         see_through_walls: MiniGrid's observation setting (the ACCEL agent was trained with True).
     """
+    return evaluate_levels([level], agent, episodes=episodes, seed=seed, see_through_walls=see_through_walls)[0]
+
+
+def evaluate_levels(
+    levels: Sequence[MazeLevel],
+    agent: Agent | None,
+    *,
+    episodes: int = 50,
+    seed: int = 0,
+    see_through_walls: bool = True,
+) -> list[MazeEvaluation]:
+    """Runs ``episodes`` episodes of ``agent`` on each of ``levels`` (one size), all in one batch.
+
+    One policy step serves every running episode of every level, so many short evaluations (a few episodes
+    each) cost about their episodes' steps, not one small batch per level. The draws come from one
+    ``np.random.default_rng(seed)`` for the whole batch: a level's result depends on the levels beside it,
+    and with a single level it is exactly :func:`evaluate`'s.
+
+    Args:
+        levels: The levels; invalid ones get :func:`evaluate`'s invalid result and are not run.
+        agent: A batched policy; may be None when no level is valid.
+        episodes: Episodes per level.
+        seed: Seeds all randomness.
+        see_through_walls: MiniGrid's observation setting.
+    """
     if episodes < 1:
         raise ValueError(f"episodes must be positive, got {episodes}")
-    if not level.valid:
-        return MazeEvaluation(
-            episodes=0, valid=False, num_walls=level.num_walls, optimal_path_length=0,
-            max_steps=level.max_steps, success_rate=0.0, mean_path_length=0.0,
-            episode_lengths=np.zeros(0, dtype=np.int64), successes=np.zeros(0, dtype=bool),
-            occupancy=np.zeros(level.walls.shape, dtype=np.float32), explored_fraction=0.0,
-            repeated_visits=0.0, start=level.start, goal=level.goal,
-        )
+    valid = [level for level in levels if level.valid]
+    runs = iter(_run_levels(valid, agent, episodes=episodes, seed=seed, see_through_walls=see_through_walls)
+                if valid else [])
+    return [next(runs) if level.valid else _not_run(level) for level in levels]
 
+
+def _not_run(level: MazeLevel) -> MazeEvaluation:
+    return MazeEvaluation(
+        episodes=0, valid=False, num_walls=level.num_walls, optimal_path_length=0,
+        max_steps=level.max_steps, success_rate=0.0, mean_path_length=0.0,
+        episode_lengths=np.zeros(0, dtype=np.int64), successes=np.zeros(0, dtype=bool),
+        occupancy=np.zeros(level.walls.shape, dtype=np.float32), explored_fraction=0.0,
+        repeated_visits=0.0, start=level.start, goal=level.goal,
+    )
+
+
+def _run_levels(levels: list[MazeLevel], agent: Agent, *, episodes: int, seed: int,
+                see_through_walls: bool) -> list[MazeEvaluation]:
+    """:func:`evaluate_levels` for valid levels: level ``j`` plays episodes ``j·episodes … (j+1)·episodes − 1``."""
     rng = np.random.default_rng(seed)
-    sim = BatchedMazeSimulator(level, see_through_walls=see_through_walls)
-    obs = sim.reset(rng.integers(0, 4, size=episodes))
-    state = agent.initial_state(episodes)
+    sim = BatchedMazeSimulator(levels, see_through_walls=see_through_walls)
+    total = len(levels) * episodes
+    obs = sim.reset(rng.integers(0, 4, size=total), np.repeat(np.arange(len(levels)), episodes))
+    state = agent.initial_state(total)
+    height, width = levels[0].walls.shape
     # Per-episode visit counts on the padded grid, indexed [episode, x, y] like the simulator.
-    visits = np.zeros((episodes, level.width + 2, level.height + 2), dtype=np.int32)
-    lengths = np.zeros(episodes, dtype=np.int64)
-    successes = np.zeros(episodes, dtype=bool)
-    running = np.arange(episodes)
+    visits = np.zeros((total, width + 2, height + 2), dtype=np.int32)
+    lengths = np.zeros(total, dtype=np.int64)
+    successes = np.zeros(total, dtype=bool)
+    running = np.arange(total)
     while running.size:
         # ``running`` holds distinct episodes, so plain fancy-index += counts every visit.
         visits[running, sim.positions[:, 0], sim.positions[:, 1]] += 1
@@ -129,6 +166,15 @@ def evaluate(
             running = running[alive]
 
     interior = visits[:, 1:-1, 1:-1].transpose(0, 2, 1)  # → [episode, row, col]
+    return [_summary(level, interior[j * episodes:(j + 1) * episodes], lengths[j * episodes:(j + 1) * episodes],
+                     successes[j * episodes:(j + 1) * episodes], max_steps=sim.max_steps)
+            for j, level in enumerate(levels)]
+
+
+def _summary(level: MazeLevel, interior: np.ndarray, lengths: np.ndarray, successes: np.ndarray, *,
+             max_steps: int) -> MazeEvaluation:
+    """One level's evaluation from its episodes' visit counts ``[episode, row, col]``, lengths and successes."""
+    episodes = len(lengths)
     occupied = interior > 0
     occupied[successes, level.goal[0], level.goal[1]] = True
     reachable = level.reachable_cells
@@ -137,7 +183,7 @@ def evaluate(
         valid=True,
         num_walls=level.num_walls,
         optimal_path_length=level.optimal_path_length,
-        max_steps=sim.max_steps,
+        max_steps=max_steps,
         success_rate=float(successes.mean()),
         # A failed episode ran to truncation, so its length already is max_steps.
         mean_path_length=float(lengths.mean()),

@@ -9,6 +9,8 @@ either ``see_through_walls`` setting (tested step by step in ``tests/domains/maz
 
 from __future__ import annotations
 
+from typing import Sequence
+
 import numpy as np
 
 from dsage_ray.agents import constants as minigrid
@@ -100,12 +102,14 @@ def view_table(level: MazeLevel, *, see_through_walls: bool = True, agent_view_s
 
 
 class BatchedMazeSimulator:
-    """Steps ``n`` episodes of one level at once; bit-identical to stepping ``n`` MazeEnvs.
+    """Steps ``n`` episodes at once, on one level or on several of the same size; bit-identical to stepping
+    ``n`` MazeEnvs.
 
     Episodes are independent: finished ones are not auto-reset; drop them with :meth:`keep`.
 
     Args:
-        level: A valid level.
+        level: A valid level, or a sequence of valid levels of one size (:meth:`reset` says which level
+            each episode plays; the default is the first).
         see_through_walls: As in :class:`~dsage_ray.domains.maze.env.MazeEnv`.
         agent_view_size: As in MazeEnv.
         max_steps: As in MazeEnv; default ``level.max_steps``.
@@ -114,37 +118,48 @@ class BatchedMazeSimulator:
         positions: ``(n, 2)`` int64 grid ``(x, y)`` per episode (MiniGrid's ``agent_pos``).
         directions: ``(n,)`` int64 heading per episode (MiniGrid's ``agent_dir``).
         step_counts: ``(n,)`` int64 steps taken per episode.
+        level_index: ``(n,)`` int64 which of the levels each episode plays.
     """
 
     def __init__(
         self,
-        level: MazeLevel,
+        level: MazeLevel | Sequence[MazeLevel],
         *,
         see_through_walls: bool = True,
         agent_view_size: int = 5,
         max_steps: int | None = None,
     ):
-        if not level.valid:
+        levels = [level] if isinstance(level, MazeLevel) else list(level)
+        if not levels:
+            raise ValueError("BatchedMazeSimulator needs at least one level")
+        if not all(each.valid for each in levels):
             raise ValueError("BatchedMazeSimulator needs a valid level (a start and a goal connected to each other)")
-        self.level = level
-        self.max_steps = int(max_steps if max_steps is not None else level.max_steps)
-        self._kinds = cell_kinds(level)
-        self._views = view_table(level, see_through_walls=see_through_walls, agent_view_size=agent_view_size)
-        self._start = np.array([level.start[1] + 1, level.start[0] + 1], dtype=np.int64)
+        if len({each.walls.shape for each in levels}) > 1:
+            raise ValueError(f"the levels of one BatchedMazeSimulator must share a size, got "
+                             f"{sorted({each.walls.shape for each in levels})}")
+        self.level = levels[0]
+        self.levels = levels
+        self.max_steps = int(max_steps if max_steps is not None else levels[0].max_steps)
+        self._kinds = np.stack([cell_kinds(each) for each in levels])
+        self._views = np.stack([view_table(each, see_through_walls=see_through_walls, agent_view_size=agent_view_size)
+                                for each in levels])
+        self._starts = np.array([[each.start[1] + 1, each.start[0] + 1] for each in levels], dtype=np.int64)
         self.positions = np.zeros((0, 2), dtype=np.int64)
         self.directions = np.zeros(0, dtype=np.int64)
         self.step_counts = np.zeros(0, dtype=np.int64)
+        self.level_index = np.zeros(0, dtype=np.int64)
 
     @property
     def num_episodes(self) -> int:
         return len(self.directions)
 
-    def reset(self, directions: np.ndarray) -> dict[str, np.ndarray]:
-        """Starts ``len(directions)`` episodes at the level's start.
+    def reset(self, directions: np.ndarray, level_index: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Starts ``len(directions)`` episodes, each at its level's start.
 
         Args:
             directions: ``(n,)`` initial headings in ``[0, 4)`` (MazeEnv draws them from its
                 ``np_random``; here the caller does, so both can share the same draws).
+            level_index: ``(n,)`` which level each episode plays; default all the first.
 
         Returns:
             The batched observation: ``image`` ``(n, s, s, 3)`` uint8 and ``direction`` ``(n,)`` int64.
@@ -152,8 +167,13 @@ class BatchedMazeSimulator:
         directions = np.asarray(directions, dtype=np.int64).reshape(-1)
         if np.any((directions < 0) | (directions > 3)):
             raise ValueError(f"initial directions must lie in [0, 4), got {directions}")
+        index = (np.zeros(len(directions), dtype=np.int64) if level_index is None
+                 else np.asarray(level_index, dtype=np.int64).reshape(-1))
+        if index.shape != directions.shape or np.any((index < 0) | (index >= len(self.levels))):
+            raise ValueError(f"level_index must hold one index in [0, {len(self.levels)}) per episode")
         self.directions = directions.copy()
-        self.positions = np.tile(self._start, (len(directions), 1))
+        self.level_index = index.copy()
+        self.positions = self._starts[index].copy()
         self.step_counts = np.zeros(len(directions), dtype=np.int64)
         return self._observe()
 
@@ -170,7 +190,7 @@ class BatchedMazeSimulator:
             raise ValueError(f"actions must lie in [0, {NUM_ACTIONS}), got {actions}")
         self.step_counts += 1
         ahead = self.positions + DIR_TO_VEC[self.directions]
-        ahead_kind = self._kinds[ahead[:, 0], ahead[:, 1]]
+        ahead_kind = self._kinds[self.level_index, ahead[:, 0], ahead[:, 1]]
         forward = actions == FORWARD
         moves = forward & (ahead_kind != WALL)
         self.positions[moves] = ahead[moves]
@@ -187,7 +207,8 @@ class BatchedMazeSimulator:
         self.positions = self.positions[index]
         self.directions = self.directions[index]
         self.step_counts = self.step_counts[index]
+        self.level_index = self.level_index[index]
 
     def _observe(self) -> dict[str, np.ndarray]:
-        image = self._views[self.positions[:, 0], self.positions[:, 1], self.directions]
+        image = self._views[self.level_index, self.positions[:, 0], self.positions[:, 1], self.directions]
         return {"image": image, "direction": self.directions.copy()}
