@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from dsage_ray.types import EvaluationResult
@@ -90,3 +92,22 @@ class BitmapDomain:
         buffer = io.BytesIO()
         image.save(buffer, format="PNG")
         return buffer.getvalue()
+
+
+class ScreeningBitmapDomain(BitmapDomain):
+    """:class:`BitmapDomain` with a screen (``selection.screen_episodes``) and, as in the Maze's QD search, the
+    same objective for every level, so that an evaluation adds to the archive only by filling a new cell. Its
+    measures are functions of the level alone: the screen is exact, and a screened pick lands where it said."""
+
+    def __init__(self, **options) -> None:
+        super().__init__(**options)
+        self.screened = 0
+
+    def evaluate(self, solution: np.ndarray, seed: int) -> EvaluationResult:
+        return dataclasses.replace(super().evaluate(solution, seed), objective=1.0)
+
+    def screen(self, solutions: np.ndarray, *, episodes: int, seed: int) -> list[EvaluationResult]:
+        self.screened += len(solutions)
+        results = [self.evaluate(solution, seed + i) for i, solution in enumerate(solutions)]
+        self.calls -= len(solutions)  # a screen is not an evaluation
+        return results

@@ -387,3 +387,51 @@ def test_a_cost_measure_the_domain_lacks_is_refused_by_name():
     with pytest.raises(ConfigError, match="selection.cost_measure: 'mean_path_length' is neither one of the domain's measures"):
         make_runner(variant="dsage_gain", **{"selection.cost_measure": "mean_path_length"})
     make_runner(variant="dsage", **{"selection.cost_measure": "mean_path_length"})  # read only by dsage_gain
+
+
+def _screening_runner(**overrides) -> DSAGE:
+    from tests.fakes import ScreeningBitmapDomain
+
+    return DSAGE(config=RunConfig.build({**SMALL, "budget": 160, "selection.screen_episodes": 1, **overrides}),
+                 domain=ScreeningBitmapDomain())
+
+
+def test_with_an_exact_screen_every_screened_pick_fills_a_new_cell_and_the_screen_is_timed():
+    runner = _screening_runner()
+    history = runner.run()
+    screened = [h for h in history[1:] if not h["selection_screen_fallback"]]
+    assert screened and runner.domain.screened == sum(h["selection_screened"] for h in history[1:])
+    assert all(h["new_cell_share"] == 1.0 for h in screened)
+    assert all(0 < h["time_screen"] <= h["time_select"] for h in history[1:])
+    # Without the screen the same search spends picks on cells it already holds.
+    plain = make_runner(budget=160)
+    assert min(h["new_cell_share"] for h in plain.run()[1:]) < 1.0
+
+
+def test_a_screened_run_resumes_exactly():
+    reference = _screening_runner()
+    reference.run()
+    interrupted = _screening_runner()
+    interrupted.step()
+    interrupted.step()
+    state = pickle.loads(pickle.dumps(interrupted.state_dict()))
+    resumed = _screening_runner()
+    resumed.load_state_dict(state)
+    resumed.run()
+    assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
+
+
+@pytest.mark.parametrize("overrides, needle", [
+    ({"selection.screen_episodes": -1}, "selection.screen_episodes: must be >= 0"),
+    ({"selection.screen_episodes": 1, "variant": "map_elites"}, "selection.screen_episodes: screens a surrogate"),
+    ({"selection.screen_episodes": 1, "selection.screen_pool": 0.5}, "selection.screen_pool: must be >= 1")])
+def test_screen_config_is_checked(overrides, needle):
+    with pytest.raises(ValueError, match=needle):
+        RunConfig.build({**SMALL, **overrides})
+
+
+def test_a_domain_that_cannot_screen_is_refused_by_name():
+    from dsage_ray.config import ConfigError
+
+    with pytest.raises(ConfigError, match="selection.screen_episodes: the 'bitmap' domain cannot screen"):
+        make_runner(**{"selection.screen_episodes": 2})

@@ -82,3 +82,19 @@ def test_pickles_without_agent(loads):
     domain.evaluate(np.zeros(12), seed=0)
     clone = pickle.loads(pickle.dumps(domain))
     assert clone._agent is None and clone.config == domain.config
+
+
+def test_screen_is_a_cheap_evaluation_with_fewer_episodes_of_many_levels_at_once(loads):
+    domain = MazeDomain(config=MazeConfig(height=3, width=4, episodes=10))
+    open_level = np.zeros(12)
+    walled = np.ones(12)
+    results = domain.screen(np.stack([open_level, walled, open_level]), episodes=2, seed=7)
+    assert [len(r.info["episode_lengths"]) if r.info["valid"] else 0 for r in results] == [2, 0, 2]
+    assert [r.objective for r in results] == [1.0, 0.0, 1.0]
+    assert results[1].measures.tolist() == [12.0, 0.0]
+    # One level screened alone is exactly a 2-episode evaluation with that seed.
+    (alone,) = domain.screen(open_level[None], episodes=2, seed=7)
+    short = MazeDomain(config=MazeConfig(height=3, width=4, episodes=2)).evaluate(open_level, seed=7)
+    assert alone.measures.tolist() == short.measures.tolist()
+    assert alone.info["episode_lengths"] == short.info["episode_lengths"]
+    assert len(loads) == 2  # once per domain object, however many levels it screens

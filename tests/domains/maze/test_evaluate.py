@@ -94,3 +94,23 @@ def test_see_through_setting_is_passed_on():
     a = evaluate(level, UniformRandomAgent(), episodes=5, seed=1, see_through_walls=False)
     b = evaluate(level, UniformRandomAgent(), episodes=5, seed=1, see_through_walls=True)
     assert np.array_equal(a.episode_lengths, b.episode_lengths)
+
+
+def test_levels_evaluated_together_match_one_at_a_time_for_one_level_and_keep_invalid_ones_apart():
+    from dsage_ray.domains.maze.evaluate import evaluate_levels
+
+    level = parse_layout(EASY)
+    alone = evaluate(level, UniformRandomAgent(3), episodes=12, seed=9)
+    (together,) = evaluate_levels([level], UniformRandomAgent(3), episodes=12, seed=9)
+    assert together.to_json(occupancy=True) == alone.to_json(occupancy=True)
+
+    walled = MazeLevel.from_bitmap(np.ones(level.walls.shape))
+    agent = UniformRandomAgent(3)
+    results = evaluate_levels([level, walled, level], agent, episodes=5, seed=2)
+    assert [r.valid for r in results] == [True, False, True] and results[1].episodes == 0
+    assert [r.episodes for r in results] == [5, 0, 5]
+    assert agent.batch_sizes[0] == 10  # both valid levels' episodes in one policy step
+    for result in (results[0], results[2]):
+        assert np.isclose(result.mean_path_length, result.episode_lengths.mean())
+        assert np.isclose(result.occupancy.sum(), result.episode_lengths.mean())  # a visit per step, goal never
+    assert evaluate_levels([walled], None, episodes=3)[0].valid is False

@@ -5,9 +5,8 @@ import pytest
 
 from dsage_ray.domains.maze.env import MazeEnv
 from dsage_ray.domains.maze.layout import load_layout
-from dsage_ray.domains.maze.simulator import BatchedMazeSimulator
-
 from dsage_ray.domains.maze.level import MazeLevel
+from dsage_ray.domains.maze.simulator import BatchedMazeSimulator
 
 from .conftest import DATA, random_level
 
@@ -122,3 +121,41 @@ def test_rejects_bad_input():
         sim.step(np.array([0, 1]))
     with pytest.raises(ValueError, match="directions"):
         sim.reset(np.array([4]))
+
+
+def test_several_levels_step_as_each_does_alone():
+    rng = np.random.default_rng(5)
+    levels = []
+    while len(levels) < 3:
+        level = MazeLevel.from_bitmap(rng.random((7, 7)) < 0.3)
+        if level.valid:
+            levels.append(level)
+    together = BatchedMazeSimulator(levels)
+    directions = rng.integers(0, 4, size=6)
+    index = np.array([0, 1, 2, 2, 1, 0])
+    obs = together.reset(directions, index)
+    # Every episode of the batch against a simulator of its level alone, from the same start, step by step.
+    singles = [BatchedMazeSimulator(levels[j]) for j in index]
+    for i, single in enumerate(singles):
+        assert np.array_equal(obs["image"][i], single.reset(directions[i:i + 1])["image"][0])
+    for _ in range(60):
+        actions = rng.integers(0, 3, size=6)
+        obs, rewards, terminated, truncated = together.step(actions)
+        for i, single in enumerate(singles):
+            obs_i, rewards_i, terminated_i, truncated_i = single.step(actions[i:i + 1])
+            assert np.array_equal(obs["image"][i], obs_i["image"][0])
+            assert (rewards[i], terminated[i], truncated[i]) == (rewards_i[0], terminated_i[0], truncated_i[0])
+            assert np.array_equal(together.positions[i], single.positions[0])
+    together.keep(np.array([4, 1]))
+    assert together.level_index.tolist() == [1, 1]
+
+
+def test_several_levels_must_share_a_size_and_an_index_must_name_one():
+    small = load_layout(DATA / "small.txt")
+    with pytest.raises(ValueError, match="share a size"):
+        BatchedMazeSimulator([small, MazeLevel.from_bitmap(np.zeros((small.height + 1, small.width)))])
+    with pytest.raises(ValueError, match="at least one level"):
+        BatchedMazeSimulator([])
+    sim = BatchedMazeSimulator([small, small])
+    with pytest.raises(ValueError, match="level_index"):
+        sim.reset(np.zeros(2), np.array([0, 2]))
