@@ -383,6 +383,7 @@ def main(argv: list[str] | None = None) -> int:
           "seconds per evaluation (evaluate only) |")
     print("|---|" + "---|" * (len(PHASES) + 3))
     eval_cost = {}
+    screening: dict[str, float] = {}
     for variant, group in sorted(by_variant.items()):
         rows = [row for run in group for row in phase_seconds(run["history"], args.clock)]
         totals = {phase: sum(row[phase] for row in rows) for phase in PHASES}
@@ -393,6 +394,12 @@ def main(argv: list[str] | None = None) -> int:
         surrogate = sum(totals[phase] for phase in ("train", "exploit", "select")) / max(total, 1e-9)
         print(f"| {variant} | " + " | ".join(f"{s:.1%}" for s in shares) + f" | {1 - sum(shares):.1%} | "
               f"{surrogate:.1%} | {eval_cost[variant]:.3f} |")
+        screen = sum(row.get("time_screen", 0.0) for run in group for row in run["history"])
+        if screen:
+            screening[variant] = screen / max(sum(row["time_total"] for run in group for row in run["history"]), 1e-9)
+    for variant, share in screening.items():
+        print(f"  {variant}: its select column includes screening (selection.screen_episodes), "
+              f"{share:.1%} of its wall time")
 
     pipelined = [v for v in surrogate_variants if is_pipelined(by_variant[v])]
     if pipelined:

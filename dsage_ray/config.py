@@ -187,9 +187,12 @@ class SelectionConfig:
     elite_share: float = 0.05
     #: Before the real evaluation, screen the picks and more candidates with this many episodes each (the domain's
     #: ``screen``: Maze only) and evaluate, up to the selection's size, those whose screened result adds to the
-    #: ground truth (not in the paper; :mod:`dsage_ray.qd.screen`). 0 (the paper): evaluate the picks as chosen.
+    #: ground truth (not in the paper; :mod:`dsage_ray.qd.screen`). MAP-Elites (``qd.emitter = "map_elites"``
+    #: without a surrogate) screens mutants of its elites instead, once its random start-up is over. 0 (the
+    #: paper): evaluate the picks as chosen.
     screen_episodes: int = 0
-    #: ``screen_episodes``: candidates screened per pick (the picks, then other elites predicted to add).
+    #: ``screen_episodes``: candidates screened per pick (the picks, then other elites predicted to add), or per
+    #: level of a MAP-Elites batch.
     screen_pool: float = 4.0
 
 
@@ -440,8 +443,9 @@ class RunConfig:
              f"{' or '.join(typing.get_args(MutatingEmitter))})")
         need(0.0 < self.selection.elite_share <= 1.0, "selection.elite_share", "must be in (0, 1]")
         need(self.selection.screen_episodes >= 0, "selection.screen_episodes", "must be >= 0 (0: no screen)")
-        need(self.uses_surrogate or not self.selection.screen_episodes, "selection.screen_episodes",
-             "screens a surrogate's picks; this variant has no surrogate")
+        need(self.uses_surrogate or self.qd.emitter == "map_elites" or not self.selection.screen_episodes,
+             "selection.screen_episodes", f"screens a surrogate's picks, or MAP-Elites' mutants; qd.emitter "
+             f"{self.qd.emitter!r} without a surrogate adapts to every level it asked for")
         need(self.selection.screen_pool >= 1, "selection.screen_pool", "must be >= 1 (candidates screened per pick)")
         need(self.selection.min_gain >= 0, "selection.min_gain", "must be >= 0 (0: keep every block's pick)")
         need(self.selection.gain_window >= 1, "selection.gain_window", "must be positive")

@@ -26,7 +26,7 @@ from dsage_ray.qd.archives import make_archive
 from dsage_ray.qd.gain import EvaluationCost, PickErrors, best_per_block, expected_outcomes
 from dsage_ray.qd.mutants import elite_mutants
 from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
-from dsage_ray.qd.screen import screen_picks
+from dsage_ray.qd.screen import Screen, keep_screened, screen_picks
 from dsage_ray.qd.selection import gather_elites, select_solutions, skip_filled
 from dsage_ray.surrogate.models import encode_solutions
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
@@ -147,14 +147,41 @@ class DirectQD:
     """
 
     def __init__(self, *, config: RunConfig, domain: Domain, archive: "GridArchive", seeds: "RunSeeds") -> None:
+        self.config = config
         self.archive = archive
+        self.seeds = seeds
         self.scheduler = make_scheduler(archive, config=config.qd, solution_dim=domain.solution_dim,
                                         random_solutions=domain.random_solutions, seed=seeds.next_qd_seed())
+        self.screen = domain_screen(config, domain, seeds)
+        #: Whether the batch under evaluation came from the scheduler (then it is told), not from a screen.
+        self.asked = True
 
     def propose(self, *, outer_iteration: int) -> Proposal:
-        return Proposal(self.scheduler.ask())
+        qd = self.config.qd
+        self.asked = self.screen is None or outer_iteration < qd.initial_random_batches or self.archive.empty
+        if self.asked:
+            return Proposal(self.scheduler.ask())
+        # MAP-Elites' own step (uniform parents, its mutation), screened: a larger batch of mutants, of which
+        # those whose screened result adds to the archive are evaluated (its emitters keep no state to tell).
+        tic = time.perf_counter()
+        batch = qd.num_emitters * qd.batch_size
+        mutants = elite_mutants(self.archive, count=int(round(self.config.selection.screen_pool * batch)), share=1.0,
+                                qd=qd, rng=self.seeds.rng)
+        kept, new = keep_screened(mutants, self.archive, screen=self.screen, limit=batch)
+        fallback = len(kept) == 0
+        solutions = mutants[:batch] if fallback else mutants[kept]
+        seconds = time.perf_counter() - tic
+        return Proposal(solutions, metrics={"selection_screened": float(len(mutants)),
+                                            "selection_screened_new": float(new),
+                                            "selection_screen_fallback": float(fallback)},
+                        times={"select": seconds, "screen": seconds})
 
     def learn(self, batch: EvaluatedBatch) -> dict[str, float]:
+        if not self.asked:
+            if batch.ok:
+                self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures,
+                                 occupancy=batch.occupancy)
+            return {}
         if batch.complete:
             # The emitters need the whole batch they asked for; tell() also adds to the archive.
             self.scheduler.tell(batch.objective, batch.measures, occupancy=batch.occupancy)
@@ -175,6 +202,30 @@ class DirectQD:
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.scheduler = state["scheduler"]
         self.archive = state["archive"]
+
+
+def domain_screen(config: RunConfig, domain: Domain, seeds: "RunSeeds") -> Screen | None:
+    """``selection.screen_episodes`` as a :data:`~dsage_ray.qd.screen.Screen` over ``domain.screen`` (None: off).
+
+    Each call draws its seed from the run's stream, so a screened run is as reproducible as any other.
+
+    Raises:
+        ConfigError: The domain has no ``screen`` (a domain passed in may not be the config's own).
+    """
+    episodes = config.selection.screen_episodes
+    if not episodes:
+        return None
+    if not callable(getattr(domain, "screen", None)):
+        raise ConfigError(f"selection.screen_episodes: the {domain.name!r} domain cannot screen levels (it has no "
+                          "screen method; Maze has); set selection.screen_episodes = 0")
+
+    def screen(solutions: Solutions) -> tuple[np.ndarray, np.ndarray]:
+        results = domain.screen(solutions, episodes=episodes, seed=int(seeds.rng.integers(2**31 - 1)))
+        return (np.array([result.objective for result in results], dtype=np.float64),
+                np.array([result.measures for result in results], dtype=np.float64).reshape(
+                    len(results), len(domain.measure_names)))
+
+    return screen
 
 
 def _evaluation_cost(config: RunConfig, domain: Domain) -> tuple[EvaluationCost | None, "_WorkCount"]:
@@ -268,9 +319,7 @@ class SurrogateAssisted:
         #: The surrogate's errors on recent picks (``selection.expected_gain`` reads them).
         self.pick_errors = PickErrors(window=config.selection.gain_window)
         self.evaluation_cost, self.work_count = _evaluation_cost(config, domain)
-        if config.selection.screen_episodes and not callable(getattr(domain, "screen", None)):
-            raise ConfigError(f"selection.screen_episodes: the {domain.name!r} domain cannot screen levels (it has no "
-                              "screen method; Maze has); set selection.screen_episodes = 0")
+        self.screen = domain_screen(config, domain, seeds)
         #: Evaluated levels nothing was predicted for (the random first batch), as dataset positions and
         #: work counts: the first expected-gain selection predicts them, to learn the errors and costs from.
         self.unpredicted = {"positions": np.empty(0, np.int64), "work": np.empty(0)}
@@ -397,7 +446,7 @@ class SurrogateAssisted:
     def _select(self, surrogate_archive: "GridArchive", metrics: dict[str, float],
                 times: dict[str, float]) -> Solutions:
         """Selection: downsample / random / full picks from the surrogate archive (``times["screen"]``: the part
-        of it spent screening)."""
+        of it spent screening them)."""
         selection = self.config.selection
         if selection.expected_gain:
             self._errors_of_unpredicted()
@@ -423,9 +472,9 @@ class SurrogateAssisted:
             picks = skipped.kept
             metrics["selection_filled"] = float(skipped.filled)
             metrics["selection_fallback"] = float(skipped.fallback)
-        if selection.screen_episodes:
+        if self.screen is not None:
             tic = time.perf_counter()
-            screened = screen_picks(surrogate_archive, picks, self.archive, screen=self._screen,
+            screened = screen_picks(surrogate_archive, picks, self.archive, screen=self.screen,
                                     pool=selection.screen_pool, rng=self.seeds.rng)
             times["screen"] = time.perf_counter() - tic
             picks = screened.kept
@@ -433,14 +482,6 @@ class SurrogateAssisted:
                             "selection_screened_new": float(screened.new),
                             "selection_screen_fallback": float(screened.fallback)})
         return gather_elites(surrogate_archive, picks)["solution"]
-
-    def _screen(self, solutions: Solutions) -> tuple[np.ndarray, np.ndarray]:
-        """The domain's cheap estimate of each solution's objective and measures (``selection.screen_episodes``)."""
-        seed = int(self.seeds.rng.integers(2**31 - 1))
-        results = self.domain.screen(solutions, episodes=self.config.selection.screen_episodes, seed=seed)
-        return (np.array([result.objective for result in results], dtype=np.float64),
-                np.array([result.measures for result in results], dtype=np.float64).reshape(
-                    len(results), len(self.domain.measure_names)))
 
     def _label(self, head: str) -> str:
         return head_label(head, self.domain.measure_names)

@@ -81,16 +81,23 @@ def screen_picks(surrogate_archive: GridArchive, picks: np.ndarray, ground_truth
         others = others[_adds(ground_truth_archive, data["objective"][rows], data["measures"][rows])]
     extra = min(len(others), int(round(pool * len(picks))) - len(picks))
     candidates = np.concatenate([picks, rng.choice(others, size=max(extra, 0), replace=False)])
-    objective, measures = screen(gather_elites(surrogate_archive, candidates)["solution"])
-    adds = _adds(ground_truth_archive, np.asarray(objective, np.float64), np.asarray(measures, np.float64))
-    cells = ground_truth_archive.index_of(np.asarray(measures, np.float64))
-    # Of the candidates that would add, the first (picks first) in each screened cell.
-    adding = np.flatnonzero(adds)
-    keep = np.sort(adding[np.unique(cells[adding], return_index=True)[1]])[:len(picks)]
-    if len(keep) == 0:
+    kept, new = keep_screened(gather_elites(surrogate_archive, candidates)["solution"], ground_truth_archive,
+                              screen=screen, limit=len(picks))
+    if len(kept) == 0:
         return ScreenedPicks(kept=picks, screened=len(candidates), new=0, fallback=True)
-    return ScreenedPicks(kept=np.sort(candidates[keep]), screened=len(candidates), new=int(adds.sum()),
-                         fallback=False)
+    return ScreenedPicks(kept=np.sort(candidates[kept]), screened=len(candidates), new=new, fallback=False)
+
+
+def keep_screened(solutions: Solutions, ground_truth_archive: GridArchive, *, screen: Screen,
+                  limit: int) -> tuple[np.ndarray, int]:
+    """Screens ``solutions`` and returns the positions of at most ``limit`` whose screened result would add to the
+    ground truth (an empty cell, or a higher objective than its elite), the first in each screened cell, in order;
+    and how many would add in all."""
+    objective, measures = screen(solutions)
+    measures = np.asarray(measures, np.float64)
+    adding = np.flatnonzero(_adds(ground_truth_archive, np.asarray(objective, np.float64), measures))
+    cells = ground_truth_archive.index_of(measures[adding]) if len(adding) else np.empty(0, np.int64)
+    return np.sort(adding[np.unique(cells, return_index=True)[1]])[:limit], len(adding)
 
 
 def _adds(archive: GridArchive, objective: np.ndarray, measures: np.ndarray) -> np.ndarray:

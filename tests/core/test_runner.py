@@ -421,9 +421,37 @@ def test_a_screened_run_resumes_exactly():
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
 
 
+def test_screened_map_elites_evaluates_only_mutants_whose_screen_fills_a_new_cell_after_its_random_start():
+    runner = _screening_runner(variant="map_elites")
+    history = runner.run()
+    assert runner.evals == 160
+    start = RunConfig.build(SMALL).qd.initial_random_batches
+    assert all("selection_screened" not in h for h in history[:start])  # the random start-up is not screened
+    screened = [h for h in history[start:] if not h["selection_screen_fallback"]]
+    assert screened and runner.domain.screened == sum(h["selection_screened"] for h in history[start:])
+    assert all(h["new_cell_share"] == 1.0 for h in screened)
+    assert all(h["selection_screened"] == 4 * 20 for h in history[start:])  # screen_pool × the batch of 2 × 10
+    plain = make_runner(variant="map_elites", budget=160)
+    assert min(h["new_cell_share"] for h in plain.run()[start:]) < 1.0
+
+
+def test_screened_map_elites_resumes_exactly():
+    reference = _screening_runner(variant="map_elites")
+    reference.run()
+    interrupted = _screening_runner(variant="map_elites")
+    for _ in range(5):
+        interrupted.step()
+    state = pickle.loads(pickle.dumps(interrupted.state_dict()))
+    resumed = _screening_runner(variant="map_elites")
+    resumed.load_state_dict(state)
+    resumed.run()
+    assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
+
+
 @pytest.mark.parametrize("overrides, needle", [
     ({"selection.screen_episodes": -1}, "selection.screen_episodes: must be >= 0"),
-    ({"selection.screen_episodes": 1, "variant": "map_elites"}, "selection.screen_episodes: screens a surrogate"),
+    ({"selection.screen_episodes": 1, "variant": "dr"}, "selection.screen_episodes: screens a surrogate's picks, or "
+                                                        "MAP-Elites' mutants; qd.emitter 'random'"),
     ({"selection.screen_episodes": 1, "selection.screen_pool": 0.5}, "selection.screen_pool: must be >= 1")])
 def test_screen_config_is_checked(overrides, needle):
     with pytest.raises(ValueError, match=needle):
