@@ -2,7 +2,8 @@
 
 In a Maze the only thing that moves is the agent, so the egocentric observation is a function of
 ``(x, y, direction)`` alone. The constructor renders it once for every such state (a lookup table
-of ``(H+2)·(W+2)·4`` views); a step is then a handful of fancy-index operations over the batch.
+of ``(H+2)·(W+2)·4`` views per level); a step is then a handful of fancy-index operations over the
+batch, whose episodes may play different levels of one size.
 Dynamics, rewards, termination, truncation and observations are bit-identical to MiniGrid 3.2 for
 either ``see_through_walls`` setting (tested step by step in ``tests/domains/maze``).
 """
