@@ -71,8 +71,25 @@ def load_run(folder: Path) -> dict:
     for row, fallback in zip(history, summed):
         row.setdefault("wall_time", float(fallback))
         row.setdefault("cpu_time", float(fallback))
+    domain = config.get("domain", "maze")
+    screen_episodes = _config_value(config, "selection.screen_episodes", 0)
+    episodes = _config_value(config, f"{domain}.episodes", 0)
     return {"folder": folder, "variant": config.get("variant", "?"), "name": config.get("name", "?"),
-            "seed": config.get("seed", 0), "history": history}
+            "seed": config.get("seed", 0), "history": history,
+            # What one screened level costs in evaluations (episodes), 0 without a screen.
+            "screen_share": screen_episodes / episodes if screen_episodes and episodes else 0.0}
+
+
+def _config_value(config: dict, key: str, default):
+    """A key of a nested ``config.json`` or of a flat ``params.json``."""
+    if key in config:
+        return config[key]
+    node = config
+    for part in key.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return default
+        node = node[part]
+    return node
 
 
 def qd_at_evals(history: list[dict], evals: float) -> tuple[float, bool]:
@@ -304,6 +321,28 @@ def print_pairs(variant: str, baseline: str, pairs: list[tuple[int, float, float
           f"{mean_pm([base for _, _, base, _ in pairs])})")
 
 
+def print_screen_equivalents(variant: str, baseline: str, runs: list[dict], baselines: list[dict],
+                             at_evals: float) -> None:
+    """The equal-evaluation reading with a screened run's screens counted as evaluations: each screened level as
+    ``selection.screen_episodes / episodes`` of one, the baseline read at the evaluations plus those."""
+    by_seed = {run["seed"]: run for run in baselines}
+    ratios = []
+    for run in sorted(runs, key=lambda run: run["seed"]):
+        base = by_seed.get(run["seed"])
+        if base is None:
+            continue
+        evals = [0.0] + [row["evals"] for row in run["history"]]
+        screened = np.cumsum([0.0] + [row.get("selection_screened", 0.0) for row in run["history"]])
+        extra = float(np.interp(at_evals, evals, screened)) * run["screen_share"]
+        own, base_qd = qd_at_evals(run["history"], at_evals)[0], qd_at_evals(base["history"], at_evals + extra)[0]
+        ratios.append(own / max(base_qd, 1e-9))
+        print(f"  seed {run['seed']}: its screens cost {extra:,.0f} evaluations' episodes by {at_evals:,.0f} "
+              f"evaluations; {own:,.1f} vs {baseline} {base_qd:,.1f} at {at_evals + extra:,.0f} → {ratios[-1]:.2f}x")
+    if ratios:
+        print(f"{variant} / {baseline} at equal evaluations, its screens counted as evaluations: "
+              f"{mean_pm(ratios, '.2f')}x over {len(ratios)} seeds")
+
+
 def evals_and_time_to(history: list[dict], qd_score: float, clock: str) -> tuple[float, float] | None:
     """Evaluations and evaluation seconds (on ``clock``) at which the run first reached ``qd_score`` (linear
     within an outer iteration), or ``None`` if it never did."""
@@ -364,6 +403,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{variant} / {args.baseline}: {np.mean(at_evals[variant]) / base_e:.2f}x at equal evaluations, "
                   f"{np.mean(at_time_qd[variant]) / max(base_t, 1e-9):.2f}x at {at_time:,.0f} s of {args.clock} "
                   f"time (a common second; the paired reading below is the fair one)")
+
+    for variant in sorted(by_variant):
+        if variant != args.baseline and any(run["screen_share"] for run in by_variant[variant]):
+            print_screen_equivalents(variant, args.baseline, by_variant[variant], by_variant[args.baseline],
+                                     args.at_evals)
 
     for variant in sorted(by_variant):
         if variant != args.baseline:

@@ -145,3 +145,27 @@ def test_realized_over_expected_reads_every_iteration_but_the_last():
     # (250 - 90) + (350 - 250) added against 200 + 125 expected; the last, budget-cut iteration is left out.
     assert bench.realized_over_expected(gain) == 260.0 / 325.0
     assert bench.realized_over_expected(SURROGATE) is None
+
+
+def test_a_screened_runs_screens_are_counted_as_evaluations_in_their_own_reading(capsys):
+    screened = run(1, [(100, 50.0, 100.0, 40.0), (400, 300.0, 500.0, 200.0)], "scr")
+    for row, count in zip(screened["history"], (0.0, 1500.0)):
+        row["selection_screened"] = count
+    screened["screen_share"] = 1 / 50  # one episode of a 50-episode evaluation
+    bench.print_screen_equivalents("scr", "map_elites", [screened], [BASELINE], 400)
+    printed = capsys.readouterr().out
+    # 1,500 screened levels by 400 evaluations = 30 evaluations' episodes: the baseline is read at 430 (40 × 430/150).
+    assert "seed 1: its screens cost 30 evaluations' episodes by 400 evaluations; 300.0 vs map_elites 114.7 at 430" \
+        in printed, printed
+    assert "scr / map_elites at equal evaluations, its screens counted as evaluations: 2.62x over 1 seeds" in printed
+
+
+def test_the_screen_share_comes_from_a_nested_or_a_flat_config(tmp_path):
+    for name, config in (("config.json", {"variant": "dsage", "domain": "maze", "maze": {"episodes": 50},
+                                          "selection": {"screen_episodes": 2}}),
+                         ("params.json", {"variant": "dsage", "maze.episodes": 50, "selection.screen_episodes": 2})):
+        folder = tmp_path / name.split(".")[0]
+        folder.mkdir()
+        (folder / name).write_text(json.dumps(config))
+        (folder / "metrics.json").write_text(json.dumps([{"evals": 1, "qd_score": 1.0, "time_total": 1.0}]))
+        assert bench.load_run(folder)["screen_share"] == 2 / 50
