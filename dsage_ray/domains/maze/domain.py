@@ -138,9 +138,9 @@ class MazeDomain:
         the configured count, every level of a chunk stepped in one batch (``selection.screen_episodes``).
 
         With one or two episodes this costs a few percent of a full evaluation per level, and ranks ACCEL's
-        50-episode mean path length far better than the surrogate does (Spearman ρ 0.88 with one episode, 0.94
-        with two, on the levels of a ``cpu`` search; ``docs/results/equal_compute``). The results are estimates:
-        they are never added to an archive or a dataset.
+        50-episode mean path length far better than the surrogate does (Spearman ρ 0.91 with one episode, 0.94
+        with two, on the levels of a ``cpu`` search: ``benchmarks/bench_screen.py``). The results are estimates:
+        they are never added to an archive or a dataset. The screen runs where it is called (a Ray run's driver).
         """
         levels = [self.level(solution) for solution in np.asarray(solutions).reshape(-1, self.solution_dim)]
         needs_reference = self.config.objective in NEEDS_REFERENCE
