@@ -139,8 +139,13 @@ class Proposer(Protocol):
 class DirectQD:
     """MAP-Elites, CMA-ME or DR: the configured QD optimizer asks for solutions and is told their real results.
 
+    With ``selection.screen_episodes`` (MAP-Elites only), each batch after the random start-up is instead chosen
+    from ``selection.screen_pool`` times as many mutants of the archive's elites by the domain's screen
+    (:func:`~dsage_ray.qd.screen.keep_screened`), and added to the archive directly: MAP-Elites' emitters sample
+    parents from the archive and keep no state that a ``tell`` would update.
+
     Args:
-        config: The run's config (``qd``: emitter, batch sizes).
+        config: The run's config (``qd``: emitter, batch sizes; ``selection``: the screen).
         domain: The domain.
         archive: The ground-truth archive the optimizer fills.
         seeds: The run's seed streams.
