@@ -325,12 +325,8 @@ def print_screen_equivalents(variant: str, baseline: str, runs: list[dict], base
                              at_evals: float) -> None:
     """The equal-evaluation reading with a screened run's screens counted as evaluations: each screened level as
     ``selection.screen_episodes / episodes`` of one, the baseline read at the evaluations plus those."""
-    by_seed = {run["seed"]: run for run in baselines}
     ratios = []
-    for run in sorted(runs, key=lambda run: run["seed"]):
-        base = by_seed.get(run["seed"])
-        if base is None:
-            continue
+    for run, base in same_seed_pairs(runs, baselines):
         evals = [0.0] + [row["evals"] for row in run["history"]]
         screened = np.cumsum([0.0] + [row.get("selection_screened", 0.0) for row in run["history"]])
         extra = float(np.interp(at_evals, evals, screened)) * run["screen_share"]
