@@ -102,3 +102,22 @@ def test_in_process_and_tune_with_one_or_two_actors_write_the_same_archive(varia
             overlapped = [row.get("time_overlapped", 0.0) for row in trial["history"]]
             assert overlapped[0] == 0.0 and all(seconds > 0 for seconds in overlapped[1:-1])
 
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_a_screened_search_writes_the_same_archive_in_process_and_through_tune(variant, tmp_path):
+    # The screen plays its episodes where the proposer runs (the trial's process) and draws its seeds from the
+    # run's stream, so it must not make the modes differ. MAP-Elites screens once its one random batch is done.
+    config = RunConfig.build({**CONFIG, "variant": variant, "selection.screen_episodes": 1,
+                              "qd.initial_random_batches": 1, "ray.num_workers": 1})
+    run_locally(config, out_dir=tmp_path / "local")
+    local = outputs(tmp_path / "local", config)
+    assert sum(row.get("selection_screened", 0) for row in local["metrics"]) > 0
+    experiment = run_experiment(grid_param_space(config, {"variant": [variant]}), name="screened",
+                                storage_path=tmp_path / "tune", max_failures=0,
+                                checkpoint_every=config.checkpoint_every)
+    (trial,) = experiment.trials
+    tuned = outputs(trial.path, trial.config)
+    assert tuned["config"] == local["config"]
+    assert tuned["metrics"] == local["metrics"]
+    assert tuned["archive.csv"] == local["archive.csv"]
