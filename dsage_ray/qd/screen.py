@@ -19,7 +19,7 @@ from typing import Callable
 import numpy as np
 from ribs.archives import GridArchive
 
-from dsage_ray.qd.selection import check_same_cells, gather_elites
+from dsage_ray.qd.selection import adds_to, check_same_cells, gather_elites
 from dsage_ray.types import Solutions
 
 #: Screens solutions: their estimated ``(objective (n,), measures (n, m))``.
@@ -73,12 +73,10 @@ def screen_picks(surrogate_archive: GridArchive, picks: np.ndarray, ground_truth
     picks = np.sort(np.asarray(picks, dtype=np.int64))
     if len(picks) == 0:
         return ScreenedPicks(kept=picks, screened=0, new=0, fallback=False)
-    data = surrogate_archive.data(["index", "objective", "measures"])
-    others = np.setdiff1d(np.asarray(data["index"], dtype=np.int64), picks)
+    others = np.setdiff1d(np.asarray(surrogate_archive.data("index"), dtype=np.int64), picks)
     if len(others):
-        order = np.argsort(data["index"])
-        rows = order[np.searchsorted(data["index"][order], others)]
-        others = others[_adds(ground_truth_archive, data["objective"][rows], data["measures"][rows])]
+        predicted = gather_elites(surrogate_archive, others)
+        others = others[adds_to(ground_truth_archive, predicted["objective"], predicted["measures"])]
     extra = min(len(others), int(round(pool * len(picks))) - len(picks))
     candidates = np.concatenate([picks, rng.choice(others, size=max(extra, 0), replace=False)])
     kept, new = keep_screened(gather_elites(surrogate_archive, candidates)["solution"], ground_truth_archive,
@@ -95,12 +93,6 @@ def keep_screened(solutions: Solutions, ground_truth_archive: GridArchive, *, sc
     and how many would add in all."""
     objective, measures = screen(solutions)
     measures = np.asarray(measures, np.float64)
-    adding = np.flatnonzero(_adds(ground_truth_archive, np.asarray(objective, np.float64), measures))
+    adding = np.flatnonzero(adds_to(ground_truth_archive, objective, measures))
     cells = ground_truth_archive.index_of(measures[adding]) if len(adding) else np.empty(0, np.int64)
     return np.sort(adding[np.unique(cells, return_index=True)[1]])[:limit], len(adding)
-
-
-def _adds(archive: GridArchive, objective: np.ndarray, measures: np.ndarray) -> np.ndarray:
-    """Whether each (objective, measures) would add to ``archive``: an empty cell, or a lower elite."""
-    occupied, elites = archive.retrieve(measures)
-    return ~occupied | (elites["objective"] < objective)

@@ -167,11 +167,16 @@ def skip_filled(surrogate_archive: GridArchive, picks: np.ndarray, ground_truth_
     if len(picks) == 0:
         return FilledSkip(kept=picks, filled=0, fallback=False)
     predicted = gather_elites(surrogate_archive, picks)
-    occupied, elites = ground_truth_archive.retrieve(predicted["measures"])
-    filled = occupied & (elites["objective"] >= predicted["objective"])
+    filled = ~adds_to(ground_truth_archive, predicted["objective"], predicted["measures"])
     if filled.all():
         return FilledSkip(kept=picks, filled=int(filled.sum()), fallback=True)
     return FilledSkip(kept=picks[~filled], filled=int(filled.sum()), fallback=False)
+
+
+def adds_to(archive: GridArchive, objective: np.ndarray, measures: np.ndarray) -> np.ndarray:
+    """Whether each ``(objective, measures)`` would add to ``archive``: its cell is empty, or holds a lower objective."""
+    occupied, elites = archive.retrieve(np.asarray(measures, dtype=np.float64))
+    return ~occupied | (elites["objective"] < np.asarray(objective, dtype=np.float64))
 
 
 def gather_elites(archive: GridArchive, indices: np.ndarray) -> dict[str, np.ndarray]:
