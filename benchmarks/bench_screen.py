@@ -21,17 +21,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from bench_surrogate_ceiling import spearman  # noqa: E402
 from maze_dataset import PATH_LENGTH, load  # noqa: E402
 
 from dsage_ray.core.threads import torch_threads  # noqa: E402
 from dsage_ray.domains.maze.domain import MazeDomain  # noqa: E402
 from dsage_ray.domains.maze.plugin import MazeConfig  # noqa: E402
-
-
-def spearman(a: np.ndarray, b: np.ndarray) -> float:
-    from scipy.stats import spearmanr
-
-    return float(spearmanr(a, b).statistic)
 
 
 def main(argv: list[str] | None = None) -> dict[str, dict[str, float]]:

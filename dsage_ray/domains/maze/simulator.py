@@ -119,6 +119,7 @@ class BatchedMazeSimulator:
         positions: ``(n, 2)`` int64 grid ``(x, y)`` per episode (MiniGrid's ``agent_pos``).
         directions: ``(n,)`` int64 heading per episode (MiniGrid's ``agent_dir``).
         step_counts: ``(n,)`` int64 steps taken per episode.
+        levels: The levels, in the order ``level_index`` counts them.
         level_index: ``(n,)`` int64 which of the levels each episode plays.
     """
 
@@ -138,7 +139,6 @@ class BatchedMazeSimulator:
         if len({each.walls.shape for each in levels}) > 1:
             raise ValueError(f"the levels of one BatchedMazeSimulator must share a size, got "
                              f"{sorted({each.walls.shape for each in levels})}")
-        self.level = levels[0]
         self.levels = levels
         self.max_steps = int(max_steps if max_steps is not None else levels[0].max_steps)
         self._kinds = np.stack([cell_kinds(each) for each in levels])
