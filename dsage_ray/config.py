@@ -165,9 +165,10 @@ class SelectionConfig:
     expected_gain: bool = False
     #: ``expected_gain``: drop a block's pick expected to add less QD-score than this.
     min_gain: float = 0.0
-    #: ``expected_gain``: how many of the latest evaluated picks' errors are kept.
+    #: ``expected_gain`` and ``screen_gain``: how many of the latest evaluated picks' errors are kept.
     gain_window: int = 1000
-    #: ``expected_gain``: how many of them, nearest in predicted measures, lend a candidate their errors.
+    #: ``expected_gain`` and ``screen_gain``: how many of them, nearest in predicted (or screened) measures, lend a
+    #: candidate their errors.
     gain_neighbours: int = 64
     #: ``expected_gain``: a measure an evaluation's cost grows with in proportion, one of the domain's
     #: work counts (Maze ``steps``, Mario ``search_iterations``), or ``occupancy``: the occupancy sum (the
@@ -194,6 +195,11 @@ class SelectionConfig:
     #: ``screen_episodes``: candidates screened per pick (the picks, then other elites predicted to add), or per
     #: level of a MAP-Elites batch.
     screen_pool: float = 4.0
+    #: ``screen_episodes``: keep the screened candidates expected to add most to the ground truth, judged by the
+    #: screen's errors on recently evaluated levels (``gain_window`` of them; each candidate takes the errors of
+    #: the ``gain_neighbours`` nearest in screened measures), instead of those whose screened cell alone would add,
+    #: in the order screened (not in the paper; :func:`dsage_ray.qd.screen.keep_screened`).
+    screen_gain: bool = False
 
 
 @dataclasses.dataclass
@@ -447,6 +453,8 @@ class RunConfig:
              "selection.screen_episodes", f"screens a surrogate's picks, or MAP-Elites' mutants; qd.emitter "
              f"{self.qd.emitter!r} without a surrogate adapts to every level it asked for")
         need(self.selection.screen_pool >= 1, "selection.screen_pool", "must be >= 1 (candidates screened per pick)")
+        need(self.selection.screen_episodes > 0 or not self.selection.screen_gain, "selection.screen_gain",
+             "ranks screened candidates; set selection.screen_episodes > 0 to screen, or screen_gain = false")
         need(self.selection.min_gain >= 0, "selection.min_gain", "must be >= 0 (0: keep every block's pick)")
         need(self.selection.gain_window >= 1, "selection.gain_window", "must be positive")
         need(self.selection.gain_neighbours >= 1, "selection.gain_neighbours", "must be positive")

@@ -61,6 +61,9 @@ class Proposal:
     #: with the proposal because in a pipelined run the surrogate has trained again by the time the
     #: results arrive, and the selected batch's error is that of the model that selected it.
     predicted: "Prediction | None" = None
+    #: ``(n, 1 + M)``: each solution's screened objective and measures, NaN for one not screened (None: no screen).
+    #: What the screen errs by on them is learnt once they are evaluated (``selection.screen_gain``).
+    screened: np.ndarray | None = None
 
     def state_dict(self) -> dict[str, Any]:
         """Plain arrays and dicts, for a checkpoint."""
@@ -72,7 +75,7 @@ class Proposal:
 
         predicted = state.get("predicted")
         return cls(solutions=state["solutions"], metrics=dict(state["metrics"]), times=dict(state["times"]),
-                   predicted=None if predicted is None else Prediction(**predicted))
+                   predicted=None if predicted is None else Prediction(**predicted), screened=state.get("screened"))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -87,6 +90,7 @@ class EvaluatedBatch:
         complete: Every proposed solution was evaluated and succeeded (what a QD scheduler's ``tell`` needs).
         outer_iteration: The iteration that proposed them (0 is the first).
         predicted: The proposal's predictions for ``solutions`` (see :attr:`Proposal.predicted`).
+        screened: The proposal's screened results for ``solutions`` (see :attr:`Proposal.screened`).
     """
 
     solutions: Solutions
@@ -98,6 +102,7 @@ class EvaluatedBatch:
     complete: bool
     outer_iteration: int
     predicted: "Prediction | None" = None
+    screened: np.ndarray | None = None
 
     @classmethod
     def collect(cls, proposal: Proposal, results: list[EvaluationResult], *, domain: Domain,
@@ -117,7 +122,17 @@ class EvaluatedBatch:
                 len(ok), len(domain.measure_names)),
             occupancy=np.array([results[i].occupancy for i in ok], dtype=np.float32).reshape(
                 (len(ok),) + tuple(domain.occupancy_shape)),
-            complete=len(ok) == len(proposal.solutions), outer_iteration=outer_iteration, predicted=predicted)
+            complete=len(ok) == len(proposal.solutions), outer_iteration=outer_iteration, predicted=predicted,
+            screened=None if proposal.screened is None else proposal.screened[:n])
+
+    def add_screen_errors(self, errors: PickErrors) -> None:
+        """Adds what the screen estimated for the successful, screened solutions, against their real results."""
+        if self.screened is None or not self.ok:
+            return
+        estimates = self.screened[self.ok]
+        screened = np.isfinite(estimates).all(axis=1)
+        errors.add(predicted_objective=estimates[screened, 0], predicted_measures=estimates[screened, 1:],
+                   objective=self.objective[screened], measures=self.measures[screened])
 
 
 class Proposer(Protocol):
@@ -158,6 +173,8 @@ class DirectQD:
         self.scheduler = make_scheduler(archive, config=config.qd, solution_dim=domain.solution_dim,
                                         random_solutions=domain.random_solutions, seed=seeds.next_qd_seed())
         self.screen = domain_screen(config, domain, seeds)
+        #: The screen's errors on evaluated levels (``selection.screen_gain`` ranks by them; None: off).
+        self.screen_errors = _screen_errors(config)
         #: Whether the batch under evaluation came from the scheduler (then it is told), not from a screen.
         self.asked = True
 
@@ -172,20 +189,22 @@ class DirectQD:
         batch = qd.num_emitters * qd.batch_size
         mutants = elite_mutants(self.archive, count=int(round(self.config.selection.screen_pool * batch)), share=1.0,
                                 qd=qd, rng=self.seeds.rng)
-        kept, new = keep_screened(mutants, self.archive, screen=self.screen, limit=batch)
-        fallback = len(kept) == 0
-        solutions = mutants[:batch] if fallback else mutants[kept]
+        screened = keep_screened(mutants, self.archive, screen=self.screen, limit=batch, errors=self.screen_errors,
+                                 neighbours=self.config.selection.gain_neighbours)
+        fallback = len(screened.kept) == 0
+        kept = np.arange(min(batch, len(mutants))) if fallback else screened.kept
         seconds = time.perf_counter() - tic
-        return Proposal(solutions, metrics={"selection_screened": float(len(mutants)),
-                                            "selection_screened_new": float(new),
-                                            "selection_screen_fallback": float(fallback)},
-                        times={"select": seconds, "screen": seconds})
+        return Proposal(mutants[kept], metrics=_screen_metrics(len(mutants), screened.new, fallback,
+                                                               screened.expected_new),
+                        times={"select": seconds, "screen": seconds}, screened=screened.estimates[kept])
 
     def learn(self, batch: EvaluatedBatch) -> dict[str, float]:
         if not self.asked:
             if batch.ok:
                 self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures,
                                  occupancy=batch.occupancy)
+            if self.screen_errors is not None:
+                batch.add_screen_errors(self.screen_errors)
             return {}
         if batch.complete:
             # The emitters need the whole batch they asked for; tell() also adds to the archive.
@@ -202,11 +221,35 @@ class DirectQD:
         return {}
 
     def state_dict(self) -> dict[str, Any]:
-        return {"scheduler": self.scheduler, "surrogate": None, "dataset": None, "holdout": None, "holdout_evals": 0}
+        return {"scheduler": self.scheduler, "surrogate": None, "dataset": None, "holdout": None, "holdout_evals": 0,
+                "screen_errors": None if self.screen_errors is None else self.screen_errors.state_dict()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.scheduler = state["scheduler"]
         self.archive = state["archive"]
+        self.screen_errors = _load_screen_errors(self.config, state)
+
+
+def _screen_errors(config: RunConfig) -> PickErrors | None:
+    """An empty record of the screen's errors where ``selection.screen_gain`` ranks by them (None: it does not)."""
+    return PickErrors(window=config.selection.gain_window) if config.selection.screen_gain else None
+
+
+def _load_screen_errors(config: RunConfig, state: dict[str, Any]) -> PickErrors | None:
+    """The checkpoint's record of the screen's errors (a fresh one where the checkpoint holds none)."""
+    saved = state.get("screen_errors")
+    if not config.selection.screen_gain:
+        return None
+    return _screen_errors(config) if saved is None else PickErrors.from_state_dict(saved)
+
+
+def _screen_metrics(screened: int, new: int, fallback: bool, expected_new: float) -> dict[str, float]:
+    """The ``selection_screen*`` metrics of one screened selection."""
+    metrics = {"selection_screened": float(screened), "selection_screened_new": float(new),
+               "selection_screen_fallback": float(fallback)}
+    if np.isfinite(expected_new):
+        metrics["selection_screen_expected_new"] = expected_new
+    return metrics
 
 
 def domain_screen(config: RunConfig, domain: Domain, seeds: "RunSeeds") -> Screen | None:
@@ -325,6 +368,8 @@ class SurrogateAssisted:
         self.pick_errors = PickErrors(window=config.selection.gain_window)
         self.evaluation_cost, self.work_count = _evaluation_cost(config, domain)
         self.screen = domain_screen(config, domain, seeds)
+        #: The screen's errors on evaluated picks (``selection.screen_gain`` ranks by them; None: off).
+        self.screen_errors = _screen_errors(config)
         #: Evaluated levels nothing was predicted for (the random first batch), as dataset positions and
         #: work counts: the first expected-gain selection predicts them, to learn the errors and costs from.
         self.unpredicted = {"positions": np.empty(0, np.int64), "work": np.empty(0)}
@@ -354,16 +399,20 @@ class SurrogateAssisted:
         surrogate_archive = self._exploit()
         proposal.times["exploit"] = time.perf_counter() - tic
         tic = time.perf_counter()
-        proposal.solutions = self._select(surrogate_archive, proposal.metrics, proposal.times)
+        proposal.solutions, proposal.screened = self._select(surrogate_archive, proposal.metrics, proposal.times)
         cap = self.config.surrogate.init_first_picks
         if outer_iteration == 0 and cap and len(proposal.solutions) > cap:
             keep = np.sort(self.seeds.rng.choice(len(proposal.solutions), size=cap, replace=False))
             proposal.solutions = proposal.solutions[keep]
+            proposal.screened = None if proposal.screened is None else proposal.screened[keep]
             proposal.metrics["selection_capped"] = float(cap)
         if self.config.selection.elite_mutants:
             mutants = elite_mutants(self.archive, count=self.config.selection.elite_mutants,
                                     share=self.config.selection.elite_share, qd=self.config.qd, rng=self.seeds.rng)
             proposal.solutions = np.concatenate([proposal.solutions, mutants])
+            if proposal.screened is not None:
+                proposal.screened = np.concatenate([proposal.screened,
+                                                    np.full((len(mutants), proposal.screened.shape[1]), np.nan)])
             proposal.metrics["selection_elite_mutants"] = float(len(mutants))
         proposal.predicted = self.surrogate.predict(encode_solutions(self.domain, proposal.solutions))
         proposal.times["select"] = time.perf_counter() - tic
@@ -373,6 +422,8 @@ class SurrogateAssisted:
     def learn(self, batch: EvaluatedBatch) -> dict[str, float]:
         metrics: dict[str, float] = {}
         encoded = encode_solutions(self.domain, batch.solutions)
+        if self.screen_errors is not None:
+            batch.add_screen_errors(self.screen_errors)
         if batch.ok:
             self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures, occupancy=batch.occupancy)
             first = len(self.dataset)
@@ -449,9 +500,9 @@ class SurrogateAssisted:
         return archive
 
     def _select(self, surrogate_archive: "GridArchive", metrics: dict[str, float],
-                times: dict[str, float]) -> Solutions:
-        """Selection: downsample / random / full picks from the surrogate archive (``times["screen"]``: the part
-        of it spent screening them)."""
+                times: dict[str, float]) -> tuple[Solutions, np.ndarray | None]:
+        """Selection: downsample / random / full picks from the surrogate archive, and their screened results
+        (None: no screen; ``times["screen"]``: the part of it spent screening them)."""
         selection = self.config.selection
         if selection.expected_gain:
             self._errors_of_unpredicted()
@@ -477,16 +528,16 @@ class SurrogateAssisted:
             picks = skipped.kept
             metrics["selection_filled"] = float(skipped.filled)
             metrics["selection_fallback"] = float(skipped.fallback)
+        estimates = None
         if self.screen is not None:
             tic = time.perf_counter()
             screened = screen_picks(surrogate_archive, picks, self.archive, screen=self.screen,
-                                    pool=selection.screen_pool, rng=self.seeds.rng)
+                                    pool=selection.screen_pool, rng=self.seeds.rng, errors=self.screen_errors,
+                                    neighbours=selection.gain_neighbours)
             times["screen"] = time.perf_counter() - tic
-            picks = screened.kept
-            metrics.update({"selection_screened": float(screened.screened),
-                            "selection_screened_new": float(screened.new),
-                            "selection_screen_fallback": float(screened.fallback)})
-        return gather_elites(surrogate_archive, picks)["solution"]
+            picks, estimates = screened.kept, screened.estimates
+            metrics.update(_screen_metrics(screened.screened, screened.new, screened.fallback, screened.expected_new))
+        return gather_elites(surrogate_archive, picks)["solution"], estimates
 
     def _label(self, head: str) -> str:
         return head_label(head, self.domain.measure_names)
@@ -496,6 +547,7 @@ class SurrogateAssisted:
     def state_dict(self) -> dict[str, Any]:
         return {"scheduler": None, "surrogate": self.surrogate.state_dict(), "dataset": self.dataset.state_dict(),
                 "prior_samples": self.prior_samples, "pick_errors": self.pick_errors.state_dict(),
+                "screen_errors": None if self.screen_errors is None else self.screen_errors.state_dict(),
                 "unpredicted": {key: value.copy() for key, value in self.unpredicted.items()},
                 **self.holdout.state_dict()}
 
@@ -508,5 +560,6 @@ class SurrogateAssisted:
             self.pick_errors = PickErrors.from_state_dict(state["pick_errors"])
         if state.get("unpredicted") is not None:
             self.unpredicted = {key: np.asarray(value) for key, value in state["unpredicted"].items()}
+        self.screen_errors = _load_screen_errors(self.config, state)
         self.holdout.load_state_dict(state)
         self.last_predictions = state["last_predictions"]
