@@ -448,8 +448,32 @@ def test_screened_map_elites_resumes_exactly():
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
 
 
+@pytest.mark.parametrize("variant", ["dsage", "map_elites"])
+def test_ranked_by_the_screens_errors_a_run_records_them_fills_new_cells_and_resumes_exactly(variant):
+    ranked = {"variant": variant, "selection.screen_gain": True}
+    reference = _screening_runner(**ranked)
+    history = reference.run()
+    errors = reference.proposer.screen_errors
+    # Every evaluated level was screened (none failed): each is one recorded error, and an exact screen errs by 0.
+    screened = [h for h in history if "selection_screened" in h]
+    assert len(errors) == min(sum(h["evaluated_this_iteration"] for h in screened), errors.window) > 0
+    np.testing.assert_array_equal(errors.actual, errors.predicted)
+    assert all(h["new_cell_share"] == 1.0 for h in screened if not h["selection_screen_fallback"])
+    assert all(h["selection_screen_expected_new"] <= h["evaluated_this_iteration"] for h in screened)
+    interrupted = _screening_runner(**ranked)
+    for _ in range(5):
+        interrupted.step()
+    state = pickle.loads(pickle.dumps(interrupted.state_dict()))
+    resumed = _screening_runner(**ranked)
+    resumed.load_state_dict(state)
+    resumed.run()
+    assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
+    np.testing.assert_array_equal(resumed.proposer.screen_errors.predicted, errors.predicted)
+
+
 @pytest.mark.parametrize("overrides, needle", [
     ({"selection.screen_episodes": -1}, "selection.screen_episodes: must be >= 0"),
+    ({"selection.screen_gain": True}, "selection.screen_gain: ranks screened candidates; set selection.screen_episodes"),
     ({"selection.screen_episodes": 1, "variant": "dr"}, "selection.screen_episodes: screens a surrogate's picks, or "
                                                         "MAP-Elites' mutants; qd.emitter 'random'"),
     ({"selection.screen_episodes": 1, "selection.screen_pool": 0.5}, "selection.screen_pool: must be >= 1")])

@@ -2,7 +2,8 @@ import numpy as np
 import pytest
 
 from dsage_ray.qd import make_archive
-from dsage_ray.qd.screen import screen_picks
+from dsage_ray.qd.gain import PickErrors
+from dsage_ray.qd.screen import keep_screened, screen_picks
 
 DIMS = (20, 20)
 
@@ -115,3 +116,73 @@ def test_bad_input():
     other = make_archive(solution_dim=2, dims=(10, 10), ranges=[(0, 20), (0, 20)])
     with pytest.raises(ValueError, match="same cells"):
         screen_picks(surrogate, np.empty(0, np.int64), other, screen=screen, pool=1, rng=np.random.default_rng(0))
+
+
+def _valid(dx):
+    """As :func:`_shifted`, for levels of objective 1, which add 1 to the QD-score in an empty cell (as a valid maze)."""
+    def screen(solutions):
+        return np.ones(len(solutions)), np.asarray(solutions, np.float64) + [dx, 0.0]
+
+    return screen
+
+
+def _errors(shifts):
+    """The screen's recent errors: each level screened at (0.5, 0.5) really landed ``shift`` cells to the right."""
+    errors = PickErrors(window=100)
+    shifts = np.asarray(shifts, np.float64)
+    screened = np.tile([0.5, 0.5], (len(shifts), 1))
+    errors.add(predicted_objective=np.ones(len(shifts)), predicted_measures=screened,
+               objective=np.ones(len(shifts)), measures=screened + np.column_stack([shifts, np.zeros(len(shifts))]))
+    return errors
+
+
+def test_with_the_screens_errors_a_level_expected_to_land_in_a_filled_cell_gives_way_to_one_expected_in_an_empty_one():
+    surrogate = _surrogate_archive()
+    # (1, 1) is empty but the screen's errors move it to the filled (4, 1); (2, 2) is filled, its errors move it to
+    # the empty (5, 2).
+    ground_truth = _archive([(4.5, 1.5), (2.5, 2.5)], objective=[1.0, 1.0])
+    picks = _indices(surrogate, [(1.5, 1.5), (2.5, 2.5)])
+    screen = _valid(0.0)
+    ranked = screen_picks(surrogate, picks, ground_truth, screen=screen, pool=1, rng=np.random.default_rng(0),
+                          errors=_errors([3.0]), neighbours=8)
+    np.testing.assert_array_equal(ranked.kept, _indices(surrogate, [(2.5, 2.5)]))
+    assert ranked.new == 1 and ranked.expected_new == 1.0  # the screened cell alone says (1, 1) is the new one
+    by_cell = screen_picks(surrogate, picks, ground_truth, screen=screen, pool=1, rng=np.random.default_rng(0))
+    np.testing.assert_array_equal(by_cell.kept, _indices(surrogate, [(1.5, 1.5)]))
+    assert np.isnan(by_cell.expected_new)
+
+
+def test_the_candidates_expected_to_add_most_are_kept_first_whatever_their_order():
+    solutions = np.array([(1.5, 1.5), (1.5, 2.5), (1.5, 3.5)])
+    # Half the screen's errors are +3 cells: (4, 1) and (4, 2) are filled, so the first two are expected to add 0.5.
+    ground_truth = _archive([(4.5, 1.5), (4.5, 2.5)], objective=[1.0, 1.0])
+    screen = _valid(0.0)
+    result = keep_screened(solutions, ground_truth, screen=screen, limit=1, errors=_errors([0.0, 3.0]), neighbours=2)
+    np.testing.assert_array_equal(result.kept, [2])
+    assert result.expected_new == 1.0
+    result = keep_screened(solutions, ground_truth, screen=screen, limit=2, errors=_errors([0.0, 3.0]), neighbours=2)
+    np.testing.assert_array_equal(result.kept, [0, 2])  # ties go to the earlier candidate
+    np.testing.assert_array_equal(result.estimates, np.column_stack([np.ones(3), solutions]))
+
+
+def test_with_no_errors_recorded_yet_the_screened_cell_decides_as_without_them():
+    rng = np.random.default_rng(3)
+    solutions = rng.uniform(0, 20, (60, 2))
+    ground_truth = _archive(rng.uniform(0, 20, (150, 2)), objective=np.ones(150))
+    screen = _valid(0.0)
+    plain = keep_screened(solutions, ground_truth, screen=screen, limit=25)
+    empty = keep_screened(solutions, ground_truth, screen=screen, limit=25, errors=PickErrors(window=10))
+    assert 0 < len(plain.kept) <= 25
+    np.testing.assert_array_equal(empty.kept, plain.kept)
+    assert empty.new == plain.new
+
+
+def test_screen_picks_returns_the_kept_ones_screened_results_in_their_order():
+    surrogate = _surrogate_archive()
+    ground_truth = _archive(np.empty((0, 2)))
+    picks = _indices(surrogate, [(0.5, 0.5), (9.5, 9.5), (4.5, 4.5)])
+    screen = _valid(5.0)
+    result = screen_picks(surrogate, picks, ground_truth, screen=screen, pool=1, rng=np.random.default_rng(0))
+    solutions = np.array([surrogate.data("solution")[np.flatnonzero(surrogate.data("index") == i)[0]]
+                          for i in result.kept])
+    np.testing.assert_array_equal(result.estimates[:, 1:], solutions + [5.0, 0.0])
