@@ -170,10 +170,10 @@ class SelectionConfig:
     #: ``expected_gain`` and ``screen_gain``: how many of them, nearest in predicted (or screened) measures, lend a
     #: candidate their errors.
     gain_neighbours: int = 64
-    #: ``expected_gain``: a measure an evaluation's cost grows with in proportion, one of the domain's
-    #: work counts (Maze ``steps``, Mario ``search_iterations``), or ``occupancy``: the occupancy sum (the
-    #: agent's time in the level), each candidate's own as the two-stage surrogate predicts it. The gain is
-    #: then counted per evaluation of average cost ("": every evaluation costs the same).
+    #: ``expected_gain`` and ``screen_gain``: a measure an evaluation's cost grows with in proportion, one of the
+    #: domain's work counts (Maze ``steps``, Mario ``search_iterations``), or ``occupancy``: the occupancy sum (the
+    #: agent's time in the level; ``expected_gain`` takes each candidate's own as the two-stage surrogate predicts
+    #: it). The gain is then counted per evaluation of average cost ("": every evaluation costs the same).
     cost_measure: str = ""
     #: ``cost_measure``: an evaluation's cost at 0, in that measure's or count's units (must be > 0).
     cost_offset: float = 1.0
@@ -198,7 +198,8 @@ class SelectionConfig:
     #: ``screen_episodes``: keep the screened candidates expected to add most to the ground truth, judged by the
     #: screen's errors on recently evaluated levels (``gain_window`` of them; each candidate takes the errors of
     #: the ``gain_neighbours`` nearest in screened measures), instead of those whose screened cell alone would add,
-    #: in the order screened (not in the paper; :func:`dsage_ray.qd.screen.keep_screened`).
+    #: in the order screened (not in the paper; :func:`dsage_ray.qd.screen.keep_screened`). With a
+    #: ``cost_measure``, by expected gain per expected cost.
     screen_gain: bool = False
 
 

@@ -125,14 +125,16 @@ class EvaluatedBatch:
             complete=len(ok) == len(proposal.solutions), outer_iteration=outer_iteration, predicted=predicted,
             screened=None if proposal.screened is None else proposal.screened[:n])
 
-    def add_screen_errors(self, errors: PickErrors) -> None:
-        """Adds what the screen estimated for the successful, screened solutions, against their real results."""
+    def add_screen_errors(self, errors: PickErrors, work: np.ndarray | None = None) -> None:
+        """Adds what the screen estimated for the successful, screened solutions, against their real results (and
+        ``work``: what each successful evaluation cost, as :meth:`_WorkCount.recorded` counts it)."""
         if self.screened is None or not self.ok:
             return
         estimates = self.screened[self.ok]
         screened = np.isfinite(estimates).all(axis=1)
         errors.add(predicted_objective=estimates[screened, 0], predicted_measures=estimates[screened, 1:],
-                   objective=self.objective[screened], measures=self.measures[screened])
+                   objective=self.objective[screened], measures=self.measures[screened],
+                   work=None if work is None else np.asarray(work)[screened])
 
 
 class Proposer(Protocol):
@@ -175,6 +177,7 @@ class DirectQD:
         self.screen = domain_screen(config, domain, seeds)
         #: The screen's errors on evaluated levels (``selection.screen_gain`` ranks by them; None: off).
         self.screen_errors = _screen_errors(config)
+        self.evaluation_cost, self.work_count = _evaluation_cost(config, domain)
         #: Whether the batch under evaluation came from the scheduler (then it is told), not from a screen.
         self.asked = True
 
@@ -190,7 +193,7 @@ class DirectQD:
         mutants = elite_mutants(self.archive, count=int(round(self.config.selection.screen_pool * batch)), share=1.0,
                                 qd=qd, rng=self.seeds.rng)
         screened = keep_screened(mutants, self.archive, screen=self.screen, limit=batch, errors=self.screen_errors,
-                                 neighbours=self.config.selection.gain_neighbours)
+                                 neighbours=self.config.selection.gain_neighbours, cost=self.evaluation_cost)
         fallback = len(screened.kept) == 0
         kept = np.arange(min(batch, len(mutants))) if fallback else screened.kept
         seconds = time.perf_counter() - tic
@@ -204,7 +207,7 @@ class DirectQD:
                 self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures,
                                  occupancy=batch.occupancy)
             if self.screen_errors is not None:
-                batch.add_screen_errors(self.screen_errors)
+                batch.add_screen_errors(self.screen_errors, work=self.work_count.recorded(batch))
             return {}
         if batch.complete:
             # The emitters need the whole batch they asked for; tell() also adds to the archive.
@@ -285,7 +288,7 @@ def _evaluation_cost(config: RunConfig, domain: Domain) -> tuple[EvaluationCost 
             config's own).
     """
     selection = config.selection
-    if not selection.expected_gain or not selection.cost_measure:
+    if not (selection.expected_gain or selection.screen_gain) or not selection.cost_measure:
         return None, _WorkCount(name="", domain=domain)
     names = list(domain.measure_names)
     if selection.cost_measure in names:
@@ -423,7 +426,7 @@ class SurrogateAssisted:
         metrics: dict[str, float] = {}
         encoded = encode_solutions(self.domain, batch.solutions)
         if self.screen_errors is not None:
-            batch.add_screen_errors(self.screen_errors)
+            batch.add_screen_errors(self.screen_errors, work=self.work_count.recorded(batch))
         if batch.ok:
             self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures, occupancy=batch.occupancy)
             first = len(self.dataset)
@@ -533,7 +536,7 @@ class SurrogateAssisted:
             tic = time.perf_counter()
             screened = screen_picks(surrogate_archive, picks, self.archive, screen=self.screen,
                                     pool=selection.screen_pool, rng=self.seeds.rng, errors=self.screen_errors,
-                                    neighbours=selection.gain_neighbours)
+                                    neighbours=selection.gain_neighbours, cost=self.evaluation_cost)
             times["screen"] = time.perf_counter() - tic
             picks, estimates = screened.kept, screened.estimates
             metrics.update(_screen_metrics(screened.screened, screened.new, screened.fallback, screened.expected_new))

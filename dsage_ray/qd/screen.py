@@ -26,7 +26,7 @@ from typing import Callable
 import numpy as np
 from ribs.archives import GridArchive
 
-from dsage_ray.qd.gain import PickErrors, expected_outcomes
+from dsage_ray.qd.gain import EvaluationCost, PickErrors, expected_outcomes
 from dsage_ray.qd.selection import adds_to, check_same_cells, gather_elites
 from dsage_ray.types import Solutions
 
@@ -74,7 +74,7 @@ class ScreenedPicks:
 
 def screen_picks(surrogate_archive: GridArchive, picks: np.ndarray, ground_truth_archive: GridArchive, *,
                  screen: Screen, pool: float, rng: np.random.Generator, errors: PickErrors | None = None,
-                 neighbours: int = 64) -> ScreenedPicks:
+                 neighbours: int = 64, cost: EvaluationCost | None = None) -> ScreenedPicks:
     """Screens the picks and more candidates, and keeps up to ``len(picks)`` whose estimates would add to the
     ground truth, at most one per estimated cell.
 
@@ -97,6 +97,7 @@ def screen_picks(surrogate_archive: GridArchive, picks: np.ndarray, ground_truth
         rng: Draws the extra candidates.
         errors: The screen's recent errors (screened against real results); None: the screened cell decides.
         neighbours: With ``errors``, how many of them, nearest in screened measures, lend a candidate theirs.
+        cost: With ``errors``, what an evaluation costs: candidates are then ranked by expected gain per cost.
 
     Raises:
         ValueError: ``pool`` below 1, or the archives do not share their cells.
@@ -115,7 +116,7 @@ def screen_picks(surrogate_archive: GridArchive, picks: np.ndarray, ground_truth
     extra = min(len(others), int(round(pool * len(picks))) - len(picks))
     candidates = np.concatenate([picks, rng.choice(others, size=max(extra, 0), replace=False)])
     screened = keep_screened(gather_elites(surrogate_archive, candidates)["solution"], ground_truth_archive,
-                             screen=screen, limit=len(picks), errors=errors, neighbours=neighbours)
+                             screen=screen, limit=len(picks), errors=errors, neighbours=neighbours, cost=cost)
     # The picks are the first candidates: fallen back on, they keep their own estimates.
     kept = screened.kept if len(screened.kept) else np.arange(len(picks))
     order = np.argsort(candidates[kept], kind="stable")
@@ -125,7 +126,8 @@ def screen_picks(surrogate_archive: GridArchive, picks: np.ndarray, ground_truth
 
 
 def keep_screened(solutions: Solutions, ground_truth_archive: GridArchive, *, screen: Screen, limit: int,
-                  errors: PickErrors | None = None, neighbours: int = 64) -> Screened:
+                  errors: PickErrors | None = None, neighbours: int = 64,
+                  cost: EvaluationCost | None = None) -> Screened:
     """Screens ``solutions`` and keeps at most ``limit`` of them that would add to the ground truth, one per
     screened cell.
 
@@ -133,8 +135,10 @@ def keep_screened(solutions: Solutions, ground_truth_archive: GridArchive, *, sc
     elite) are kept in the order given, the first in each screened cell. With ``errors``, those expected to add
     most are kept, best first: each candidate's screened result plus the errors of the ``neighbours`` recent
     levels nearest in screened measures, landed in the ground-truth archive
-    (:func:`~dsage_ray.qd.gain.expected_outcomes`); a candidate expected to add nothing is not kept. With an empty
-    ``errors`` the estimates are taken at their word, which keeps what the first rule keeps.
+    (:func:`~dsage_ray.qd.gain.expected_outcomes`); a candidate expected to add nothing is not kept. With a
+    ``cost``, best means most expected gain per expected cost: the levels a search most wants are often those its
+    agent fails, the dearest to evaluate. With an empty ``errors`` and no cost the estimates are taken at their
+    word, which keeps what the first rule keeps.
     """
     objective, measures = screen(solutions)
     objective = np.asarray(objective, np.float64).reshape(-1)
@@ -146,9 +150,10 @@ def keep_screened(solutions: Solutions, ground_truth_archive: GridArchive, *, sc
             np.empty(0, np.int64)
         gain = None
     else:
-        gain = expected_outcomes(objective, measures, ground_truth_archive=ground_truth_archive, errors=errors,
-                                 neighbours=neighbours).gain
-        order = np.argsort(-gain, kind="stable")
+        outcomes = expected_outcomes(objective, measures, ground_truth_archive=ground_truth_archive, errors=errors,
+                                     neighbours=neighbours, cost=cost)
+        gain = outcomes.gain
+        order = np.argsort(-outcomes.gain_per_cost, kind="stable")
         order = order[gain[order] > 0]
     cells = ground_truth_archive.index_of(measures[order]) if len(order) else np.empty(0, np.int64)
     first = order[np.sort(np.unique(cells, return_index=True)[1])][:limit]
