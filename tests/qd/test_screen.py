@@ -186,3 +186,20 @@ def test_screen_picks_returns_the_kept_ones_screened_results_in_their_order():
     solutions = np.array([surrogate.data("solution")[np.flatnonzero(surrogate.data("index") == i)[0]]
                           for i in result.kept])
     np.testing.assert_array_equal(result.estimates[:, 1:], solutions + [5.0, 0.0])
+
+
+def test_with_a_cost_the_candidate_expected_to_add_most_per_cost_comes_first():
+    from dsage_ray.qd.gain import EvaluationCost
+
+    # Both would fill an empty cell; the first lies where evaluations have cost 1 + 15.5, the second 1 + 1.5.
+    solutions = np.array([(15.5, 0.5), (1.5, 0.5)])
+    errors = PickErrors(window=10)
+    errors.add(predicted_objective=np.ones(2), predicted_measures=solutions, objective=np.ones(2), measures=solutions)
+    ground_truth = _archive(np.empty((0, 2)))
+    screen = _valid(0.0)
+    by_gain = keep_screened(solutions, ground_truth, screen=screen, limit=1, errors=errors, neighbours=1)
+    np.testing.assert_array_equal(by_gain.kept, [0])
+    per_cost = keep_screened(solutions, ground_truth, screen=screen, limit=1, errors=errors, neighbours=1,
+                             cost=EvaluationCost(measure=0, offset=1.0))
+    np.testing.assert_array_equal(per_cost.kept, [1])
+    assert per_cost.expected_new == 1.0
