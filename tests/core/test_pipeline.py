@@ -93,3 +93,33 @@ def test_elite_mutants_are_chosen_alike_whether_or_not_the_evaluations_overlap()
     assert untimed(elsewhere.history) == untimed(in_process.history)
     assert [row.get("selection_elite_mutants") for row in in_process.history][1:] == [4.0] * (
         len(in_process.history) - 1)
+
+
+def test_a_screen_ranked_by_its_errors_learns_each_batch_against_its_own_screen_and_resumes_when_pipelined():
+    from tests.fakes import ScreeningBitmapDomain
+
+    keys = {**PIPELINED, "selection.screen_episodes": 1, "selection.screen_gain": True}
+
+    def screening(evaluator_factory=None) -> DSAGE:
+        domain = ScreeningBitmapDomain()
+        return DSAGE(config=RunConfig.build(keys), domain=domain,
+                     evaluator=None if evaluator_factory is None else evaluator_factory(domain))
+
+    in_process, elsewhere = screening(), screening(ElsewhereEvaluator)
+    in_process.run()
+    elsewhere.run()
+    assert archive_snapshot(elsewhere.archive) == archive_snapshot(in_process.archive)
+    assert untimed(elsewhere.history) == untimed(in_process.history)
+    # The screen is exact here: had a batch been paired with the next proposal's screen, errors would show.
+    errors = in_process.proposer.screen_errors
+    assert len(errors) > 0 and (errors.actual == errors.predicted).all()
+    interrupted = screening()
+    interrupted.step()
+    interrupted.step()
+    state = pickle.loads(pickle.dumps(interrupted.state_dict()))
+    assert state["pending_proposal"]["screened"] is not None
+    resumed = screening(ElsewhereEvaluator)
+    resumed.load_state_dict(state)
+    resumed.run()
+    assert archive_snapshot(resumed.archive) == archive_snapshot(in_process.archive)
+    assert untimed(resumed.history) == untimed(in_process.history)
