@@ -66,6 +66,19 @@ def test_same_seed_same_run_and_different_seed_differs():
     assert archive_snapshot(a.archive) != archive_snapshot(c.archive)
 
 
+def resumed_after(build, steps: int) -> DSAGE:
+    """A run of ``build()`` stopped after ``steps`` outer iterations, its state pickled, resumed in a fresh
+    ``build()`` and run to the end."""
+    interrupted = build()
+    for _ in range(steps):
+        interrupted.step()
+    state = pickle.loads(pickle.dumps(interrupted.state_dict()))
+    resumed = build()
+    resumed.load_state_dict(state)
+    resumed.run()
+    return resumed
+
+
 @pytest.mark.parametrize("variant, overrides, steps", [
     ("dsage", {}, 2), ("dsage_gain", {}, 2), ("map_elites", {}, 2),
     # Stopped before its first selection: the random levels' work waits in the checkpoint to be predicted.
@@ -74,15 +87,7 @@ def test_resumed_run_continues_exactly(variant, overrides, steps):
     reference = make_runner(variant=variant, **overrides)
     reference.run()
 
-    interrupted = make_runner(variant=variant, **overrides)
-    for _ in range(steps):
-        interrupted.step()
-    state = pickle.loads(pickle.dumps(interrupted.state_dict()))
-    del interrupted
-
-    resumed = make_runner(variant=variant, **overrides)
-    resumed.load_state_dict(state)
-    resumed.run()
+    resumed = resumed_after(lambda: make_runner(variant=variant, **overrides), steps)
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
     assert [h["qd_score"] for h in resumed.history] == [h["qd_score"] for h in reference.history]
 
@@ -310,13 +315,7 @@ def test_a_run_with_elite_mutants_spends_its_budget_and_resumes_exactly():
     history = reference.run()
     assert reference.evals == 120 and history[-1]["evals"] == 120
     assert [h.get("selection_elite_mutants") for h in history] == [None] + [5.0] * (len(history) - 1)
-    interrupted = make_runner(**overrides)
-    interrupted.step()
-    interrupted.step()
-    state = pickle.loads(pickle.dumps(interrupted.state_dict()))
-    resumed = make_runner(**overrides)
-    resumed.load_state_dict(state)
-    resumed.run()
+    resumed = resumed_after(lambda: make_runner(**overrides), 2)
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
 
 
@@ -411,13 +410,7 @@ def test_with_an_exact_screen_every_screened_pick_fills_a_new_cell_and_the_scree
 def test_a_screened_run_resumes_exactly():
     reference = _screening_runner()
     reference.run()
-    interrupted = _screening_runner()
-    interrupted.step()
-    interrupted.step()
-    state = pickle.loads(pickle.dumps(interrupted.state_dict()))
-    resumed = _screening_runner()
-    resumed.load_state_dict(state)
-    resumed.run()
+    resumed = resumed_after(_screening_runner, 2)
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
 
 
@@ -438,13 +431,7 @@ def test_screened_map_elites_evaluates_only_mutants_whose_screen_fills_a_new_cel
 def test_screened_map_elites_resumes_exactly():
     reference = _screening_runner(variant="map_elites")
     reference.run()
-    interrupted = _screening_runner(variant="map_elites")
-    for _ in range(5):
-        interrupted.step()
-    state = pickle.loads(pickle.dumps(interrupted.state_dict()))
-    resumed = _screening_runner(variant="map_elites")
-    resumed.load_state_dict(state)
-    resumed.run()
+    resumed = resumed_after(lambda: _screening_runner(variant="map_elites"), 5)
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
 
 
@@ -460,13 +447,7 @@ def test_ranked_by_the_screens_errors_a_run_records_them_fills_new_cells_and_res
     np.testing.assert_array_equal(errors.actual, errors.predicted)
     assert all(h["new_cell_share"] == 1.0 for h in screened if not h["selection_screen_fallback"])
     assert all(h["selection_screen_expected_new"] <= h["evaluated_this_iteration"] for h in screened)
-    interrupted = _screening_runner(**ranked)
-    for _ in range(5):
-        interrupted.step()
-    state = pickle.loads(pickle.dumps(interrupted.state_dict()))
-    resumed = _screening_runner(**ranked)
-    resumed.load_state_dict(state)
-    resumed.run()
+    resumed = resumed_after(lambda: _screening_runner(**ranked), 5)
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
     np.testing.assert_array_equal(resumed.proposer.screen_errors.predicted, errors.predicted)
 
