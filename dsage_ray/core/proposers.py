@@ -241,9 +241,9 @@ def _screen_errors(config: RunConfig) -> PickErrors | None:
 def _load_screen_errors(config: RunConfig, state: dict[str, Any]) -> PickErrors | None:
     """The checkpoint's record of the screen's errors (a fresh one where the checkpoint holds none)."""
     saved = state.get("screen_errors")
-    if not config.selection.screen_gain:
-        return None
-    return _screen_errors(config) if saved is None else PickErrors.from_state_dict(saved)
+    if saved is None or not config.selection.screen_gain:
+        return _screen_errors(config)
+    return PickErrors.from_state_dict(saved)
 
 
 def _screen_metrics(screened: int, new: int, fallback: bool, expected_new: float) -> dict[str, float]:

@@ -144,10 +144,9 @@ def keep_screened(solutions: Solutions, ground_truth_archive: GridArchive, *, sc
     objective = np.asarray(objective, np.float64).reshape(-1)
     measures = np.asarray(measures, np.float64).reshape(len(objective), -1)
     estimates = np.column_stack([objective, measures])
-    new = int(adds_to(ground_truth_archive, objective, measures).sum()) if len(objective) else 0
+    adding = adds_to(ground_truth_archive, objective, measures) if len(objective) else np.zeros(0, bool)
     if errors is None:
-        order = np.flatnonzero(adds_to(ground_truth_archive, objective, measures)) if len(objective) else \
-            np.empty(0, np.int64)
+        order = np.flatnonzero(adding)
         gain = None
     else:
         outcomes = expected_outcomes(objective, measures, ground_truth_archive=ground_truth_archive, errors=errors,
@@ -157,5 +156,5 @@ def keep_screened(solutions: Solutions, ground_truth_archive: GridArchive, *, sc
         order = order[gain[order] > 0]
     cells = ground_truth_archive.index_of(measures[order]) if len(order) else np.empty(0, np.int64)
     first = order[np.sort(np.unique(cells, return_index=True)[1])][:limit]
-    return Screened(kept=np.sort(first), new=new, estimates=estimates,
+    return Screened(kept=np.sort(first), new=int(adding.sum()), estimates=estimates,
                     expected_new=float("nan") if gain is None else float(gain[first].sum()))

@@ -4,6 +4,7 @@ import pytest
 from dsage_ray.qd import make_archive
 from dsage_ray.qd.gain import PickErrors
 from dsage_ray.qd.screen import keep_screened, screen_picks
+from dsage_ray.qd.selection import gather_elites
 
 DIMS = (20, 20)
 
@@ -183,8 +184,7 @@ def test_screen_picks_returns_the_kept_ones_screened_results_in_their_order():
     picks = _indices(surrogate, [(0.5, 0.5), (9.5, 9.5), (4.5, 4.5)])
     screen = _valid(5.0)
     result = screen_picks(surrogate, picks, ground_truth, screen=screen, pool=1, rng=np.random.default_rng(0))
-    solutions = np.array([surrogate.data("solution")[np.flatnonzero(surrogate.data("index") == i)[0]]
-                          for i in result.kept])
+    solutions = gather_elites(surrogate, result.kept)["solution"]
     np.testing.assert_array_equal(result.estimates[:, 1:], solutions + [5.0, 0.0])
 
 
