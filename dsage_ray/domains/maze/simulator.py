@@ -10,6 +10,7 @@ either ``see_through_walls`` setting (tested step by step in ``tests/domains/maz
 
 from __future__ import annotations
 
+import functools
 from typing import Sequence
 
 import numpy as np
@@ -70,16 +71,16 @@ def _visibility(opaque: np.ndarray) -> np.ndarray:
     return mask
 
 
-def view_table(level: MazeLevel, *, see_through_walls: bool = True, agent_view_size: int = 5) -> np.ndarray:
-    """Every observation image the agent can get in ``level``.
+@functools.lru_cache(maxsize=16)
+def _view_cells(width: int, height: int, size: int) -> np.ndarray:
+    """Where every view cell of every agent state looks, for a padded grid of ``width × height`` cells.
+
+    The views depend on the level only through its cell kinds, so this index is computed once per grid size.
 
     Returns:
-        ``(W+2, H+2, 4, s, s, 3)`` uint8: the image MiniGrid returns with the agent at grid
-        ``(x, y)`` heading ``d``. The agent sits at view ``(s//2, s-1)`` looking toward ``j = 0``.
+        ``(width·height·4, size, size)`` int64 flat ``[x, y]`` index into the padded grid's kinds, or
+        ``width·height`` (one past the grid: read as a wall) where the view leaves the grid.
     """
-    kinds = cell_kinds(level)
-    width, height = kinds.shape
-    size = agent_view_size
     x, y, d = np.meshgrid(np.arange(width), np.arange(height), np.arange(4), indexing="ij")
     x, y, d = (a.reshape(-1, 1, 1) for a in (x, y, d))
     i = np.arange(size).reshape(1, size, 1)
@@ -90,16 +91,43 @@ def view_table(level: MazeLevel, *, see_through_walls: bool = True, agent_view_s
     wx = x + ahead * dx + across * rx
     wy = y + ahead * dy + across * ry
     inside = (wx >= 0) & (wx < width) & (wy >= 0) & (wy < height)
-    # Cells outside the grid read as walls (MiniGrid's Grid.slice pads with Wall()).
-    view = np.where(inside, kinds[np.clip(wx, 0, width - 1), np.clip(wy, 0, height - 1)], WALL)
+    cells = np.where(inside, wx * height + wy, width * height)
+    cells.setflags(write=False)
+    return cells
+
+
+def view_tables(kinds: np.ndarray, *, see_through_walls: bool = True, agent_view_size: int = 5) -> np.ndarray:
+    """Every observation image the agent can get, for a batch of levels of one size.
+
+    Args:
+        kinds: ``(n, W+2, H+2)`` the levels' :func:`cell_kinds`.
+        see_through_walls: As in :class:`~dsage_ray.domains.maze.env.MazeEnv`.
+        agent_view_size: As in MazeEnv.
+
+    Returns:
+        ``(n, W+2, H+2, 4, s, s, 3)`` uint8: the image MiniGrid returns in level ``m`` with the agent at grid
+        ``(x, y)`` heading ``d``. The agent sits at view ``(s//2, s-1)`` looking toward ``j = 0``.
+    """
+    n, width, height = kinds.shape
+    size = agent_view_size
+    cells = _view_cells(width, height, size)
+    # Cells outside the grid read as walls (MiniGrid's Grid.slice pads with Wall()): one wall past the grid.
+    padded = np.concatenate([kinds.reshape(n, -1), np.full((n, 1), WALL, dtype=kinds.dtype)], axis=1)
+    view = padded[:, cells]
+    image_shape = (n, width, height, 4, size, size, 3)
     if see_through_walls:
-        visible = np.ones(view.shape, dtype=bool)
-    else:
-        # MiniGrid computes visibility before blanking the agent's own cell, on the cell as it is.
-        visible = _visibility(view == WALL)
-    view[:, size // 2, size - 1] = EMPTY  # the agent's own cell reads as empty (it carries nothing)
-    image = np.where(visible[..., None], _ENCODING[view], np.uint8(0))
-    return image.reshape(width, height, 4, size, size, 3)
+        view[..., size // 2, size - 1] = EMPTY  # the agent's own cell reads as empty (it carries nothing)
+        return _ENCODING[view].reshape(image_shape)
+    # MiniGrid computes visibility before blanking the agent's own cell, on the cell as it is.
+    visible = _visibility((view == WALL).reshape(-1, size, size)).reshape(view.shape)
+    view[..., size // 2, size - 1] = EMPTY
+    return np.where(visible[..., None], _ENCODING[view], np.uint8(0)).reshape(image_shape)
+
+
+def view_table(level: MazeLevel, *, see_through_walls: bool = True, agent_view_size: int = 5) -> np.ndarray:
+    """:func:`view_tables` of one level: ``(W+2, H+2, 4, s, s, 3)`` uint8."""
+    return view_tables(cell_kinds(level)[None], see_through_walls=see_through_walls,
+                       agent_view_size=agent_view_size)[0]
 
 
 class BatchedMazeSimulator:
@@ -142,8 +170,7 @@ class BatchedMazeSimulator:
         self.levels = levels
         self.max_steps = int(max_steps if max_steps is not None else levels[0].max_steps)
         self._kinds = np.stack([cell_kinds(each) for each in levels])
-        self._views = np.stack([view_table(each, see_through_walls=see_through_walls, agent_view_size=agent_view_size)
-                                for each in levels])
+        self._views = view_tables(self._kinds, see_through_walls=see_through_walls, agent_view_size=agent_view_size)
         self._starts = np.array([[each.start[1] + 1, each.start[0] + 1] for each in levels], dtype=np.int64)
         self.positions = np.zeros((0, 2), dtype=np.int64)
         self.directions = np.zeros(0, dtype=np.int64)
