@@ -10,33 +10,10 @@ import dataclasses
 import functools
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import connected_components, shortest_path
 
-from dsage_ray.domains.maze.paths import furthest_pairs
+from dsage_ray.domains.maze.paths import distances_from, furthest_pairs
 
 Cell = tuple[int, int]
-
-
-def _adjacency(empty: np.ndarray) -> tuple[csr_matrix, np.ndarray]:
-    """4-neighbour graph over the empty cells of ``empty`` (H, W) bool.
-
-    Returns the sparse adjacency matrix and the flat (row-major) grid index of each node. Nodes are
-    numbered in row-major order, which is what makes the start/goal tie-break row-major too.
-    """
-    height, width = empty.shape
-    node = np.full(empty.shape, -1, dtype=np.int64)
-    flat = np.flatnonzero(empty)
-    node.flat[flat] = np.arange(flat.size)
-    # Horizontal and vertical edges between two empty cells, added in both directions.
-    right = empty[:, :-1] & empty[:, 1:]
-    down = empty[:-1, :] & empty[1:, :]
-    src = np.concatenate([node[:, :-1][right], node[:-1, :][down]])
-    dst = np.concatenate([node[:, 1:][right], node[1:, :][down]])
-    rows = np.concatenate([src, dst])
-    cols = np.concatenate([dst, src])
-    graph = csr_matrix((np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=(flat.size, flat.size))
-    return graph, flat
 
 
 def path_distances(walls: np.ndarray, cell: Cell) -> np.ndarray:
@@ -55,11 +32,8 @@ def path_distances(walls: np.ndarray, cell: Cell) -> np.ndarray:
     walls = np.asarray(walls, dtype=bool)
     if walls[cell]:
         raise ValueError(f"cell {tuple(cell)} is a wall")
-    graph, flat = _adjacency(~walls)
-    source = int(np.searchsorted(flat, cell[0] * walls.shape[1] + cell[1]))
-    distances = np.full(walls.shape, np.inf)
-    distances.flat[flat] = shortest_path(graph, directed=False, unweighted=True, indices=source)
-    return distances
+    moves = distances_from(walls, cell)
+    return np.where(moves >= 0, moves.astype(np.float64), np.inf)
 
 
 def max_steps_for(height: int, width: int) -> int:
@@ -155,29 +129,24 @@ class MazeLevel:
     # ------------------------------------------------------------------------------ connectivity
 
     @functools.cached_property
-    def _components(self) -> np.ndarray:
-        """``(H, W)`` int: connected-component label per empty cell, -1 on walls."""
-        graph, flat = _adjacency(~self.walls)
-        labels = np.full(self.walls.shape, -1, dtype=np.int64)
-        if flat.size:
-            labels.flat[flat] = connected_components(graph, directed=False)[1]
-        return labels
+    def _start_distances(self) -> np.ndarray:
+        """``(H, W)`` int64 forward moves from the start; -1 on walls, on cells not connected to it, and
+        everywhere for a level without a start (or with one on a wall)."""
+        if self.start is None or self.walls[self.start]:
+            return np.full(self.walls.shape, -1, dtype=np.int64)
+        return distances_from(self.walls, self.start)
 
     @property
     def reachable_cells(self) -> np.ndarray:
         """``(H, W)`` bool: the empty cells connected to the start (start and goal included)."""
-        if self.start is None:
-            return np.zeros(self.walls.shape, dtype=bool)
-        return self._components == self._components[self.start]
+        return self._start_distances >= 0
 
     @property
     def valid(self) -> bool:
         """True when the level has a start and a goal connected to each other (≥2 connected empty cells)."""
-        return self.start is not None and self._components[self.start] == self._components[self.goal]
+        return self.goal is not None and bool(self._start_distances[self.goal] > 0)
 
-    @functools.cached_property
+    @property
     def optimal_path_length(self) -> int:
         """Forward moves on the shortest 4-neighbour path from start to goal; 0 on an invalid level."""
-        if not self.valid:
-            return 0
-        return int(path_distances(self.walls, self.start)[self.goal])
+        return int(self._start_distances[self.goal]) if self.valid else 0

@@ -218,3 +218,25 @@ def pair_distances(walls: np.ndarray, starts: np.ndarray, goals: np.ndarray) -> 
         raise ValueError(f"expected (n, H, W) bitmaps, got shape {walls.shape}")
     return _pair_distances(np.ascontiguousarray(~walls), np.ascontiguousarray(starts, dtype=np.int64),
                            np.ascontiguousarray(goals, dtype=np.int64))
+
+
+@numba.njit(cache=True, nogil=True)
+def _distances_from(empty: np.ndarray, source: int) -> np.ndarray:  # pragma: no cover - compiled
+    height, width = empty.shape
+    dist = np.full(height * width, -1, dtype=np.int64)
+    _bfs(empty.ravel(), height, width, source, dist, np.empty(height * width, dtype=np.int64))
+    return dist.reshape(height, width)
+
+
+def distances_from(walls: np.ndarray, cell: tuple[int, int]) -> np.ndarray:
+    """Forward moves from ``cell`` to every cell of one maze along 4-neighbour shortest paths.
+
+    Args:
+        walls: ``(H, W)`` bool wall bitmap.
+        cell: Interior ``(row, col)`` of an empty cell (not checked: a wall gives distance 0 there only).
+
+    Returns:
+        ``(H, W)`` int64: 0 at ``cell``, -1 on walls and on cells not connected to it.
+    """
+    empty = np.ascontiguousarray(~np.asarray(walls, dtype=bool))
+    return _distances_from(empty, int(cell[0]) * empty.shape[1] + int(cell[1]))

@@ -1,9 +1,22 @@
 import numpy as np
 import pytest
+from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
-from dsage_ray.domains.maze.level import _adjacency
-from dsage_ray.domains.maze.paths import furthest_pairs
+from dsage_ray.domains.maze.paths import distances_from, furthest_pairs
+
+
+def _adjacency(empty: np.ndarray) -> tuple[csr_matrix, np.ndarray]:
+    """scipy's 4-neighbour graph over the empty cells, numbered in row-major order, and each node's flat cell."""
+    node = np.full(empty.shape, -1, dtype=np.int64)
+    flat = np.flatnonzero(empty)
+    node.flat[flat] = np.arange(flat.size)
+    right = empty[:, :-1] & empty[:, 1:]
+    down = empty[:-1, :] & empty[1:, :]
+    src = np.concatenate([node[:, :-1][right], node[:-1, :][down]])
+    dst = np.concatenate([node[:, 1:][right], node[1:, :][down]])
+    rows, cols = np.concatenate([src, dst]), np.concatenate([dst, src])
+    return csr_matrix((np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=(flat.size, flat.size)), flat
 
 
 def scipy_furthest_pair(walls: np.ndarray):
@@ -69,3 +82,17 @@ def test_the_bounded_search_matches_the_definition_on_trees_rooms_and_tied_compo
     walls = np.stack(mazes)
     for maze, (start, goal, length) in zip(walls, furthest_pairs(walls)):
         assert (start, goal, length) == scipy_furthest_pair(maze)
+
+
+@pytest.mark.parametrize("density", [0.0, 0.3, 0.6])
+def test_distances_from_match_scipy(density):
+    rng = np.random.default_rng(int(density * 10))
+    for walls in rng.random((20, 7, 11)) < density:
+        graph, flat = _adjacency(~walls)
+        if not flat.size:
+            continue
+        source = int(rng.choice(flat))
+        expected = np.full(walls.shape, -1.0)
+        reached = shortest_path(graph, directed=False, unweighted=True, indices=int(np.searchsorted(flat, source)))
+        expected.flat[flat] = np.where(np.isfinite(reached), reached, -1)
+        assert np.array_equal(distances_from(walls, divmod(source, walls.shape[1])), expected)
