@@ -1,9 +1,10 @@
 """A batched numpy re-implementation of :class:`~dsage_ray.domains.maze.env.MazeEnv`.
 
 In a Maze the only thing that moves is the agent, so the egocentric observation is a function of
-``(x, y, direction)`` alone. The constructor renders it once for every such state (a lookup table
-of ``(H+2)·(W+2)·4`` views per level); a step is then a handful of fancy-index operations over the
-batch, whose episodes may play different levels of one size.
+``(x, y, direction)`` alone. With many episodes per level the simulator renders it once for every such state
+(a lookup table of ``(H+2)·(W+2)·4`` views per level); with a few (:data:`TABLE_EPISODES`), each step gathers
+the views from the levels' cells instead. A step is a handful of fancy-index operations over the batch, whose
+episodes may play different levels of one size.
 Dynamics, rewards, termination, truncation and observations are bit-identical to MiniGrid 3.2 for
 either ``see_through_walls`` setting (tested step by step in ``tests/domains/maze``).
 """
@@ -96,6 +97,13 @@ def _view_cells(width: int, height: int, size: int) -> np.ndarray:
     return cells
 
 
+def _walled(kinds: np.ndarray) -> np.ndarray:
+    """``(n, (W+2)·(H+2) + 1)``: each level's flat kinds and one wall past them, where :func:`_view_cells` sends
+    the view cells outside the grid (MiniGrid's ``Grid.slice`` pads with ``Wall()``)."""
+    n = len(kinds)
+    return np.concatenate([kinds.reshape(n, -1), np.full((n, 1), WALL, dtype=kinds.dtype)], axis=1)
+
+
 def view_tables(kinds: np.ndarray, *, see_through_walls: bool = True, agent_view_size: int = 5) -> np.ndarray:
     """Every observation image the agent can get, for a batch of levels of one size.
 
@@ -110,10 +118,7 @@ def view_tables(kinds: np.ndarray, *, see_through_walls: bool = True, agent_view
     """
     n, width, height = kinds.shape
     size = agent_view_size
-    cells = _view_cells(width, height, size)
-    # Cells outside the grid read as walls (MiniGrid's Grid.slice pads with Wall()): one wall past the grid.
-    padded = np.concatenate([kinds.reshape(n, -1), np.full((n, 1), WALL, dtype=kinds.dtype)], axis=1)
-    view = padded[:, cells]
+    view = _walled(kinds)[:, _view_cells(width, height, size)]
     image_shape = (n, width, height, 4, size, size, 3)
     if see_through_walls:
         view[..., size // 2, size - 1] = EMPTY  # the agent's own cell reads as empty (it carries nothing)
@@ -128,6 +133,13 @@ def view_table(level: MazeLevel, *, see_through_walls: bool = True, agent_view_s
     """:func:`view_tables` of one level: ``(W+2, H+2, 4, s, s, 3)`` uint8."""
     return view_tables(cell_kinds(level)[None], see_through_walls=see_through_walls,
                        agent_view_size=agent_view_size)[0]
+
+
+#: With at least this many episodes per level (or without ``see_through_walls``), the simulator renders every view
+#: of its levels once (:func:`view_tables`, about 0.3 ms per 16×16 level) and each step looks them up; with fewer,
+#: each step gathers its views from the levels' cells, which costs a little more per step and nothing up front
+#: (a one-episode screen of many levels).
+TABLE_EPISODES = 4
 
 
 class BatchedMazeSimulator:
@@ -170,7 +182,11 @@ class BatchedMazeSimulator:
         self.levels = levels
         self.max_steps = int(max_steps if max_steps is not None else levels[0].max_steps)
         self._kinds = np.stack([cell_kinds(each) for each in levels])
-        self._views = view_tables(self._kinds, see_through_walls=see_through_walls, agent_view_size=agent_view_size)
+        self._see_through_walls = see_through_walls
+        self._view_size = agent_view_size
+        self._views: np.ndarray | None = None
+        self._walled_kinds = _walled(self._kinds)
+        self._view_cells = _view_cells(*self._kinds.shape[1:], agent_view_size).reshape(-1, agent_view_size ** 2)
         self._starts = np.array([[each.start[1] + 1, each.start[0] + 1] for each in levels], dtype=np.int64)
         self.positions = np.zeros((0, 2), dtype=np.int64)
         self.directions = np.zeros(0, dtype=np.int64)
@@ -199,6 +215,9 @@ class BatchedMazeSimulator:
                  else np.asarray(level_index, dtype=np.int64).reshape(-1))
         if index.shape != directions.shape or np.any((index < 0) | (index >= len(self.levels))):
             raise ValueError(f"level_index must hold one index in [0, {len(self.levels)}) per episode")
+        if self._views is None and not (self._see_through_walls and len(directions) < TABLE_EPISODES * len(self.levels)):
+            self._views = view_tables(self._kinds, see_through_walls=self._see_through_walls,
+                                      agent_view_size=self._view_size)
         self.directions = directions.copy()
         self.level_index = index.copy()
         self.positions = self._starts[index].copy()
@@ -238,5 +257,12 @@ class BatchedMazeSimulator:
         self.level_index = self.level_index[index]
 
     def _observe(self) -> dict[str, np.ndarray]:
-        image = self._views[self.level_index, self.positions[:, 0], self.positions[:, 1], self.directions]
+        if self._views is not None:
+            image = self._views[self.level_index, self.positions[:, 0], self.positions[:, 1], self.directions]
+        else:
+            size = self._view_size
+            state = (self.positions[:, 0] * self._kinds.shape[2] + self.positions[:, 1]) * 4 + self.directions
+            view = self._walled_kinds[self.level_index[:, None], self._view_cells[state]]
+            view[:, (size // 2) * size + size - 1] = EMPTY  # the agent's own cell reads as empty
+            image = _ENCODING[view].reshape(len(state), size, size, 3)
         return {"image": image, "direction": self.directions.copy()}
