@@ -195,6 +195,12 @@ class SelectionConfig:
     #: ``screen_episodes``: candidates screened per pick (the picks, then other elites predicted to add), or per
     #: level of a MAP-Elites batch.
     screen_pool: float = 4.0
+    #: ``screen_episodes``: the agent's arithmetic in the screen. ``fp32``: the agent as it is evaluated; ``bf16``:
+    #: its matrix products in bf16, where the agent has such a copy (``Agent.reduced_precision``: the ``dcd``
+    #: agents; others screen as they are); ``auto``: bf16 on a CPU with native bf16 arithmetic, else fp32. A
+    #: screen is an estimate, so its actions may differ from the agent's now and then; evaluations always run
+    #: the agent as it is.
+    screen_precision: Precision = "auto"
     #: ``screen_episodes``: keep the screened candidates expected to add most to the ground truth, judged by the
     #: screen's errors on recently evaluated levels (``gain_window`` of them; each candidate takes the errors of
     #: the ``gain_neighbours`` nearest in screened measures), instead of those whose screened cell alone would add,

@@ -41,6 +41,11 @@ class Agent(abc.ABC):
         All randomness must come from ``rng`` so that an evaluation is reproducible from its seed.
         """
 
+    def reduced_precision(self) -> "Agent | None":
+        """A faster, lower-precision copy of this policy for estimates (``selection.screen_precision``), whose
+        actions may differ from this agent's now and then; None (the default): the agent has none."""
+        return None
+
     def select_state(self, state: AgentState, index: np.ndarray) -> AgentState:
         """Keeps only the episodes at ``index`` (the ones still running)."""
         return _tree_map(lambda x: x[index], state)

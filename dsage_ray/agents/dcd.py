@@ -36,6 +36,7 @@ Options (``dcd:PATH?heading_quirk=1&quirk_group=10``):
 
 from __future__ import annotations
 
+import copy
 import pathlib
 from typing import Any, Mapping
 
@@ -131,6 +132,16 @@ class _StepWeights:
             actor1, actor2 = net.actor[0][0], net.actor[1].linear
             self.actor_w1, self.actor_b1 = actor1.weight.T.contiguous(), actor1.bias.detach().clone()
             self.actor_w2, self.actor_b2 = actor2.weight.T.contiguous(), actor2.bias.detach().clone()
+        self.dtype = torch.float32
+
+    def to(self, dtype: torch.dtype) -> "_StepWeights":
+        """A copy whose matrices are ``dtype`` (the LSTM cell state and the logits stay float32)."""
+        other = copy.copy(self)
+        for name, value in vars(self).items():
+            if isinstance(value, torch.Tensor) and value.is_floating_point():
+                setattr(other, name, value.to(dtype))
+        other.dtype = dtype
+        return other
 
 
 class DCDAgent(Agent):
@@ -149,6 +160,14 @@ class DCDAgent(Agent):
         self.heading_quirk = heading_quirk
         self.quirk_group = quirk_group
         self._step = _StepWeights(network)
+
+    def reduced_precision(self) -> "DCDAgent":
+        """This policy with its matrix products in bf16: about 3-4x faster where the CPU computes bf16
+        natively (AVX512-BF16, AMX), and close to, not equal to, the agent (its rounding can flip a sampled
+        action). For estimates only (``selection.screen_precision``), never for a level's evaluation."""
+        other = copy.copy(self)
+        other._step = self._step.to(torch.bfloat16)
+        return other
 
     def initial_state(self, batch_size: int) -> AgentState:
         zeros = torch.zeros(batch_size, HIDDEN_SIZE)
@@ -179,14 +198,16 @@ class DCDAgent(Agent):
         image = np.ascontiguousarray(obs["image"]).reshape(len(masks), -1)
         with torch.inference_mode():
             # MiniGrid's image is [x, y, channel] uint8; DCD scaled it by 1/10 (w.conv absorbs the transpose).
-            features = torch.addmm(w.conv_bias, torch.from_numpy(image).float() / 10.0, w.conv).relu_()
-            gates = w.gate_bias.index_select(0, masks).addmm_(features, w.w_image).addmm_(h, w.w_hidden)
+            features = torch.addmm(w.conv_bias, torch.from_numpy(image).to(w.dtype) / 10.0, w.conv).relu_()
+            gates = w.gate_bias.index_select(0, masks).addmm_(features, w.w_image).addmm_(h.to(w.dtype), w.w_hidden)
+            gates = gates.float()
             # nn.LSTM's cell equations, gates in (i, f, o, g) order.
             sig = gates[:, : 3 * HIDDEN_SIZE].sigmoid()
             i, f, o = sig[:, :HIDDEN_SIZE], sig[:, HIDDEN_SIZE : 2 * HIDDEN_SIZE], sig[:, 2 * HIDDEN_SIZE :]
             c = f * c + i * gates[:, 3 * HIDDEN_SIZE :].tanh()
             h = o * c.tanh()
-            logits = torch.addmm(w.actor_b2, torch.addmm(w.actor_b1, h, w.actor_w1).tanh_(), w.actor_w2)
+            hidden = torch.addmm(w.actor_b1, h.to(w.dtype), w.actor_w1).tanh_()
+            logits = torch.addmm(w.actor_b2, hidden, w.actor_w2).float()
         return logits, (h, c)
 
     def act(self, obs: Observation, state: AgentState, rng: np.random.Generator) -> tuple[np.ndarray, AgentState]:

@@ -15,10 +15,12 @@ optimizer's ``tell`` does it; DSAGE adds, then grows its dataset).
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import time
 from typing import TYPE_CHECKING, Any, Callable, Protocol
 
 import numpy as np
+import torch
 
 from dsage_ray.config import OCCUPANCY_COST, ConfigError, RunConfig
 from dsage_ray.core.holdout import HeldOutLevels, head_label
@@ -29,6 +31,7 @@ from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
 from dsage_ray.qd.screen import Screen, keep_screened, screen_picks
 from dsage_ray.qd.selection import gather_elites, select_solutions, skip_filled
 from dsage_ray.surrogate.models import encode_solutions
+from dsage_ray.surrogate.surrogate import resolve_precision
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
 
 if TYPE_CHECKING:
@@ -269,9 +272,13 @@ def domain_screen(config: RunConfig, domain: Domain, seeds: "RunSeeds") -> Scree
     if not callable(getattr(domain, "screen", None)):
         raise ConfigError(f"selection.screen_episodes: the {domain.name!r} domain cannot screen levels (it has no "
                           "screen method; Maze has); set selection.screen_episodes = 0")
+    # A plug-in domain's screen may take no precision: it then screens as it always does.
+    takes_precision = "precision" in inspect.signature(domain.screen).parameters
+    options = {"precision": resolve_precision(config.selection.screen_precision, torch.device("cpu"))}
 
     def screen(solutions: Solutions) -> tuple[np.ndarray, np.ndarray]:
-        results = domain.screen(solutions, episodes=episodes, seed=int(seeds.rng.integers(2**31 - 1)))
+        seed = int(seeds.rng.integers(2**31 - 1))
+        results = domain.screen(solutions, episodes=episodes, seed=seed, **(options if takes_precision else {}))
         return (np.array([result.objective for result in results], dtype=np.float64),
                 np.array([result.measures for result in results], dtype=np.float64).reshape(
                     len(results), len(domain.measure_names)))

@@ -76,3 +76,30 @@ def test_accel_evaluations_are_unchanged(make):
     np.testing.assert_array_equal(a.episode_lengths, b.episode_lengths)
     np.testing.assert_array_equal(a.successes, b.successes)
     np.testing.assert_array_equal(a.occupancy, b.occupancy)
+
+
+def test_reduced_precision_is_close_to_the_agent_and_leaves_it_as_it_was():
+    """The bf16 copy (the screen's) rounds the matrix products, so its logits are near, not equal to, the agent's;
+    on a real level it plays about as the agent does; the agent itself keeps float32."""
+    agent = load_agent(ACCEL_SPEC)
+    reduced = agent.reduced_precision()
+    assert reduced is not agent and reduced._step.w_hidden.dtype == torch.bfloat16
+    assert agent._step.w_hidden.dtype == torch.float32
+    obs_rng = np.random.default_rng(1)
+    state, reduced_state = agent.initial_state(20), reduced.initial_state(20)
+    for _ in range(10):
+        obs = random_obs(obs_rng, 20)
+        logits, state = agent.logits(obs, state)
+        reduced_logits, reduced_state = reduced.logits(obs, reduced_state)
+        assert reduced_logits.dtype == torch.float32 and reduced_state[1].dtype == torch.float32
+        torch.testing.assert_close(reduced_logits, logits, rtol=0.1, atol=0.1)
+    level = _random_16x16(2)
+    full, screened = evaluate(level, agent, episodes=50, seed=5), evaluate(level, reduced, episodes=50, seed=5)
+    assert abs(full.mean_path_length - screened.mean_path_length) < 0.25 * full.mean_path_length + 10
+    # The float32 agent is untouched: the same evaluation again, bit for bit.
+    again = evaluate(level, agent, episodes=50, seed=5)
+    np.testing.assert_array_equal(again.episode_lengths, full.episode_lengths)
+
+
+def test_only_agents_with_a_reduced_copy_offer_one():
+    assert load_agent("builtin:wall_follower").reduced_precision() is None

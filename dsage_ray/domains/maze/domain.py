@@ -57,6 +57,7 @@ class MazeDomain:
         self.encoding_pad_channel = SPARE
         self._agent = None
         self._reference_agent = None
+        self._reduced_agents: dict[str, Any] = {}
 
     @property
     def agent(self):
@@ -82,6 +83,7 @@ class MazeDomain:
         state = self.__dict__.copy()
         # Agents hold torch modules; each process loads its own.
         state["_agent"] = state["_reference_agent"] = None
+        state["_reduced_agents"] = {}
         return state
 
     def level(self, solution: Solution) -> MazeLevel:
@@ -133,27 +135,43 @@ class MazeDomain:
     #: Levels per batch of :meth:`screen` (its view tables take about 100 kB per 16×16 level).
     SCREEN_CHUNK = 256
 
-    def screen(self, solutions: Solutions, *, episodes: int, seed: int) -> list[EvaluationResult]:
+    def screen(self, solutions: Solutions, *, episodes: int, seed: int,
+               precision: str = "fp32") -> list[EvaluationResult]:
         """A cheap first look at many solutions: :meth:`evaluate` with ``episodes`` episodes per level instead of
         the configured count, every level of a chunk stepped in one batch (``selection.screen_episodes``).
+        With ``precision`` ``"bf16"`` the agents play their :meth:`~dsage_ray.agents.base.Agent.reduced_precision`
+        copies, where they have one (``selection.screen_precision``).
 
         With one or two episodes this costs a few percent of a full evaluation per level, and ranks ACCEL's
         50-episode mean path length far better than the surrogate does (Spearman ρ 0.91 with one episode, 0.94
         with two, on the levels of a ``cpu`` search: ``benchmarks/bench_screen.py``). The results are estimates:
         they are never added to an archive or a dataset. The screen runs where it is called (a Ray run's driver).
         """
+        if precision not in ("fp32", "bf16"):
+            raise ValueError(f"screen precision must be 'fp32' or 'bf16', got {precision!r}")
         levels = [self.level(solution) for solution in np.asarray(solutions).reshape(-1, self.solution_dim)]
         needs_reference = self.config.objective in NEEDS_REFERENCE
         results: list[EvaluationResult] = []
         for number, first in enumerate(range(0, len(levels), self.SCREEN_CHUNK)):
             chunk = levels[first:first + self.SCREEN_CHUNK]
             options = {"episodes": episodes, "seed": seed + number, "see_through_walls": self.config.see_through_walls}
-            agent = self.agent if any(level.valid for level in chunk) else None
+            agent = self._screening("agent", precision) if any(level.valid for level in chunk) else None
             runs = evaluate_levels(chunk, agent, **options)
-            references = (evaluate_levels(chunk, self.reference_agent if agent is not None else None, **options)
+            references = (evaluate_levels(chunk, self._screening("reference_agent", precision)
+                                          if agent is not None else None, **options)
                           if needs_reference else [None] * len(chunk))
             results += [self._result(run, reference if run.valid else None) for run, reference in zip(runs, references)]
         return results
+
+    def _screening(self, role: str, precision: str):
+        """The agent ``role`` names (``"agent"``, ``"reference_agent"``) as the screen plays it: for ``"bf16"`` its
+        reduced-precision copy, made once, or itself when it has none."""
+        agent = getattr(self, role)
+        if precision == "fp32":
+            return agent
+        if role not in self._reduced_agents:
+            self._reduced_agents[role] = agent.reduced_precision() or agent
+        return self._reduced_agents[role]
 
     def _result(self, result: MazeEvaluation, reference: MazeEvaluation | None) -> EvaluationResult:
         info = {

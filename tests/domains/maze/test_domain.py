@@ -98,3 +98,38 @@ def test_screen_is_a_cheap_evaluation_with_fewer_episodes_of_many_levels_at_once
     assert alone.measures.tolist() == short.measures.tolist()
     assert alone.info["episode_lengths"] == short.info["episode_lengths"]
     assert len(loads) == 2  # once per domain object, however many levels it screens
+
+
+class _ReducingAgent(UniformRandomAgent):
+    """A test agent whose reduced-precision copy is another object, counted."""
+
+    copies = 0
+
+    def reduced_precision(self):
+        type(self).copies += 1
+        copy = UniformRandomAgent(3)
+        copy.spec = "test:reduced"
+        return copy
+
+
+def test_screen_precision_plays_the_reduced_copy_made_once(monkeypatch):
+    monkeypatch.setattr(dsage_ray.agents, "load_agent", lambda spec: _ReducingAgent(3), raising=False)
+    domain = MazeDomain(config=MazeConfig(height=3, width=4, episodes=10))
+    levels = np.zeros((3, 12))
+    domain.screen(levels, episodes=1, seed=0, precision="bf16")
+    domain.screen(levels, episodes=1, seed=1, precision="bf16")
+    assert _ReducingAgent.copies == 1
+    assert domain._reduced_agents["agent"].spec == "test:reduced" and domain.agent.batch_sizes == []
+    domain.screen(levels, episodes=1, seed=2, precision="fp32")
+    assert domain.agent.batch_sizes  # fp32 plays the agent itself
+    assert pickle.loads(pickle.dumps(domain))._reduced_agents == {}
+    with pytest.raises(ValueError, match="'fp32' or 'bf16'"):
+        domain.screen(levels, episodes=1, seed=0, precision="auto")
+
+
+def test_an_agent_without_a_reduced_copy_screens_as_it_is(loads):
+    domain = MazeDomain(config=MazeConfig(height=3, width=4, episodes=10))
+    levels = np.stack([np.zeros(12), np.eye(3, 4).ravel()])
+    full = domain.screen(levels, episodes=2, seed=4, precision="fp32")
+    reduced = domain.screen(levels, episodes=2, seed=4, precision="bf16")
+    assert [r.measures.tolist() for r in full] == [r.measures.tolist() for r in reduced]
