@@ -1,13 +1,16 @@
 """How well a few episodes of the agent predict its full evaluation, and what they cost (``selection.screen_episodes``).
 
-    python benchmarks/bench_screen.py --data FILE.npz [--agent dcd:accel] [--episodes 1,2,4] [--levels 1000]
+    python benchmarks/bench_screen.py --data FILE.npz [--agent dcd:accel] [--episodes 1,2,4] [--levels 1000] \
+        [--precision fp32,bf16]
 
 For each episode count, the Maze domain's screen (every level stepped in one batch) is run on the first ``--levels``
 levels of a dataset (``benchmarks/maze_dataset.py``), and its mean path length is scored against the dataset's:
 Spearman ρ, MAE in steps and milliseconds per level. Beside them, on the same levels: the optimal path length's ρ,
 and a full evaluation's milliseconds per level (``--full`` levels evaluated one at a time, as a run does), so that
-the last line prints what a screened level costs as a share of an evaluation. The dataset must hold the same
-agent's measurements (``maze_dataset.py from-run`` of a run of that agent).
+the last lines print what a screened level costs as a share of an evaluation. With ``--precision fp32,bf16`` each
+episode count is screened in both (``selection.screen_precision``: bf16 plays the agent's reduced-precision copy,
+where it has one). The dataset must hold the same agent's measurements (``maze_dataset.py from-run`` of a run of
+that agent).
 """
 
 from __future__ import annotations
@@ -37,6 +40,8 @@ def main(argv: list[str] | None = None) -> dict[str, dict[str, float]]:
     parser.add_argument("--levels", type=int, default=1000, help="levels screened (the dataset's first)")
     parser.add_argument("--full", type=int, default=100, help="levels given a full evaluation, for its cost")
     parser.add_argument("--full-episodes", type=int, default=50, help="episodes of a full evaluation")
+    parser.add_argument("--precision", default="fp32",
+                        help="comma-separated screen precisions, fp32 and/or bf16 (selection.screen_precision)")
     parser.add_argument("--seed", type=int, default=1000)
     args = parser.parse_args(argv)
 
@@ -55,18 +60,22 @@ def main(argv: list[str] | None = None) -> dict[str, dict[str, float]]:
     print(f"optimal path length: Spearman ρ {spearman(optimal[valid], truth[valid]):.3f}")
     out: dict[str, dict[str, float]] = {}
     with torch_threads(1):
-        domain.screen(solutions[:8], episodes=1, seed=0)  # loads the agent before any timing
+        precisions = args.precision.split(",")
+        for precision in precisions:  # loads the agents before any timing
+            domain.screen(solutions[:8], episodes=1, seed=0, precision=precision)
         for episodes in (int(k) for k in args.episodes.split(",")):
-            tic = time.perf_counter()
-            results = domain.screen(solutions, episodes=episodes, seed=args.seed)
-            seconds = time.perf_counter() - tic
-            screened = np.array([result.info.get(PATH_LENGTH, 0.0) for result in results])
-            out[f"screen_{episodes}"] = row = {
-                "rho": spearman(screened[valid], truth[valid]),
-                "mae": float(np.abs(screened[valid] - truth[valid]).mean()),
-                "ms_per_level": 1000 * seconds / count}
-            print(f"screen, {episodes} episode(s): Spearman ρ {row['rho']:.3f}, MAE {row['mae']:.1f} steps, "
-                  f"{row['ms_per_level']:.2f} ms per level")
+            for precision in precisions:
+                tic = time.perf_counter()
+                results = domain.screen(solutions, episodes=episodes, seed=args.seed, precision=precision)
+                seconds = time.perf_counter() - tic
+                screened = np.array([result.info.get(PATH_LENGTH, 0.0) for result in results])
+                name = f"screen_{episodes}" + ("" if precision == "fp32" else f"_{precision}")
+                out[name] = row = {
+                    "rho": spearman(screened[valid], truth[valid]),
+                    "mae": float(np.abs(screened[valid] - truth[valid]).mean()),
+                    "ms_per_level": 1000 * seconds / count}
+                print(f"screen, {episodes} episode(s), {precision}: Spearman ρ {row['rho']:.3f}, MAE "
+                      f"{row['mae']:.1f} steps, {row['ms_per_level']:.2f} ms per level")
         full = min(args.full, count)
         tic = time.perf_counter()
         for i in range(full):
