@@ -132,7 +132,8 @@ class MazeDomain:
                      if self.config.objective in NEEDS_REFERENCE and result.valid else None)
         return self._result(result, reference)
 
-    #: Levels per batch of :meth:`screen` (its view tables take about 100 kB per 16×16 level).
+    #: Levels per batch of :meth:`screen` (a screen of 4 or more episodes per level renders view tables of about
+    #: 100 kB per 16×16 level; a shorter one gathers its views each step: ``simulator.TABLE_EPISODES``).
     SCREEN_CHUNK = 256
 
     def screen(self, solutions: Solutions, *, episodes: int, seed: int,
