@@ -9,7 +9,7 @@ import sys
 
 from dsage_ray import __version__, surrogate_cli
 from dsage_ray.audit import cli as audit_cli
-from dsage_ray.cli_args import add_config_arguments, add_ray_arguments, load_run_config
+from dsage_ray.cli_args import add_config_arguments, add_ray_arguments, config_overrides, load_run_config
 from dsage_ray.errors import DsageError, describe
 
 #: Help layout of every command: the description and the examples epilog keep their line breaks.
@@ -134,8 +134,9 @@ def _run(args: argparse.Namespace) -> int:
     from dsage_ray.core.tensorboard_log import tensorboard_hint
     from dsage_ray.runs import run
 
-    result = run(load_run_config(args, args.config), local=args.local, out=args.out, workers=args.workers,
-                 address=args.address, resume=args.resume)
+    # The file and the options, not a config built from them: a resume keeps what they do not say.
+    result = run(args.config, preset=args.preset, overrides=config_overrides(args), local=args.local, out=args.out,
+                 workers=args.workers, address=args.address, resume=args.resume)
     # Last, so that it is what the terminal shows when the run ends.
     print(f"run folder: {result.path}\nopen it in TensorBoard: {tensorboard_hint(result.path)}")
     return 0

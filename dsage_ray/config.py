@@ -22,7 +22,7 @@ import tomllib
 import types
 import typing
 from pathlib import Path
-from typing import Any, Literal, Mapping
+from typing import Any, Collection, Literal, Mapping
 
 import numpy as np
 
@@ -329,16 +329,7 @@ class RunConfig:
     @classmethod
     def from_file(cls, path: str | Path, overrides: Mapping[str, Any] | None = None) -> "RunConfig":
         """Reads a TOML or JSON config file, then applies dotted ``overrides``."""
-        path = Path(path)
-        try:
-            text = path.read_text()
-        except OSError as exc:
-            raise ConfigError(f"cannot read config file {path}: {exc.strerror}") from None
-        try:
-            data = json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
-        except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
-            raise ConfigError(f"{path}: not valid {'JSON' if path.suffix == '.json' else 'TOML'}: {exc}") from None
-        values = flatten(data)
+        values = read_config_file(path)
         values.update(flatten(dict(overrides or {})))
         return cls.build(values)
 
@@ -533,6 +524,42 @@ def paper_comparison(domain: str) -> tuple[str, ...]:
 
 
 # ---------------------------------------------------------------------------------------- helpers
+
+def read_config_file(path: str | Path) -> dict[str, Any]:
+    """The dotted keys a TOML or JSON config file sets, unvalidated.
+
+    Raises:
+        ConfigError: An unreadable file, or one that is not valid TOML/JSON.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError(f"cannot read config file {path}: {exc.strerror}") from None
+    try:
+        data = json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
+    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
+        raise ConfigError(f"{path}: not valid {'JSON' if path.suffix == '.json' else 'TOML'}: {exc}") from None
+    return flatten(data)
+
+
+def resumed_config(asked: "RunConfig", stored: "RunConfig", *, given: Collection[str]) -> "RunConfig":
+    """The config a resumed run continues with: the stored run's, but for the keys the user ``given`` now.
+
+    A default that changed since the run began (a preset's, a variant's, the library's) then leaves the run as it
+    began, instead of refusing the resume; a given key that differs from the stored one is still refused when
+    the checkpoint loads (:meth:`~dsage_ray.core.runner.DSAGE.load_state_dict` names it), but ``time_budget``.
+
+    Args:
+        asked: The config as the resume asked for it (defaults, preset, variant, file and overrides).
+        stored: The config the run's checkpoint holds.
+        given: The dotted keys the user set (a file's keys, ``--set``, ``--preset``, ...).
+    """
+    values = stored.to_flat()
+    wanted = asked.to_flat()
+    values.update({key: wanted[key] for key in given if key in wanted})
+    return RunConfig.build(values)
+
 
 def flatten(values: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
     """``{"a": {"b": 1}}`` → ``{"a.b": 1}``; already-dotted keys pass through."""

@@ -11,7 +11,7 @@ import os
 from pathlib import Path
 from typing import Any, Literal, Mapping, Sequence, Union
 
-from dsage_ray.config import RunConfig, flatten
+from dsage_ray.config import RunConfig, flatten, read_config_file, resumed_config
 from dsage_ray.errors import InputError
 from dsage_ray.preflight import preflight
 from dsage_ray.results import ExperimentResult, RunResult
@@ -57,6 +57,37 @@ def resolve_config(
     raise InputError(f"config: expected a file path, a RunConfig or a dict of keys, got {type(source).__name__}")
 
 
+def given_keys(source: ConfigSource = None, *, preset: str | None = None,
+               overrides: Mapping[str, Any] | None = None) -> set[str] | None:
+    """The dotted keys a config source, ``preset`` and ``overrides`` set explicitly (as :func:`resolve_config`
+    reads them); None for a :class:`~dsage_ray.config.RunConfig`, whose every key counts as given."""
+    if isinstance(source, RunConfig):
+        return None
+    given = set(flatten(dict(overrides or {})))
+    if preset is not None:
+        given.add("preset")
+    if isinstance(source, Mapping):
+        given |= set(flatten(dict(source)))
+    elif isinstance(source, (str, os.PathLike)):
+        given |= set(read_config_file(source))
+    return given
+
+
+def _stored_config(config: RunConfig, *, local: bool, out: str | os.PathLike[str] | None) -> RunConfig | None:
+    """The config of the run a resume of ``config`` continues: its local checkpoint's, or the latest checkpoint's
+    of its Tune trial; None when there is none (the resume then fails as it would have)."""
+    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, checkpoint_config
+
+    if local:
+        found = [Path(out) / CHECKPOINT_NAME if out is not None else Path("tb_logs") / config.name / CHECKPOINT_NAME]
+    else:
+        storage = Path(out if out is not None else "tb_logs") / config.name
+        found = sorted(storage.glob(f"*/checkpoint_*/{CHECKPOINT_NAME}"),
+                       key=lambda path: int(path.parent.name.rsplit("_", 1)[-1]))
+    found = [path for path in found if path.is_file()]
+    return checkpoint_config(found[-1]) if found else None
+
+
 def run(
     config: ConfigSource = None,
     *,
@@ -84,7 +115,10 @@ def run(
             (default ``tb_logs``); the run folder is then ``out/<name>/<trial>``.
         workers: Simulator actors (sets ``ray.num_workers``; ignored by ``local`` runs).
         address: A Ray cluster to join (default: ``RAY_ADDRESS``, else a new local cluster).
-        resume: Continue the run in ``out`` from its last checkpoint.
+        resume: Continue the run in ``out`` from its last checkpoint, with the config it began with: a key given
+            here (in a config file, ``preset`` or ``overrides``) must be the one it began with (but
+            ``time_budget``), a default that changed since is left as it was. A ``RunConfig`` counts as
+            given whole.
         max_failures: Through Tune: restores of a crashed trial from its last checkpoint.
 
     Returns:
@@ -95,9 +129,16 @@ def run(
         ResourceError: The trial does not fit the machine or cluster (``workers`` too high).
         TrialFailed: The Tune trial failed more than ``max_failures`` times.
     """
+    given = given_keys(config, preset=preset, overrides=overrides)
     config = resolve_config(config, preset=preset, overrides=overrides)
     if workers is not None:
         config = config.replace(**{"ray.num_workers": workers})
+        given = None if given is None else given | {"ray.num_workers"}
+    if resume and given is not None:
+        # A run resumes as it began: only the keys given now may differ from its checkpoint's (and are refused
+        # there, but for time_budget), not a default that changed since.
+        stored = _stored_config(config, local=local, out=out)
+        config = config if stored is None else resumed_config(config, stored, given=given)
     preflight(config)
     if local:
         from dsage_ray.core.checkpoint import CHECKPOINT_NAME

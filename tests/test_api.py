@@ -99,3 +99,44 @@ def test_the_api_example_runs_and_returns_levels_with_seeds_and_a_report(tmp_pat
     assert f"report: {collection.report_path}" in proc.stdout
     assert f"level #{collection.levels[0].id}: success {collection.levels[0].success_rate:.2f}" in proc.stdout
     assert "run: 60 evaluations, QD-score" in proc.stdout and (tmp_path / "run" / "checkpoint.dsage").is_file()
+
+
+def test_a_run_resumes_as_it_began_when_a_default_changed_since(tmp_path, monkeypatch, capsys):
+    import dsage_ray.config as config_module
+
+    out = tmp_path / "run"
+    args = ["run", str(CONFIG), "--preset", "tiny", *(f"--set={key}={value}" for key, value in SMALL.items()),
+            "--local", "--out", str(out)]
+    assert main(args) == 0
+    began = json.loads((out / "config.json").read_text())["qd"]["exploit_iterations"]
+    # As if a later version changed the tiny preset's inner loop.
+    presets = config_module.presets
+    monkeypatch.setattr(config_module, "presets", lambda domain: {
+        name: {**values, "qd.exploit_iterations": began + 1} for name, values in presets(domain).items()})
+    assert dsage_ray.resolve_config(CONFIG, preset="tiny").qd.exploit_iterations == began + 1
+    assert main([*args, "--resume"]) == 0
+    assert json.loads((out / "config.json").read_text())["qd"]["exploit_iterations"] == began
+    # A key given now is still checked against the run's.
+    capsys.readouterr()
+    assert main([*args, "--resume", "--set", "seed=5"]) == 2
+    assert "different config: seed = 0, not 5" in capsys.readouterr().err
+    # A built RunConfig counts as given whole: the changed default is refused, by name.
+    with pytest.raises(ValueError, match=f"qd.exploit_iterations = {began}, not {began + 1}"):
+        dsage_ray.run(dsage_ray.resolve_config(CONFIG, preset="tiny", overrides=SMALL), local=True, out=out,
+                      resume=True)
+
+
+def test_a_tune_resume_reads_the_config_of_its_trials_latest_checkpoint(tmp_path):
+    from dsage_ray.core.checkpoint import CHECKPOINT_NAME
+    from dsage_ray.runs import _stored_config
+
+    config = dsage_ray.resolve_config(CONFIG, preset="tiny", overrides=SMALL)
+    assert _stored_config(config, local=False, out=tmp_path) is None
+    for seed, number in ((1, 2), (2, 10)):  # checkpoint_000010 is the later one, though it sorts first as text
+        run = dsage_ray.run(config.replace(seed=seed), local=True, out=tmp_path / f"s{seed}")
+        folder = tmp_path / config.name / "trial_0" / f"checkpoint_{number:06d}"
+        folder.mkdir(parents=True)
+        (folder / CHECKPOINT_NAME).write_bytes(run.checkpoint.read_bytes())
+    assert _stored_config(config, local=False, out=tmp_path).seed == 2
+    assert _stored_config(config, local=True, out=tmp_path / "s1").seed == 1
+    assert _stored_config(config, local=True, out=tmp_path / "none") is None

@@ -13,7 +13,7 @@ from typing import Any, Mapping, Sequence
 
 from dsage_ray.audit.collection import agent_slug, audit_config, audit_spec, build_collection
 from dsage_ray.audit.results import Collection
-from dsage_ray.config import ConfigError, RunConfig, presets
+from dsage_ray.config import RunConfig, presets
 from dsage_ray.errors import InputError
 from dsage_ray.results import RunResult
 
@@ -213,7 +213,7 @@ def search_on_disk(search_dir: Path, *, config: RunConfig | None = None) -> RunR
     Raises:
         CheckpointError: The search left no checkpoint, or (without ``config``) one that does not load.
     """
-    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, CheckpointError, load_checkpoint, read_header
+    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, CheckpointError, checkpoint_config
 
     local = search_dir / CHECKPOINT_NAME
     in_tune = sorted(search_dir.glob(f"*/*/checkpoint_*/{CHECKPOINT_NAME}"),
@@ -225,9 +225,4 @@ def search_on_disk(search_dir: Path, *, config: RunConfig | None = None) -> RunR
     else:
         raise CheckpointError(f"{search_dir}: the search left no checkpoint ({CHECKPOINT_NAME}) to read the "
                               f"archive from")
-    if config is None:
-        try:  # checkpoints written before the header held the config need the whole state read
-            config = RunConfig.build(read_header(checkpoint).get("config") or load_checkpoint(checkpoint)["config"])
-        except ConfigError as exc:
-            raise CheckpointError(f"{checkpoint}: the search's config does not load here ({exc})") from None
-    return RunResult(config=config, path=run_dir, checkpoint=checkpoint)
+    return RunResult(config=config or checkpoint_config(checkpoint), path=run_dir, checkpoint=checkpoint)

@@ -35,10 +35,13 @@ import pickle
 import warnings
 from importlib import metadata
 from pathlib import Path
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 from dsage_ray.errors import InputError
 from dsage_ray.io import atomic_write_bytes
+
+if TYPE_CHECKING:
+    from dsage_ray.config import RunConfig
 
 #: File name of a checkpoint: in a ``--local`` run folder, and inside each Tune checkpoint folder.
 CHECKPOINT_NAME = "checkpoint.dsage"
@@ -119,6 +122,21 @@ def read_header(path: str | Path) -> dict[str, Any]:
     path = Path(path)
     header, _ = _split(path, _read(path, limit=len(_MAGIC) + _MAX_HEADER_BYTES))
     return header
+
+
+def checkpoint_config(path: str | Path) -> "RunConfig":
+    """The config of the run that wrote the checkpoint at ``path``: from its header, or, for a checkpoint written
+    before the header held it, from its state.
+
+    Raises:
+        CheckpointError: As :func:`load_checkpoint`, or a config this version cannot read (the message says why).
+    """
+    from dsage_ray.config import ConfigError, RunConfig
+
+    try:
+        return RunConfig.build(read_header(path).get("config") or load_checkpoint(path)["config"])
+    except ConfigError as exc:
+        raise CheckpointError(f"{path}: the run's config does not load here ({exc})") from None
 
 
 def load_checkpoint(path: str | Path) -> dict[str, Any]:
