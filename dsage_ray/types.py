@@ -74,6 +74,10 @@ class Domain(Protocol):
     Optional: ``work_names`` and ``work_counts(result) -> {name: count}``, counts of the work an evaluation
     did that do not depend on the machine (Maze: ``steps``; Mario: ``search_iterations``, ``ticks``), read
     from its ``info``; ``selection.cost_measure`` may name one (:mod:`dsage_ray.qd.gain`).
+
+    Optional: ``screen(solutions, *, episodes, seed, precision) -> [EvaluationResult]``, a cheap estimate of many
+    levels with ``episodes`` episodes each, ``precision`` ``"fp32"`` or ``"bf16"`` (the agent's
+    ``reduced_precision`` copy, where it has one); ``selection.screen_episodes`` uses it (Maze has one).
     """
 
     name: str

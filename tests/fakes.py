@@ -106,7 +106,8 @@ class ScreeningBitmapDomain(BitmapDomain):
     def evaluate(self, solution: np.ndarray, seed: int) -> EvaluationResult:
         return dataclasses.replace(super().evaluate(solution, seed), objective=1.0)
 
-    def screen(self, solutions: np.ndarray, *, episodes: int, seed: int) -> list[EvaluationResult]:
+    def screen(self, solutions: np.ndarray, *, episodes: int, seed: int,
+               precision: str = "fp32") -> list[EvaluationResult]:
         self.screened += len(solutions)
         results = [self.evaluate(solution, seed + i) for i, solution in enumerate(solutions)]
         self.calls -= len(solutions)  # a screen is not an evaluation

@@ -15,7 +15,6 @@ optimizer's ``tell`` does it; DSAGE adds, then grows its dataset).
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import time
 from typing import TYPE_CHECKING, Any, Callable, Protocol
 
@@ -272,13 +271,11 @@ def domain_screen(config: RunConfig, domain: Domain, seeds: "RunSeeds") -> Scree
     if not callable(getattr(domain, "screen", None)):
         raise ConfigError(f"selection.screen_episodes: the {domain.name!r} domain cannot screen levels (it has no "
                           "screen method; Maze has); set selection.screen_episodes = 0")
-    # A plug-in domain's screen may take no precision: it then screens as it always does.
-    takes_precision = "precision" in inspect.signature(domain.screen).parameters
-    options = {"precision": resolve_precision(config.selection.screen_precision, torch.device("cpu"))}
+    precision = resolve_precision(config.selection.screen_precision, torch.device("cpu"))
 
     def screen(solutions: Solutions) -> tuple[np.ndarray, np.ndarray]:
         seed = int(seeds.rng.integers(2**31 - 1))
-        results = domain.screen(solutions, episodes=episodes, seed=seed, **(options if takes_precision else {}))
+        results = domain.screen(solutions, episodes=episodes, seed=seed, precision=precision)
         return (np.array([result.objective for result in results], dtype=np.float64),
                 np.array([result.measures for result in results], dtype=np.float64).reshape(
                     len(results), len(domain.measure_names)))

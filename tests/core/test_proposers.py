@@ -45,9 +45,3 @@ def test_auto_resolves_by_the_cpu(monkeypatch):
         domain_screen(_config("auto"), domain, RunSeeds(seed=0))(domain.random_solutions(2, np.random.default_rng(0)))
         assert domain.precisions == [expected]
 
-
-def test_a_domain_whose_screen_takes_no_precision_screens_as_before():
-    domain = ScreeningBitmapDomain()
-    screen = domain_screen(_config("bf16"), domain, RunSeeds(seed=0))
-    screen(domain.random_solutions(4, np.random.default_rng(0)))
-    assert domain.screened == 4
