@@ -76,16 +76,14 @@ def given_keys(source: ConfigSource = None, *, preset: str | None = None,
 def _stored_config(config: RunConfig, *, local: bool, out: str | os.PathLike[str] | None) -> RunConfig | None:
     """The config of the run a resume of ``config`` continues: its local checkpoint's, or the latest checkpoint's
     of its Tune trial; None when there is none (the resume then fails as it would have)."""
-    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, checkpoint_config
+    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, checkpoint_config, latest_tune_checkpoint
 
     if local:
-        found = [Path(out) / CHECKPOINT_NAME if out is not None else Path("tb_logs") / config.name / CHECKPOINT_NAME]
+        found: Path | None = (Path(out) if out is not None else Path("tb_logs") / config.name) / CHECKPOINT_NAME
+        found = found if found.is_file() else None
     else:
-        storage = Path(out if out is not None else "tb_logs") / config.name
-        found = sorted(storage.glob(f"*/checkpoint_*/{CHECKPOINT_NAME}"),
-                       key=lambda path: int(path.parent.name.rsplit("_", 1)[-1]))
-    found = [path for path in found if path.is_file()]
-    return checkpoint_config(found[-1]) if found else None
+        found = latest_tune_checkpoint(Path(out if out is not None else "tb_logs") / config.name, "*")
+    return checkpoint_config(found) if found is not None else None
 
 
 def run(
@@ -129,12 +127,12 @@ def run(
         ResourceError: The trial does not fit the machine or cluster (``workers`` too high).
         TrialFailed: The Tune trial failed more than ``max_failures`` times.
     """
-    given = given_keys(config, preset=preset, overrides=overrides)
+    given = given_keys(config, preset=preset, overrides=overrides) if resume else None
     config = resolve_config(config, preset=preset, overrides=overrides)
     if workers is not None:
         config = config.replace(**{"ray.num_workers": workers})
         given = None if given is None else given | {"ray.num_workers"}
-    if resume and given is not None:
+    if given is not None:
         # A run resumes as it began: only the keys given now may differ from its checkpoint's (and are refused
         # there, but for time_budget), not a default that changed since.
         stored = _stored_config(config, local=local, out=out)

@@ -213,15 +213,14 @@ def search_on_disk(search_dir: Path, *, config: RunConfig | None = None) -> RunR
     Raises:
         CheckpointError: The search left no checkpoint, or (without ``config``) one that does not load.
     """
-    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, CheckpointError, checkpoint_config
+    from dsage_ray.core.checkpoint import CHECKPOINT_NAME, CheckpointError, checkpoint_config, latest_tune_checkpoint
 
     local = search_dir / CHECKPOINT_NAME
-    in_tune = sorted(search_dir.glob(f"*/*/checkpoint_*/{CHECKPOINT_NAME}"),
-                     key=lambda p: int(p.parent.name.rsplit("_", 1)[-1]))
+    in_tune = latest_tune_checkpoint(search_dir, "*/*")
     if local.is_file():
         run_dir, checkpoint = search_dir, local
-    elif in_tune:
-        run_dir, checkpoint = in_tune[-1].parent.parent, in_tune[-1]
+    elif in_tune is not None:
+        run_dir, checkpoint = in_tune.parent.parent, in_tune
     else:
         raise CheckpointError(f"{search_dir}: the search left no checkpoint ({CHECKPOINT_NAME}) to read the "
                               f"archive from")

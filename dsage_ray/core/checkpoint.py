@@ -124,6 +124,14 @@ def read_header(path: str | Path) -> dict[str, Any]:
     return header
 
 
+def latest_tune_checkpoint(folder: Path, trials: str) -> Path | None:
+    """The checkpoint file in the highest-numbered ``checkpoint_NNNNNN`` folder of the Tune trials ``trials`` (a
+    glob under ``folder``, e.g. ``"*"`` for an experiment's trials); None when there is none."""
+    found = sorted(folder.glob(f"{trials}/checkpoint_*/{CHECKPOINT_NAME}"),
+                   key=lambda path: int(path.parent.name.rsplit("_", 1)[-1]))
+    return found[-1] if found else None
+
+
 def checkpoint_config(path: str | Path) -> "RunConfig":
     """The config of the run that wrote the checkpoint at ``path``: from its header, or, for a checkpoint written
     before the header held it, from its state.
