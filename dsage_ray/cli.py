@@ -146,7 +146,9 @@ def _ablate(args: argparse.Namespace) -> int:
     from dsage_ray.core.tensorboard_log import tensorboard_hint
     from dsage_ray.runs import ablate
 
-    experiment = ablate(load_run_config(args, args.config), grid=args.grid, seeds=args.seeds,
+    # As for run: the file and the options, so that a resume compares only what they say.
+    experiment = ablate(args.config, preset=args.preset, overrides=config_overrides(args), grid=args.grid,
+                        seeds=args.seeds,
                         variants=args.variants.split(",") if args.variants else None, out=args.out,
                         workers=args.workers, address=args.address, resume=args.resume, api=args.api)
     print(f"experiment folder: {experiment.path}\nsummarise it with: python experiments/summarize.py "

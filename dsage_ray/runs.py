@@ -179,16 +179,22 @@ def ablate(
             names nothing else, else the config's variant).
         out: Storage folder; the experiment is ``out/<name>``.
         workers: Simulator actors per trial (``ray.num_workers``).
-        address, resume, max_failures: As in :func:`run`.
+        address, max_failures: As in :func:`run`.
+        resume: Continue the interrupted experiment in ``out``. Tune restores each trial with its own config:
+            a key given here (a config file's, ``preset``, ``overrides``, ``workers``) that differs from the
+            trials' is refused, a default that changed since is left as it was. A ``RunConfig`` counts as
+            given whole.
         api: Tune's entry point: ``"tuner"`` (``tune.Tuner``) or ``"run"`` (``tune.run``).
 
     Returns:
         The experiment folder and one :class:`~dsage_ray.results.RunResult` per trial.
     """
+    given = given_keys(config, preset=preset, overrides=overrides) if resume else None
     config = resolve_config(config, preset=preset, overrides=overrides)
     if workers is not None:
         config = config.replace(**{"ray.num_workers": workers})
+        given = None if given is None else given | {"ray.num_workers"}
     from dsage_ray.ray.launch import ablate as ablate_with_tune
 
     return ablate_with_tune(config, grid=grid, seeds=seeds, variants=variants, address=address, resume=resume,
-                            out_dir=Path(out), api=api, max_failures=max_failures)
+                            out_dir=Path(out), api=api, max_failures=max_failures, given=given)

@@ -140,3 +140,17 @@ def test_a_tune_resume_reads_the_config_of_its_trials_latest_checkpoint(tmp_path
     assert _stored_config(config, local=False, out=tmp_path).seed == 2
     assert _stored_config(config, local=True, out=tmp_path / "s1").seed == 1
     assert _stored_config(config, local=True, out=tmp_path / "none") is None
+
+
+def test_an_ablation_resume_compares_only_the_keys_given(monkeypatch):
+    import dsage_ray.ray.launch as launch
+    from dsage_ray.config import read_config_file
+
+    asked: list[dict] = []
+    monkeypatch.setattr(launch, "ablate", lambda config, **kwargs: asked.append(kwargs))
+    dsage_ray.ablate(CONFIG, preset="tiny", overrides={"budget": 60}, workers=1, resume=True)
+    assert asked[-1]["given"] == set(read_config_file(CONFIG)) | {"preset", "budget", "ray.num_workers"}
+    # A new experiment compares nothing; a built RunConfig counts as given whole.
+    dsage_ray.ablate(CONFIG, preset="tiny")
+    dsage_ray.ablate(dsage_ray.resolve_config(CONFIG, preset="tiny"), resume=True)
+    assert asked[-2]["given"] is None and asked[-1]["given"] is None

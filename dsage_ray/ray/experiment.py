@@ -19,7 +19,7 @@ import json
 import os
 import re
 from pathlib import Path
-from typing import Any, Iterator, Literal, Mapping, Sequence
+from typing import Any, Collection, Iterator, Literal, Mapping, Sequence
 
 import ray
 from ray import tune
@@ -231,6 +231,7 @@ def run_experiment(
     checkpoint_every: int = 1,
     domain_factory: DomainFactory = build_domain,
     verbose: int = 0,
+    given: Collection[str] | None = None,
 ) -> ExperimentResult:
     """Runs every trial of ``param_space`` to its evaluation budget.
 
@@ -249,6 +250,7 @@ def run_experiment(
         domain_factory: Builds the domain in the trial and in each simulator actor.
         verbose: Tune's own console verbosity (1 adds its status tables). A progress line per
             trial result is printed at every verbosity (:class:`~dsage_ray.ray.progress.ProgressLines`).
+        given: With ``resume``, the keys the user gave (:func:`refuse_changed_config`); None: every key.
 
     Returns:
         The experiment folder and, per trial, its folder and latest checkpoint as Tune reports them.
@@ -260,7 +262,7 @@ def run_experiment(
     storage_path = str(Path(storage_path).expanduser().resolve())
     experiment_path = Path(storage_path) / name
     if resume:
-        refuse_changed_config(experiment_path, param_space)
+        refuse_changed_config(experiment_path, param_space, given=given)
     trainable = tune.with_parameters(DSAGETrainable, domain_factory=domain_factory)
     # Tune checkpoints at the end too, so a finished trial's last state is always on disk.
     checkpoint_config = tune.CheckpointConfig(checkpoint_frequency=checkpoint_every, checkpoint_at_end=True,
@@ -309,7 +311,8 @@ def run_experiment(
         _run_result(result.config, result.path, result.checkpoint) for result in results))
 
 
-def refuse_changed_config(experiment_path: Path, param_space: Mapping[str, Any]) -> None:
+def refuse_changed_config(experiment_path: Path, param_space: Mapping[str, Any], *,
+                          given: Collection[str] | None = None) -> None:
     """Refuses a ``--resume`` whose config differs from the one the stored trials were started with.
 
     Tune restores each trial with its own config and never reopens a finished one, so a changed key (a
@@ -317,6 +320,13 @@ def refuse_changed_config(experiment_path: Path, param_space: Mapping[str, Any])
     rule too (a checkpoint only continues the config that wrote it), with the same one exception: a
     ``time_budget`` of 0 (none asked) keeps the trials' own. Grid axes are not compared (each trial holds one
     of their values).
+
+    Args:
+        experiment_path: The experiment folder (its ``*/params.json``).
+        param_space: The flat config asked for now.
+        given: The keys the user gave now (a config file's, ``--preset``, ``--set``, ``--workers``); only these
+            are compared, so a default that changed since the experiment began does not stop it (its trials
+            keep their own). None compares every key.
 
     Raises:
         InputError: Naming each differing key, the trials' values and the one asked for.
@@ -326,6 +336,8 @@ def refuse_changed_config(experiment_path: Path, param_space: Mapping[str, Any])
     for key, asked in param_space.items():
         if isinstance(asked, Mapping) or (key == "time_budget" and asked == 0):
             continue  # a grid axis (or another Tune search space), or no time budget asked
+        if given is not None and key not in given:
+            continue  # not the user's to change: the trials keep their own
         try:
             asked = json.loads(json.dumps(asked))  # tuples read back from params.json as lists
         except TypeError:

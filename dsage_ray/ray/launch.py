@@ -7,7 +7,7 @@ experiment; what they return is what Tune reports (:class:`~dsage_ray.results.Ru
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Sequence
+from typing import Collection, Sequence
 
 from dsage_ray.config import RunConfig
 from dsage_ray.preflight import preflight
@@ -61,6 +61,7 @@ def ablate(
     out_dir: str | Path = "tb_logs",
     api: TuneApi = "tuner",
     max_failures: int = 2,
+    given: Collection[str] | None = None,
 ) -> ExperimentResult:
     """Runs a grid of DSAGE runs as one Tune experiment.
 
@@ -75,6 +76,8 @@ def ablate(
             comparison when nothing else is gridded, else the config's variant.
         address, resume, out_dir, max_failures: As in :func:`run_with_tune`.
         api: ``"tuner"`` or ``"run"`` (``tune.run``).
+        given: With ``resume``, the keys the user gave; only these must match the stored trials'
+            (:func:`~dsage_ray.ray.experiment.refuse_changed_config`). None: every key.
     """
     axes = ablation_axes(config, grid, variants=variants, seeds=seeds)
     param_space = grid_param_space(config, axes)
@@ -86,4 +89,4 @@ def ablate(
     shape = " × ".join(f"{key} ({len(values)})" for key, values in axes.items())
     print(f"{config.name}: {shape} via {api}, storage {out_dir}", flush=True)
     return run_experiment(param_space, name=config.name, storage_path=out_dir, api=api, resume=resume,
-                          max_failures=max_failures, checkpoint_every=config.checkpoint_every)
+                          max_failures=max_failures, checkpoint_every=config.checkpoint_every, given=given)

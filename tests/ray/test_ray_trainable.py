@@ -157,3 +157,8 @@ def test_a_resume_asking_for_another_config_is_refused_before_tune_starts(tmp_pa
     # Nothing asked (time_budget 0) keeps the trials' own; the same config passes the check.
     refuse_changed_config(experiment, {**small_config(time_budget=0.0).to_flat(), **seeds})
     refuse_changed_config(experiment, {**small_config(time_budget=600.0).to_flat(), **seeds})
+    # Only the keys the user gave are compared: a default that changed since leaves the trials their own.
+    changed = {**small_config(time_budget=600.0, surrogate__epochs=3).to_flat(), **seeds}
+    refuse_changed_config(experiment, changed, given={"budget", "seed", "time_budget"})
+    with pytest.raises(InputError, match=r"surrogate.epochs = 2, not 3"):
+        refuse_changed_config(experiment, changed, given={"surrogate.epochs"})
