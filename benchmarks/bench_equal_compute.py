@@ -125,8 +125,10 @@ def evaluation_ends(history: list[dict], clock: str) -> np.ndarray:
     return np.cumsum([row["evaluate"] for row in phase_seconds(history, clock)])
 
 
-def qd_at_time(history: list[dict], seconds: float, clock: str, *, evaluation_only: bool = False) -> float:
-    """QD-score of the last outer iteration that ended by ``seconds`` on ``clock`` (0 before the first).
+def qd_at_time(history: list[dict], seconds: float, clock: str, *, evaluation_only: bool = False,
+               key: str = "qd_score") -> float:
+    """QD-score (or another metric, ``key``) of the last outer iteration that ended by ``seconds`` on ``clock``
+    (0 before the first).
 
     With ``evaluation_only`` the clock counts only the evaluations (:func:`evaluation_ends`): the run as
     it would be with a free surrogate.
@@ -135,7 +137,7 @@ def qd_at_time(history: list[dict], seconds: float, clock: str, *, evaluation_on
         ends = evaluation_ends(history, clock)
     else:
         ends = np.array([row[f"{clock}_time"] for row in history])
-    done = [row["qd_score"] for row, end in zip(history, ends) if end <= seconds]
+    done = [row.get(key, 0.0) for row, end in zip(history, ends) if end <= seconds]
     return float(done[-1]) if done else 0.0
 
 
@@ -380,8 +382,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{len(runs)} runs: " + ", ".join(f"{v} × {len(r)} (seeds {sorted(x['seed'] for x in r)})"
                                            for v, r in sorted(by_variant.items())))
     print(f"\n1-2. QD-score at {args.at_evals:,.0f} evaluations and at {at_time:,.0f} s of {args.clock} time")
-    print("| variant | runs | QD at equal evaluations | QD at equal time | evaluations done by then |")
-    print("|---|---|---|---|---|")
+    print("| variant | runs | QD at equal evaluations | QD at equal time | coverage then | evaluations done by then |")
+    print("|---|---|---|---|---|---|")
     at_evals, at_time_qd = {}, {}
     for variant, group in sorted(by_variant.items()):
         values = [qd_at_evals(run["history"], args.at_evals) for run in group]
@@ -390,9 +392,10 @@ def main(argv: list[str] | None = None) -> int:
         at_time_qd[variant] = [qd_at_time(run["history"], at_time, args.clock) for run in group]
         evals_then = [max([0.0] + [row["evals"] for row in run["history"] if row[f"{args.clock}_time"] <= at_time])
                       for run in group]
+        coverage = [100 * qd_at_time(run["history"], at_time, args.clock, key="coverage") for run in group]
         note = f" ({short} stopped short)" if short else ""
         print(f"| {variant} | {len(group)} | {mean_pm(at_evals[variant])}{note} | "
-              f"{mean_pm(at_time_qd[variant])} | {mean_pm(evals_then, ',.0f')} |")
+              f"{mean_pm(at_time_qd[variant])} | {mean_pm(coverage, '.2f')}% | {mean_pm(evals_then, ',.0f')} |")
     base_e, base_t = np.mean(at_evals[args.baseline]), np.mean(at_time_qd[args.baseline])
     for variant in sorted(by_variant):
         if variant != args.baseline:

@@ -169,3 +169,18 @@ def test_the_screen_share_comes_from_a_nested_or_a_flat_config(tmp_path):
         (folder / name).write_text(json.dumps(config))
         (folder / "metrics.json").write_text(json.dumps([{"evals": 1, "qd_score": 1.0, "time_total": 1.0}]))
         assert bench.load_run(folder)["screen_share"] == 2 / 50
+
+
+def test_the_coverage_at_equal_time_is_read_like_the_qd_score(tmp_path, capsys):
+    for loaded, coverages in ((SURROGATE, [0.01, 0.04]), (BASELINE, [0.002 * k for k in range(1, 11)])):
+        folder = tmp_path / loaded["variant"]
+        folder.mkdir()
+        (folder / "config.json").write_text(json.dumps({"variant": loaded["variant"], "seed": loaded["seed"]}))
+        history = [{**row, "coverage": c} for row, c in zip(loaded["history"], coverages)]
+        (folder / "metrics.json").write_text(json.dumps(history))
+    assert bench.main([str(tmp_path / "dsage"), str(tmp_path / "map_elites"), "--clock", "cpu", "--at-time",
+                       "450", "--at-evals", "400"]) == 0
+    out = capsys.readouterr().out
+    # By 450 s the surrogate run had ended only its first iteration; the baseline its 7th batch.
+    assert "| dsage | 1 | 300.0 | 50.0 | 1.00% | 100 |" in out
+    assert "| map_elites | 1 | 106.7 | 280.0 | 1.40% | 1,050 |" in out
