@@ -73,6 +73,18 @@ def given_keys(source: ConfigSource = None, *, preset: str | None = None,
     return given
 
 
+def _config_and_given_keys(source: ConfigSource, *, preset: str | None, overrides: Mapping[str, Any] | None,
+                           workers: int | None, resume: bool) -> tuple[RunConfig, set[str] | None]:
+    """The config of ``run``/``ablate`` (``workers`` sets ``ray.num_workers``) and, for a resume, the keys
+    given (:func:`given_keys`, with ``ray.num_workers`` when ``workers`` is set); None when not resuming."""
+    given = given_keys(source, preset=preset, overrides=overrides) if resume else None
+    config = resolve_config(source, preset=preset, overrides=overrides)
+    if workers is not None:
+        config = config.replace(**{"ray.num_workers": workers})
+        given = None if given is None else given | {"ray.num_workers"}
+    return config, given
+
+
 def _stored_config(config: RunConfig, *, local: bool, out: str | os.PathLike[str] | None) -> RunConfig | None:
     """The config of the run a resume of ``config`` continues: its local checkpoint's, or the latest checkpoint's
     of its Tune trial; None when there is none (the resume then fails as it would have)."""
@@ -127,11 +139,8 @@ def run(
         ResourceError: The trial does not fit the machine or cluster (``workers`` too high).
         TrialFailed: The Tune trial failed more than ``max_failures`` times.
     """
-    given = given_keys(config, preset=preset, overrides=overrides) if resume else None
-    config = resolve_config(config, preset=preset, overrides=overrides)
-    if workers is not None:
-        config = config.replace(**{"ray.num_workers": workers})
-        given = None if given is None else given | {"ray.num_workers"}
+    config, given = _config_and_given_keys(config, preset=preset, overrides=overrides, workers=workers,
+                                           resume=resume)
     if given is not None:
         # A run resumes as it began: only the keys given now may differ from its checkpoint's (and are refused
         # there, but for time_budget), not a default that changed since.
@@ -189,11 +198,8 @@ def ablate(
     Returns:
         The experiment folder and one :class:`~dsage_ray.results.RunResult` per trial.
     """
-    given = given_keys(config, preset=preset, overrides=overrides) if resume else None
-    config = resolve_config(config, preset=preset, overrides=overrides)
-    if workers is not None:
-        config = config.replace(**{"ray.num_workers": workers})
-        given = None if given is None else given | {"ray.num_workers"}
+    config, given = _config_and_given_keys(config, preset=preset, overrides=overrides, workers=workers,
+                                           resume=resume)
     from dsage_ray.ray.launch import ablate as ablate_with_tune
 
     return ablate_with_tune(config, grid=grid, seeds=seeds, variants=variants, address=address, resume=resume,
