@@ -42,7 +42,10 @@ Benchmark-only keys of a setting (other keys are the run config's; ``surrogate.`
   (``occupancy_sum_measure=``), or:
 * ``bench.sum_residual=true`` keeps the occupancy-sum path length and adds its head's output to it;
 * ``bench.random_walk=true`` wraps the network with ``dsage_ray.surrogate.models.RandomWalkFields`` (the random
-  walker's log expected visits per cell as one more input channel; after the distance fields when both are on).
+  walker's log expected visits per cell as one more input channel; after the distance fields when both are on);
+* ``bench.rotations=true`` trains on every level and its three rotations by 90° (the walls, start, goal and
+  occupancy turned together, the measures kept): the agent's own symmetry, if ``bench_symmetry.py`` finds it
+  respects them. ``bench.rotations=tta`` also predicts each level as the mean over its four rotations.
 """
 
 from __future__ import annotations
@@ -62,7 +65,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from maze_dataset import PATH_LENGTH, MazeData, MazeDatasetError  # noqa: E402
 
 #: Benchmark-only setting keys (not run config keys).
-BENCH_KEYS = ("bench.distance_fields", "bench.level_statistics", "bench.sum_residual", "bench.random_walk")
+BENCH_KEYS = ("bench.distance_fields", "bench.level_statistics", "bench.sum_residual", "bench.random_walk",
+              "bench.rotations")
+#: Quarter turns a level is trained on with ``bench.rotations``.
+QUARTER_TURNS = (0, 1, 2, 3)
 
 
 # ------------------------------------------------------------------------------------------- features
@@ -161,6 +167,7 @@ class Setting:
     level_statistics: bool = False
     sum_residual: bool = False
     random_walk: bool = False
+    rotations: str = ""  # "", "train" or "tta"
 
     @classmethod
     def parse(cls, text: str, *, epochs: int | None, extra: dict) -> "Setting":
@@ -181,7 +188,8 @@ class Setting:
         return cls(name=name, config=config, distance_fields=bool(bench.get("bench.distance_fields", False)),
                    level_statistics=bool(bench.get("bench.level_statistics", False)),
                    sum_residual=bool(bench.get("bench.sum_residual", False)),
-                   random_walk=bool(bench.get("bench.random_walk", False)))
+                   random_walk=bool(bench.get("bench.random_walk", False)),
+                   rotations=_rotations(bench.get("bench.rotations", False), text))
 
     def describe(self) -> str:
         s = self.config.surrogate
@@ -197,9 +205,22 @@ class Setting:
             parts.append("occupancy sum + its head's output")
         if self.random_walk:
             parts.append("random-walk visits")
+        if self.rotations:
+            parts.append("trained on 4 rotations" + (", predicted as their mean" if self.rotations == "tta" else ""))
         if s.prior_measure:
             parts.append(f"{s.prior_measure} blended with the random walker's hitting time")
         return ", ".join(parts)
+
+
+def _rotations(value, text: str) -> str:
+    """``bench.rotations``: false, true (train on the 4 rotations) or ``tta`` (and predict their mean)."""
+    if value in (False, "false", ""):
+        return ""
+    if value in (True, "true", "train"):
+        return "train"
+    if value == "tta":
+        return "tta"
+    raise SystemExit(f"--setting {text!r}: bench.rotations is true, false or tta, not {value!r}")
 
 
 class Model:
@@ -220,11 +241,15 @@ class Model:
             kind, sum_measure = "one_stage", ""  # announced once by the caller
         if sum_measure and sum_measure not in data.measure_names:
             sum_measure = ""
+        copies = len(QUARTER_TURNS) if setting.rotations else 1
         config = dataclasses.replace(surrogate_config, device="cpu", precision="fp32",
-                                     train_window=max(surrogate_config.train_window, train_size),
+                                     train_window=max(surrogate_config.train_window, copies * train_size),
                                      occupancy_sum_measure=sum_measure)
         sample = self.encode(data.walls[:1])
         channels = sample.shape[1]
+        if setting.rotations and not (height == width and sample.shape[2:] == (height, width)):
+            raise SystemExit(f"bench.rotations needs square levels that the encoding does not pad; these are "
+                             f"{height}x{width}, encoded as {sample.shape[2]}x{sample.shape[3]}")
         ranges = [(float(lo), float(hi)) for lo, hi in zip(data.measures.min(axis=0), data.measures.max(axis=0) + 1)]
         fields = DistanceFields(free_channels=(EMPTY, START, GOAL), start_channel=START, goal_channel=GOAL,
                                 norm=height * width / 2)
@@ -265,14 +290,20 @@ class Model:
         height, width = data.shape
         occupancy = data.occupancy if data.occupancy is not None else np.zeros((len(data), height, width), np.float32)
         dataset = self.surrogate.make_dataset()
-        dataset.append(encoded=encoded[rows], results=[
-            EvaluationResult(objective=1.0, measures=data.measures[i].astype(np.float64), occupancy=occupancy[i])
-            for i in rows])
+        for turns in QUARTER_TURNS if self.setting.rotations else (0,):
+            # A square level's encoding is unpadded (16 x 16), so turning it turns walls, start and goal together.
+            dataset.append(encoded=np.rot90(encoded[rows], turns, axes=(2, 3)).copy(), results=[
+                EvaluationResult(objective=1.0, measures=data.measures[i].astype(np.float64),
+                                 occupancy=np.rot90(occupancy[i], turns).copy())
+                for i in rows])
         start = time.perf_counter()
         self.surrogate.train(dataset)
         return time.perf_counter() - start
 
     def predict(self, encoded: np.ndarray, column: int) -> np.ndarray:
+        if self.setting.rotations == "tta":
+            return np.mean([self.surrogate.predict(np.rot90(encoded, turns, axes=(2, 3)).copy()).measures[:, column]
+                            for turns in QUARTER_TURNS], axis=0)
         return self.surrogate.predict(encoded).measures[:, column]
 
 

@@ -292,3 +292,27 @@ def test_a_run_without_the_path_length_is_refused_naming_the_run_before_any_rete
     with pytest.raises(SystemExit, match=r"audit_like: its measures \['num_walls', 'optimal_path_length'\]"):
         maze_dataset.main(["from-run", str(run), "--out", str(tmp_path / "out.npz"), "--retest", "5"])
     assert not (tmp_path / "out.npz").exists()
+
+
+def test_a_rotations_setting_trains_on_each_level_turned_with_its_occupancy(tmp_path, monkeypatch):
+    import bench_surrogate_ceiling as bench
+
+    data = synthetic(24)
+    setting = bench.Setting.parse("rot:bench.rotations=true", epochs=1, extra={})
+    model = bench.Model(setting, data, train_size=8, seed=0)
+    seen = []
+    monkeypatch.setattr(model.surrogate, "train", lambda dataset: seen.append(dataset))
+    encoded = model.encode(data.walls)
+    model.train(np.arange(8), encoded)
+    stored = seen[0]
+    assert len(stored) == 4 * 8
+    np.testing.assert_array_equal(stored.levels(slice(8, 16)), np.rot90(encoded[:8], 1, axes=(2, 3)))
+    np.testing.assert_array_equal(stored.occupancy[24:], np.rot90(data.occupancy[:8], 3, axes=(1, 2)))
+    np.testing.assert_array_equal(stored.measures[16:24], data.measures[:8])
+    assert bench.Setting.parse("t:bench.rotations=tta", epochs=1, extra={}).rotations == "tta"
+    with pytest.raises(SystemExit, match="bench.rotations is true, false or tta"):
+        bench.Setting.parse("x:bench.rotations=twice", epochs=1, extra={})
+    result = bench.main(["--data", str(maze_dataset.save(data, tmp_path / "d.npz")), "--sizes", "8", "--test", "12",
+                         "--splits", "1", "--inits", "1", "--epochs", "1", "--batch", "8", "--no-future",
+                         "--setting", "tta:bench.rotations=tta"])
+    assert -1.0 <= result["rho"]["tta"][8][0] <= 1.0
