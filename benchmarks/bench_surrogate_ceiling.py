@@ -44,8 +44,10 @@ Benchmark-only keys of a setting (other keys are the run config's; ``surrogate.`
 * ``bench.random_walk=true`` wraps the network with ``dsage_ray.surrogate.models.RandomWalkFields`` (the random
   walker's log expected visits per cell as one more input channel; after the distance fields when both are on);
 * ``bench.rotations=true`` trains on every level and its three rotations by 90° (the walls, start, goal and
-  occupancy turned together, the measures kept): the agent's own symmetry, if ``bench_symmetry.py`` finds it
-  respects them. ``bench.rotations=tta`` also predicts each level as the mean over its four rotations.
+  occupancy turned together, the measures kept). Sound only for an agent that ``bench_symmetry.py`` finds
+  invariant under them; ACCEL is not (it reads its absolute heading), and for it the turned copies did not help
+  (``docs/results/surrogate_accuracy``). ``bench.rotations=tta`` also predicts each level as the mean over its
+  four rotations.
 """
 
 from __future__ import annotations
