@@ -25,6 +25,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from bench_surrogate_ceiling import spearman  # noqa: E402
 from maze_dataset import load  # noqa: E402
 
 #: The square's symmetries, as functions of an ``(H, W)`` array (H = W): the identity first.
@@ -46,12 +47,6 @@ def moved_cell(transform: Callable[[np.ndarray], np.ndarray], shape: tuple[int, 
     index = np.arange(shape[0] * shape[1]).reshape(shape)
     row, col = np.argwhere(transform(index) == index[cell])[0]
     return int(row), int(col)
-
-
-def spearman(a: np.ndarray, b: np.ndarray) -> float:
-    from scipy.stats import spearmanr
-
-    return float(spearmanr(a, b).statistic)
 
 
 def main(argv: list[str] | None = None) -> int:
