@@ -68,7 +68,7 @@ from maze_dataset import PATH_LENGTH, MazeData, MazeDatasetError  # noqa: E402
 
 #: Benchmark-only setting keys (not run config keys).
 BENCH_KEYS = ("bench.distance_fields", "bench.level_statistics", "bench.sum_residual", "bench.random_walk",
-              "bench.rotations")
+              "bench.rotations", "bench.chain")
 #: Quarter turns a level is trained on with ``bench.rotations``.
 QUARTER_TURNS = (0, 1, 2, 3)
 
@@ -170,6 +170,7 @@ class Setting:
     sum_residual: bool = False
     random_walk: bool = False
     rotations: str = ""  # "", "train" or "tta"
+    chain: int = 0  # memory modes of a PolicyChain instead of the network; 0: the network
 
     @classmethod
     def parse(cls, text: str, *, epochs: int | None, extra: dict) -> "Setting":
@@ -191,10 +192,14 @@ class Setting:
                    level_statistics=bool(bench.get("bench.level_statistics", False)),
                    sum_residual=bool(bench.get("bench.sum_residual", False)),
                    random_walk=bool(bench.get("bench.random_walk", False)),
-                   rotations=_rotations(bench.get("bench.rotations", False), text))
+                   rotations=_rotations(bench.get("bench.rotations", False), text),
+                   chain=_chain_modes(bench.get("bench.chain", 0), text))
 
     def describe(self) -> str:
         s = self.config.surrogate
+        if self.chain:
+            return (f"policy chain (dsage_ray.domains.maze.chain), {self.chain} memory mode(s), {s.epochs} epochs, "
+                    f"batch {s.batch_size}, lr {s.lr:g}; predicts {PATH_LENGTH} only")
         parts = [s.kind, f"{s.epochs} epochs", f"batch {s.batch_size}", f"channels {s.channels}",
                  f"dilations {list(s.dilations)}", f"path channels {self.config.maze.path_channels}"]
         if s.occupancy_sum_measure:
@@ -223,6 +228,64 @@ def _rotations(value, text: str) -> str:
     if value == "tta":
         return "tta"
     raise SystemExit(f"--setting {text!r}: bench.rotations is true, false or tta, not {value!r}")
+
+
+def _chain_modes(value, text: str) -> int:
+    """``bench.chain``: the policy chain's memory modes (0 or false: the network)."""
+    if value in (False, "false", "", 0):
+        return 0
+    if isinstance(value, int) and not isinstance(value, bool) and value >= 1:
+        return value
+    raise SystemExit(f"--setting {text!r}: bench.chain is a number of memory modes >= 1 (or 0), not {value!r}")
+
+
+class ChainModel:
+    """The policy chain of one setting for one dataset, with :class:`Model`'s interface (path length only)."""
+
+    def __init__(self, setting: Setting, data: MazeData, *, train_size: int, seed: int) -> None:
+        import torch
+
+        from dsage_ray.domains.maze.chain import PolicyChain
+        from dsage_ray.domains.maze.level import max_steps_for
+
+        if data.occupancy is None:
+            raise SystemExit(f"setting {setting.name}: bench.chain trains on the agent's occupancy, which this data "
+                             "does not hold")
+        self.setting, self.data, self.seed = setting, data, seed
+        torch.manual_seed(seed)
+        self.chain = PolicyChain(max_steps=max_steps_for(*data.shape), modes=setting.chain)
+
+    def encode(self, walls: np.ndarray) -> np.ndarray:
+        return np.asarray(walls, dtype=bool)  # the chain builds its inputs per batch: they are large
+
+    def train(self, rows: np.ndarray, encoded: np.ndarray) -> float:
+        from dsage_ray.domains.maze.chain import train_chain
+
+        s = self.setting.config.surrogate
+        start = time.perf_counter()
+        train_chain(self.chain, encoded[rows], self.data.occupancy[rows],
+                    self.data.measures[rows, self.data.measure(PATH_LENGTH)], epochs=s.epochs,
+                    batch_size=s.batch_size, lr=s.lr, seed=self.seed)
+        return time.perf_counter() - start
+
+    def predict(self, encoded: np.ndarray, column: int) -> np.ndarray:
+        from dsage_ray.domains.maze.chain import predict_path_length
+
+        return predict_path_length(self.chain, encoded)
+
+    def predict_batch(self, encoded: np.ndarray) -> np.ndarray:
+        return self.predict(encoded, 0)
+
+    def flops(self, sample: np.ndarray) -> float:
+        from dsage_ray.domains.maze.chain import flops_per_level
+
+        return flops_per_level(self.chain, *self.data.shape)
+
+
+def make_model(setting: Setting, data: MazeData, *, train_size: int, seed: int):
+    """The setting's predictor: the policy chain with ``bench.chain``, else the surrogate network."""
+    kind = ChainModel if setting.chain else Model
+    return kind(setting, data, train_size=train_size, seed=seed)
 
 
 class Model:
@@ -307,6 +370,12 @@ class Model:
             return np.mean([self.surrogate.predict(np.rot90(encoded, turns, axes=(2, 3)).copy()).measures[:, column]
                             for turns in QUARTER_TURNS], axis=0)
         return self.surrogate.predict(encoded).measures[:, column]
+
+    def predict_batch(self, encoded: np.ndarray) -> np.ndarray:
+        return self.surrogate.predict(encoded).measures
+
+    def flops(self, sample: np.ndarray) -> float:
+        return flops_per_prediction(self, sample)
 
 
 # ------------------------------------------------------------------------------------------- scoring
@@ -422,8 +491,8 @@ def main(argv: list[str] | None = None) -> dict:
     optimal = features[:, FEATURE_NAMES.index("optimal_path")]
     walker = hitting_times(data.walls)
     held_features = bfs_features(held.walls) if held is not None else None
-    encoded = {s.name: Model(s, data, train_size=1, seed=0).encode(data.walls) for s in settings}
-    held_encoded = ({s.name: Model(s, data, train_size=1, seed=0).encode(held.walls) for s in settings}
+    encoded = {s.name: make_model(s, data, train_size=1, seed=0).encode(data.walls) for s in settings}
+    held_encoded = ({s.name: make_model(s, data, train_size=1, seed=0).encode(held.walls) for s in settings}
                     if held is not None else {})
     held_values = held.measures[:, held.measure(PATH_LENGTH)] if held is not None else None
 
@@ -431,14 +500,15 @@ def main(argv: list[str] | None = None) -> dict:
     batch_walls = data.walls[np.arange(args.batch) % len(data)]
     cost: dict[str, tuple[float, float, float]] = {}
     for setting in settings:
-        model = Model(setting, data, train_size=1, seed=0)
+        model = make_model(setting, data, train_size=1, seed=0)
         # Trained once on a few levels, so that what a trained surrogate adds to a prediction (a prior's
         # blend) is timed too.
         model.train(np.arange(min(len(data), 32)), encoded[setting.name])
         sample = model.encode(batch_walls)
-        flops = flops_per_prediction(model, sample)
-        model_rate = throughput(lambda: model.surrogate.predict(sample), args.batch)
-        full_rate = throughput(lambda: model.surrogate.predict(model.encode(batch_walls)), args.batch)
+        flops = model.flops(sample)
+        repeats = 2 if setting.chain else 5
+        model_rate = throughput(lambda: model.predict_batch(sample), args.batch, repeats=repeats)
+        full_rate = throughput(lambda: model.predict_batch(model.encode(batch_walls)), args.batch, repeats=repeats)
         cost[setting.name] = (flops, model_rate, full_rate)
 
     # rho[name][n] = per-split means; the baselines keyed alike.
@@ -450,6 +520,8 @@ def main(argv: list[str] | None = None) -> dict:
     ensemble_rho: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
     with_gbm_rho: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
     with_walker_rho: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
+    pair_rho: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings[1:]}
+    primary = settings[0].name
     gbm_rho: dict[int, list[float]] = {n: [] for n in sizes}
     gbm_held: dict[int, list[float]] = {n: [] for n in sizes}
     optimal_rho: list[float] = []
@@ -474,10 +546,11 @@ def main(argv: list[str] | None = None) -> dict:
                 gbm_held[n].append(spearman(gbm.predict(held_features), held_values))
             if not gbm_rate:
                 gbm_rate = throughput(lambda: gbm.predict(bfs_features(batch_walls)), args.batch, repeats=3)
+            split_ensembles: dict[str, np.ndarray] = {}
             for setting in settings:
                 per_init, per_init_mae, per_init_held, seconds, predictions = [], [], [], [], []
                 for init in range(args.inits):
-                    model = Model(setting, data, train_size=n, seed=1000 * split + init)
+                    model = make_model(setting, data, train_size=n, seed=1000 * split + init)
                     seconds.append(model.train(train, encoded[setting.name]))
                     predicted = model.predict(encoded[setting.name][test], column)
                     predictions.append(predicted)
@@ -499,6 +572,12 @@ def main(argv: list[str] | None = None) -> dict:
                       f"(inits {', '.join(f'{r:.3f}' for r in per_init)}), MAE {np.mean(per_init_mae):.1f}, "
                       f"train {np.mean(seconds):.1f} s | optimal path ρ {optimal_rho[-1]:.3f} | "
                       f"random walk ρ {walker_rho[-1]:.3f} | GBM ρ {gbm_rho[n][-1]:.3f}", flush=True)
+                split_ensembles[setting.name] = ensemble
+            # The first setting's predictions rank-averaged with each other setting's (two model families).
+            for setting in settings[1:]:
+                pair_rho[setting.name][n].append(spearman(
+                    stats.rankdata(split_ensembles[primary]) + stats.rankdata(split_ensembles[setting.name]),
+                    values[test]))
 
     # The search's own next levels: the last --test levels in evaluation order, trained on the N before them.
     future: dict[str, dict[int, list[float]]] = {s.name: {} for s in settings}
@@ -515,7 +594,7 @@ def main(argv: list[str] | None = None) -> dict:
             for setting in settings:
                 per_init = []
                 for init in range(args.inits):
-                    model = Model(setting, data, train_size=n, seed=7919 + init)
+                    model = make_model(setting, data, train_size=n, seed=7919 + init)
                     model.train(train, encoded[setting.name])
                     per_init.append(spearman(model.predict(encoded[setting.name][test], column), values[test]))
                 future[setting.name][n] = per_init
@@ -556,6 +635,11 @@ def main(argv: list[str] | None = None) -> dict:
                     r = combined[setting.name][n]
                     rows.append([f"{setting.name}, {label}", str(n), summary(r), summary(np.subtract(r, optimal_rho)),
                                  summary(np.subtract(r, gbm_rho[n])), "", ""] + ([""] if held is not None else []))
+    for setting in settings[1:]:
+        for n in sizes:
+            r = pair_rho[setting.name][n]
+            rows.append([f"{primary} + {setting.name} ranks", str(n), summary(r), summary(np.subtract(r, optimal_rho)),
+                         summary(np.subtract(r, gbm_rho[n])), "", ""] + ([""] if held is not None else []))
     for n in sizes:
         row = ["GBM", str(n), summary(gbm_rho[n]), summary(np.subtract(gbm_rho[n], optimal_rho)), "", "", ""]
         if held is not None:
@@ -570,11 +654,10 @@ def main(argv: list[str] | None = None) -> dict:
     for row in [header, *rows]:
         print("  " + " | ".join(cell.ljust(width) for cell, width in zip(row, widths)))
 
-    primary = settings[0].name
     for n in sizes:
         print(f"N={n}: surrogate ρ {summary(rho[primary][n])} | optimal path ρ {summary(optimal_rho)} | "
               f"GBM ρ {summary(gbm_rho[n])}")
-    return {"rho": rho, "optimal": optimal_rho, "gbm": gbm_rho, "cost": cost, "future": future,
+    return {"rho": rho, "optimal": optimal_rho, "gbm": gbm_rho, "cost": cost, "future": future, "pairs": pair_rho,
             "ensemble": ensemble_rho, "with_gbm": with_gbm_rho, "walker": walker_rho, "with_walker": with_walker_rho}
 
 

@@ -316,3 +316,38 @@ def test_a_rotations_setting_trains_on_each_level_turned_with_its_occupancy(tmp_
                          "--splits", "1", "--inits", "1", "--epochs", "1", "--batch", "8", "--no-future",
                          "--setting", "tta:bench.rotations=tta"])
     assert -1.0 <= result["rho"]["tta"][8][0] <= 1.0
+
+
+def test_a_policy_chain_setting_is_scored_and_blended_with_the_first_setting(tmp_path, capsys):
+    import bench_surrogate_ceiling
+
+    path = maze_dataset.save(synthetic(30, seed=3), tmp_path / "d.npz")
+    result = bench_surrogate_ceiling.main(["--data", str(path), "--sizes", "8", "--test", "20", "--splits", "2",
+                                           "--inits", "1", "--epochs", "1", "--batch", "4", "--no-future",
+                                           "--setting", "net:channels=8", "--setting", "chain:bench.chain=2"])
+    out = capsys.readouterr().out
+    assert "setting chain: policy chain (dsage_ray.domains.maze.chain), 2 memory mode(s)" in out
+    assert "net + chain ranks" in out
+    assert len(result["rho"]["chain"][8]) == 2 and all(-1.0 <= r <= 1.0 for r in result["rho"]["chain"][8])
+    assert len(result["pairs"]["chain"][8]) == 2
+    flops, _, full_rate = result["cost"]["chain"]
+    assert flops > result["cost"]["net"][0] and full_rate > 0
+
+
+@pytest.mark.parametrize("value", ["-1", "yes", "1.5"])
+def test_a_bad_chain_setting_is_refused_by_name(value):
+    import bench_surrogate_ceiling
+
+    with pytest.raises(SystemExit, match="bench.chain is a number of memory modes"):
+        bench_surrogate_ceiling.Setting.parse(f"c:bench.chain={value}", epochs=1, extra={})
+
+
+def test_a_chain_needs_the_agents_occupancy(tmp_path):
+    import bench_surrogate_ceiling
+
+    data = synthetic(30)
+    data.occupancy = None
+    path = maze_dataset.save(data, tmp_path / "d.npz")
+    with pytest.raises(SystemExit, match="bench.chain trains on the agent's occupancy"):
+        bench_surrogate_ceiling.main(["--data", str(path), "--sizes", "8", "--test", "20", "--splits", "1",
+                                      "--inits", "1", "--epochs", "1", "--no-future", "--setting", "c:bench.chain=1"])
