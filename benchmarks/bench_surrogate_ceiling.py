@@ -48,6 +48,14 @@ Benchmark-only keys of a setting (other keys are the run config's; ``surrogate.`
   invariant under them; ACCEL is not (it reads its absolute heading), and for it the turned copies did not help
   (``docs/results/surrogate_accuracy``). ``bench.rotations=tta`` also predicts each level as the mean over its
   four rotations.
+* ``bench.chain=MODES`` replaces the network with ``dsage_ray.domains.maze.chain.PolicyChain``: a learned
+  stochastic controller with ``MODES`` memory modes that reads the agent's egocentric view, whose expected
+  occupancy is propagated exactly over the step limit. It trains on the agent's occupancy and path length with
+  the setting's ``epochs``, ``batch_size`` and ``lr`` (``lr=0.003`` in ``docs/results/surrogate_accuracy``), and
+  predicts the path length only. It costs about 200 times the network's training and 100 times its prediction.
+
+With more than one setting, the first setting's predictions are also rank-averaged with each other's
+(``<first> + <other> ranks``): two model families combined.
 """
 
 from __future__ import annotations
