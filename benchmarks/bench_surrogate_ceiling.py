@@ -52,7 +52,8 @@ Benchmark-only keys of a setting (other keys are the run config's; ``surrogate.`
   stochastic controller with ``MODES`` memory modes that reads the agent's egocentric view, whose expected
   occupancy is propagated exactly over the step limit. It trains on the agent's occupancy and path length with
   the setting's ``epochs``, ``batch_size`` and ``lr`` (``lr=0.003`` in ``docs/results/surrogate_accuracy``), and
-  predicts the path length only. It costs about 200 times the network's training and 100 times its prediction.
+  predicts the path length only. With 2 modes it costs about 200 times the network's training time and 100
+  times its prediction time; with 4, about 500 times both (the propagation's work grows as modes²).
 
 With more than one setting, the first setting's predictions are also rank-averaged with each other's
 (``<first> + <other> ranks``): two model families combined.
