@@ -278,12 +278,14 @@ class ChainModel:
         return time.perf_counter() - start
 
     def predict(self, encoded: np.ndarray, column: int) -> np.ndarray:
+        if column != self.data.measure(PATH_LENGTH):
+            raise ValueError(f"the policy chain predicts {PATH_LENGTH} only, not {self.data.measure_names[column]}")
+        return self.predict_batch(encoded)
+
+    def predict_batch(self, encoded: np.ndarray) -> np.ndarray:
         from dsage_ray.domains.maze.chain import predict_path_length
 
         return predict_path_length(self.chain, encoded)
-
-    def predict_batch(self, encoded: np.ndarray) -> np.ndarray:
-        return self.predict(encoded, 0)
 
     def flops(self, sample: np.ndarray) -> float:
         from dsage_ray.domains.maze.chain import flops_per_level

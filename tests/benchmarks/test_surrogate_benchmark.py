@@ -351,3 +351,15 @@ def test_a_chain_needs_the_agents_occupancy(tmp_path):
     with pytest.raises(SystemExit, match="bench.chain trains on the agent's occupancy"):
         bench_surrogate_ceiling.main(["--data", str(path), "--sizes", "8", "--test", "20", "--splits", "1",
                                       "--inits", "1", "--epochs", "1", "--no-future", "--setting", "c:bench.chain=1"])
+
+
+def test_a_chain_refuses_to_predict_a_measure_other_than_the_path_length():
+    import bench_surrogate_ceiling
+
+    data = synthetic(8)
+    setting = bench_surrogate_ceiling.Setting.parse("c:bench.chain=1", epochs=1, extra={})
+    model = bench_surrogate_ceiling.make_model(setting, data, train_size=4, seed=0)
+    walls = model.encode(data.walls[:2])
+    assert model.predict(walls, data.measure("mean_path_length")).shape == (2,)
+    with pytest.raises(ValueError, match="predicts mean_path_length only, not num_walls"):
+        model.predict(walls, data.measure("num_walls"))
