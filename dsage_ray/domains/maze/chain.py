@@ -125,6 +125,9 @@ class PolicyChain(nn.Module):
     def action_probabilities(self, inputs: ChainInputs) -> torch.Tensor:
         """``(n, modes, actions, next modes, 4, H, W)``: the controller's joint distribution per state."""
         n, _, height, width, features = inputs.views.shape
+        if features != self.view_features:
+            raise ValueError(f"the inputs' views hold {features} features per state, this chain reads "
+                             f"{self.view_features}: build both with the same view_size")
         k = self.modes
         heading = torch.eye(4).view(1, 1, 4, 1, 1, 4).expand(n, k, 4, height, width, 4)
         mode = torch.eye(k).view(1, k, 1, 1, 1, k).expand(n, k, 4, height, width, k)

@@ -118,4 +118,6 @@ def test_bad_inputs_are_named():
         chain_inputs(WALLS)
     with pytest.raises(ValueError, match="same levels"):
         train_chain(PolicyChain(max_steps=5), WALLS[None], np.zeros((2, 4, 5)), np.zeros(1), epochs=1)
+    with pytest.raises(ValueError, match="same view_size"):
+        PolicyChain(max_steps=5, view_size=3)(chain_inputs(WALLS[None], view_size=5))
     assert len(ACTIONS) == 4 and flops_per_level(PolicyChain(max_steps=10), 4, 5) > 0
