@@ -26,10 +26,7 @@ import torch
 from torch import nn
 
 from dsage_ray.domains.maze.paths import furthest_pairs
-from dsage_ray.domains.maze.simulator import DIR_TO_VEC, _view_cells
-
-#: Cell kinds in a view: one-hot over these three.
-_EMPTY, _WALL, _GOAL = 0, 1, 2
+from dsage_ray.domains.maze.simulator import DIR_TO_VEC, EMPTY, GOAL, WALL, view_kinds
 #: The controller's actions: MiniGrid's left, right, forward, and the four that do nothing in a maze
 #: (pickup, drop, toggle, done), as one.
 ACTIONS = ("left", "right", "forward", "stay")
@@ -51,12 +48,6 @@ class ChainInputs:
     blocked: torch.Tensor
     moves: torch.Tensor
     start: torch.Tensor
-
-    def __len__(self) -> int:
-        return len(self.start)
-
-    def __getitem__(self, index) -> "ChainInputs":
-        return ChainInputs(*(getattr(self, field.name)[index] for field in dataclasses.fields(self)))
 
 
 def chain_inputs(walls: np.ndarray, *, pairs: np.ndarray | None = None, view_size: int = 5) -> ChainInputs:
@@ -80,21 +71,18 @@ def chain_inputs(walls: np.ndarray, *, pairs: np.ndarray | None = None, view_siz
     rows = np.arange(n)[has_pair]
     goal_y, goal_x = np.divmod(pairs[has_pair, 1], width)
     start_y, start_x = np.divmod(pairs[has_pair, 0], width)
-    kinds = np.full((n, height + 2, width + 2), _WALL, dtype=np.int64)  # padded, [y, x]
-    kinds[:, 1:-1, 1:-1] = np.where(walls, _WALL, _EMPTY)
-    kinds[rows, goal_y + 1, goal_x + 1] = _GOAL
-    # The simulator's view index reads a flat [x, y] grid with one wall past its end for cells outside it.
-    flat = np.concatenate([kinds.transpose(0, 2, 1).reshape(n, -1), np.full((n, 1), _WALL)], axis=1)
-    view = flat[:, _view_cells(width + 2, height + 2, view_size)]  # (n, (W+2)(H+2)·4, s, s)
-    view[..., view_size // 2, view_size - 1] = _EMPTY
+    kinds = np.full((n, height + 2, width + 2), WALL, dtype=np.int8)  # padded, [y, x]
+    kinds[:, 1:-1, 1:-1] = np.where(walls, WALL, EMPTY)
+    kinds[rows, goal_y + 1, goal_x + 1] = GOAL
+    view = view_kinds(kinds.transpose(0, 2, 1), agent_view_size=view_size)  # the simulator's [x, y] cell_kinds
     view = view.reshape(n, width + 2, height + 2, 4, view_size * view_size)[:, 1:-1, 1:-1]
     view = view.transpose(0, 3, 2, 1, 4)  # (n, 4, H, W, s·s)
     onehot = np.eye(3, dtype=np.float32)[view].reshape(n, 4, height, width, 3 * view_size * view_size)
     ahead = np.stack([kinds[:, 1 + dy:height + 1 + dy, 1 + dx:width + 1 + dx] for dx, dy in DIR_TO_VEC], axis=1)
     start = np.zeros((n, height, width), dtype=np.float32)
     start[rows, start_y, start_x] = 1.0
-    return ChainInputs(views=torch.from_numpy(onehot), blocked=torch.from_numpy((ahead == _WALL).astype(np.float32)),
-                       moves=torch.from_numpy((ahead == _EMPTY).astype(np.float32)), start=torch.from_numpy(start))
+    return ChainInputs(views=torch.from_numpy(onehot), blocked=torch.from_numpy((ahead == WALL).astype(np.float32)),
+                       moves=torch.from_numpy((ahead == EMPTY).astype(np.float32)), start=torch.from_numpy(start))
 
 
 class PolicyChain(nn.Module):

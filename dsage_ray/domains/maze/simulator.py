@@ -118,15 +118,32 @@ def view_tables(kinds: np.ndarray, *, see_through_walls: bool = True, agent_view
     """
     n, width, height = kinds.shape
     size = agent_view_size
-    view = _walled(kinds)[:, _view_cells(width, height, size)]
     image_shape = (n, width, height, 4, size, size, 3)
     if see_through_walls:
-        view[..., size // 2, size - 1] = EMPTY  # the agent's own cell reads as empty (it carries nothing)
-        return _ENCODING[view].reshape(image_shape)
+        return _ENCODING[view_kinds(kinds, agent_view_size=size)].reshape(image_shape)
+    view = _walled(kinds)[:, _view_cells(width, height, size)]
     # MiniGrid computes visibility before blanking the agent's own cell, on the cell as it is.
     visible = _visibility((view == WALL).reshape(-1, size, size)).reshape(view.shape)
     view[..., size // 2, size - 1] = EMPTY
     return np.where(visible[..., None], _ENCODING[view], np.uint8(0)).reshape(image_shape)
+
+
+def view_kinds(kinds: np.ndarray, *, agent_view_size: int = 5) -> np.ndarray:
+    """The cell kind (EMPTY, WALL, GOAL) under every view cell of every agent state, walls seen through.
+
+    Args:
+        kinds: ``(n, W+2, H+2)`` the levels' :func:`cell_kinds`.
+        agent_view_size: As in MazeEnv.
+
+    Returns:
+        ``(n, (W+2)·(H+2)·4, s, s)``, states in ``[x, y, heading]`` order; the agent's own cell reads as empty
+        (it carries nothing). :func:`view_tables` encodes these as MiniGrid images.
+    """
+    n, width, height = kinds.shape
+    size = agent_view_size
+    view = _walled(kinds)[:, _view_cells(width, height, size)]
+    view[..., size // 2, size - 1] = EMPTY
+    return view
 
 
 def view_table(level: MazeLevel, *, see_through_walls: bool = True, agent_view_size: int = 5) -> np.ndarray:
