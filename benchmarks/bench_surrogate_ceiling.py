@@ -400,6 +400,39 @@ def spearman(a: np.ndarray, b: np.ndarray) -> float:
     return float(stats.spearmanr(a, b).statistic)
 
 
+@dataclasses.dataclass(frozen=True)
+class Disagreement:
+    """How well the initialisations' spread points at the error of their mean prediction, on one split.
+
+    Attributes:
+        spread_rho: Spearman ρ of the spread (std over the initialisations) with the mean's absolute error.
+        value_rho: Spearman ρ of the mean prediction itself with that error: the part of the spread's ρ that
+            only says "long paths are harder" (the paper's Fig. 8 finding).
+        within_rho: The spread's ρ with the error among levels of similar prediction: the mean over the
+            prediction's deciles (fewer bins, of at least 20 levels, on fewer levels). What a selection that picks
+            among a block's elites (whose predictions are alike) could use.
+        mae: The mean's MAE on every test level.
+        certain_mae: Its MAE on the ``fraction`` of test levels with the least spread.
+    """
+
+    spread_rho: float
+    value_rho: float
+    within_rho: float
+    mae: float
+    certain_mae: float
+
+    @classmethod
+    def of(cls, predictions: np.ndarray, truth: np.ndarray, *, fraction: float) -> "Disagreement":
+        mean, spread = predictions.mean(axis=0), predictions.std(axis=0)
+        error = np.abs(mean - truth)
+        certain = np.argsort(spread, kind="stable")[:max(1, int(round(fraction * len(truth))))]
+        bins = np.array_split(np.argsort(mean, kind="stable"), int(np.clip(len(truth) // 20, 1, 10)))
+        within = [spearman(spread[b], error[b]) for b in bins]
+        return cls(spread_rho=spearman(spread, error), value_rho=spearman(mean, error),
+                   within_rho=float(np.mean(within)), mae=float(error.mean()),
+                   certain_mae=float(error[certain].mean()))
+
+
 def make_gbm(seed: int):
     try:
         from sklearn.ensemble import HistGradientBoostingRegressor
@@ -465,8 +498,12 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--no-future", action="store_true", help="skip the search's-next-levels test")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (a Maze run trains on 1)")
     parser.add_argument("--batch", type=int, default=150, help="batch of the predictions/s figures (inner loop)")
+    parser.add_argument("--certain-share", type=float, default=0.5,
+                        help="with --inits > 1: the share of test levels the ensemble is surest of, scored apart")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
+    if not 0 < args.certain_share <= 1:
+        parser.error(f"--certain-share must be in (0, 1], got {args.certain_share}")
 
     import torch
     from scipy import stats
@@ -531,6 +568,8 @@ def main(argv: list[str] | None = None) -> dict:
     ensemble_rho: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
     with_gbm_rho: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
     with_walker_rho: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings}
+    # The inits' disagreement as an uncertainty: does it point at the mean's errors?
+    disagreement: dict[str, dict[int, list[Disagreement]]] = {s.name: {n: [] for n in sizes} for s in settings}
     pair_rho: dict[str, dict[int, list[float]]] = {s.name: {n: [] for n in sizes} for s in settings[1:]}
     primary = settings[0].name
     gbm_rho: dict[int, list[float]] = {n: [] for n in sizes}
@@ -572,6 +611,9 @@ def main(argv: list[str] | None = None) -> dict:
                 rho[setting.name][n].append(float(np.mean(per_init)))
                 ensemble = np.mean(predictions, axis=0)
                 ensemble_rho[setting.name][n].append(spearman(ensemble, values[test]))
+                if args.inits > 1:
+                    disagreement[setting.name][n].append(
+                        Disagreement.of(np.asarray(predictions), values[test], fraction=args.certain_share))
                 for blend, other in ((with_gbm_rho, gbm_test), (with_walker_rho, walker[test])):
                     blend[setting.name][n].append(spearman(stats.rankdata(ensemble) + stats.rankdata(other),
                                                            values[test]))
@@ -665,11 +707,22 @@ def main(argv: list[str] | None = None) -> dict:
     for row in [header, *rows]:
         print("  " + " | ".join(cell.ljust(width) for cell, width in zip(row, widths)))
 
+    if args.inits > 1:
+        print(f"the {args.inits} initialisations' disagreement (std of their predictions) as the uncertainty of their "
+              f"mean, mean ± s.e. over {args.splits} splits:")
+        for setting in settings:
+            for n in sizes:
+                parts = disagreement[setting.name][n]
+                print(f"  {setting.name} N={n}: ρ(spread, |error|) "
+                      f"{summary([d.spread_rho for d in parts])} (ρ(prediction, |error|) "
+                      f"{summary([d.value_rho for d in parts])}; within the prediction's deciles "
+                      f"{summary([d.within_rho for d in parts])}) | MAE {summary([d.mae for d in parts], '.1f')}, "
+                      f"on the {args.certain_share:.0%} surest {summary([d.certain_mae for d in parts], '.1f')}")
     for n in sizes:
         print(f"N={n}: surrogate ρ {summary(rho[primary][n])} | optimal path ρ {summary(optimal_rho)} | "
               f"GBM ρ {summary(gbm_rho[n])}")
     return {"rho": rho, "optimal": optimal_rho, "gbm": gbm_rho, "cost": cost, "future": future, "pairs": pair_rho,
-            "ensemble": ensemble_rho, "with_gbm": with_gbm_rho, "walker": walker_rho, "with_walker": with_walker_rho}
+            "ensemble": ensemble_rho, "disagreement": disagreement, "with_gbm": with_gbm_rho, "walker": walker_rho, "with_walker": with_walker_rho}
 
 
 if __name__ == "__main__":

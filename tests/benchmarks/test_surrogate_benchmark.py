@@ -213,6 +213,38 @@ def test_with_several_inits_the_ensemble_and_its_gbm_blend_are_scored(tmp_path):
         scores = result[key]["cpu"][16]
         assert len(scores) == 2 and all(-1.0 <= r <= 1.0 for r in scores)
     assert len(result["walker"]) == 2 and all(-1.0 <= r <= 1.0 for r in result["walker"])
+    parts = result["disagreement"]["cpu"][16]
+    assert len(parts) == 2 and all(d.certain_mae <= 1e9 and -1.0 <= d.within_rho <= 1.0 for d in parts)
+
+
+def test_disagreement_scores_the_spread_against_the_error_of_the_mean():
+    from bench_surrogate_ceiling import Disagreement
+
+    rng = np.random.default_rng(0)
+    truth = np.linspace(0.0, 600.0, 200)
+    spread = rng.uniform(1.0, 50.0, 200)
+    # Two members at mean ± spread: the mean is off by exactly the spread, so the spread ranks the error perfectly.
+    offset = spread * np.where(rng.random(200) < 0.5, -1.0, 1.0)
+    predictions = np.stack([truth + offset - spread, truth + offset + spread])
+    result = Disagreement.of(predictions, truth, fraction=0.25)
+    assert result.spread_rho == pytest.approx(1.0)
+    assert result.within_rho == pytest.approx(1.0)
+    assert result.mae == pytest.approx(spread.mean())
+    assert result.certain_mae == pytest.approx(np.sort(spread)[:50].mean())
+
+
+def test_a_spread_that_only_follows_the_prediction_has_no_information_within_its_deciles():
+    from bench_surrogate_ceiling import Disagreement
+
+    rng = np.random.default_rng(1)
+    long = rng.random(1000) < 0.5
+    truth = np.where(long, 500.0, 100.0) + rng.uniform(-20.0, 20.0, 1000)
+    error = np.abs(rng.normal(0.0, np.where(long, 50.0, 5.0)))  # long paths are harder
+    mean = truth + error * np.where(rng.random(1000) < 0.5, -1.0, 1.0)
+    spread = np.where(mean > 300.0, 10.0, 1.0) + rng.uniform(0.0, 0.1, 1000)  # says "long path", nothing else
+    result = Disagreement.of(np.stack([mean - spread, mean + spread]), truth, fraction=0.5)
+    assert result.spread_rho > 0.5 and result.value_rho > 0.5
+    assert abs(result.within_rho) < 0.1
 
 
 def test_the_random_walk_baseline_is_the_walkers_hitting_time_and_a_setting_can_read_its_visits(tmp_path):
