@@ -19,7 +19,8 @@ mean ± s.e. are over the splits, each split's value being the mean over its ini
 are the independent repeats; initialisations of one split share its test levels). Also printed: each
 setting's FLOPs and predictions/s (encoding included, as in the inner loop) and the GBM's, the difference
 surrogate − baseline per split, with ``--inits`` > 1 the initialisations' mean prediction alone and
-rank-averaged with the GBM's and with the random walker's, the held-out levels' ρ (``--holdout FILE.npz``, or
+rank-averaged with the GBM's and with the random walker's, and their disagreement as an uncertainty of that mean
+(:class:`Disagreement`; ``--certain-share``), the held-out levels' ρ (``--holdout FILE.npz``, or
 a run's own), and with an ``iteration`` column the search's own next levels: the last ``--test`` levels in
 evaluation order, trained on the N levels evaluated just before them.
 
