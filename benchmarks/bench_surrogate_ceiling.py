@@ -723,7 +723,8 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"N={n}: surrogate ρ {summary(rho[primary][n])} | optimal path ρ {summary(optimal_rho)} | "
               f"GBM ρ {summary(gbm_rho[n])}")
     return {"rho": rho, "optimal": optimal_rho, "gbm": gbm_rho, "cost": cost, "future": future, "pairs": pair_rho,
-            "ensemble": ensemble_rho, "disagreement": disagreement, "with_gbm": with_gbm_rho, "walker": walker_rho, "with_walker": with_walker_rho}
+            "ensemble": ensemble_rho, "disagreement": disagreement, "with_gbm": with_gbm_rho, "walker": walker_rho,
+            "with_walker": with_walker_rho}
 
 
 if __name__ == "__main__":
