@@ -53,8 +53,9 @@ Benchmark-only keys of a setting (other keys are the run config's; ``surrogate.`
   stochastic controller with ``MODES`` memory modes that reads the agent's egocentric view, whose expected
   occupancy is propagated exactly over the step limit. It trains on the agent's occupancy and path length with
   the setting's ``epochs``, ``batch_size`` and ``lr`` (``lr=0.003`` in ``docs/results/surrogate_accuracy``), and
-  predicts the path length only. With 2 modes it costs about 200 times the network's training time and 100
-  times its prediction time; with 4, about 500 times both (the propagation's work grows as modes²).
+  predicts the path length only. Against the network on 1,600 levels, one thread (``docs/results/surrogate_accuracy``):
+  2 modes train about 190 times as long and predict 90–180 times as slowly; 4 modes, about 500 and 280–490 times;
+  8 modes (one split), about 2,400 and 1,800 times (the propagation's work grows as modes²).
 
 With more than one setting, the first setting's predictions are also rank-averaged with each other's
 (``<first> + <other> ranks``): two model families combined.
@@ -262,8 +263,10 @@ class ChainModel:
             raise SystemExit(f"setting {setting.name}: bench.chain trains on the agent's occupancy, which this data "
                              "does not hold")
         self.setting, self.data, self.seed = setting, data, seed
-        torch.manual_seed(seed)
-        self.chain = PolicyChain(max_steps=max_steps_for(*data.shape), modes=setting.chain)
+        # Weights drawn inside a forked RNG, as the surrogate's are: the global RNG stays untouched.
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(seed)
+            self.chain = PolicyChain(max_steps=max_steps_for(*data.shape), modes=setting.chain)
 
     def encode(self, walls: np.ndarray) -> np.ndarray:
         return np.asarray(walls, dtype=bool)  # the chain builds its inputs per batch: they are large
@@ -409,9 +412,9 @@ class Disagreement:
         spread_rho: Spearman ρ of the spread (std over the initialisations) with the mean's absolute error.
         value_rho: Spearman ρ of the mean prediction itself with that error: the part of the spread's ρ that
             only says "long paths are harder" (the paper's Fig. 8 finding).
-        within_rho: The spread's ρ with the error among levels of similar prediction: the mean over the
-            prediction's deciles (fewer bins, of at least 20 levels, on fewer levels). What a selection that picks
-            among a block's elites (whose predictions are alike) could use.
+        within_rho: The spread's ρ with the error among levels of similar prediction: the mean over 10 equal bins
+            of the prediction (its deciles; fewer bins when there are under 200 levels, so that each holds at least
+            20). What a selection that picks among a block's elites (whose predictions are alike) could use.
         mae: The mean's MAE on every test level.
         certain_mae: Its MAE on the ``fraction`` of test levels with the least spread.
     """

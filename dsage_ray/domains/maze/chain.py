@@ -173,7 +173,7 @@ def train_chain(chain: PolicyChain, walls: np.ndarray, occupancy: np.ndarray, pa
         epochs: Passes over the levels.
         batch_size: Levels per step.
         lr: Adam's learning rate.
-        seed: Shuffling and initialisation seed.
+        seed: The minibatch order's seed (the weights were drawn when ``chain`` was built).
         occupancy_weight: :func:`chain_loss`'s weight.
     """
     walls = np.asarray(walls, dtype=bool)
