@@ -39,9 +39,9 @@ class ConfigError(InputError):
 # which imports pyribs or the simulators, so config validation can stay import-free.
 
 #: Keys of :data:`dsage_ray.qd.optimizer.EMITTERS`.
-EmitterName = Literal["map_elites", "cma_me", "random"]
+EmitterName = Literal["map_elites", "cma_me", "random", "gaussian", "halton", "cross_entropy"]
 #: The emitters with a mutation, the keys of :data:`dsage_ray.qd.mutants.MUTATIONS` (``selection.elite_mutants``).
-MutatingEmitter = Literal["map_elites", "cma_me"]
+MutatingEmitter = Literal["map_elites", "cma_me", "gaussian", "halton", "cross_entropy"]
 #: Keys of :data:`dsage_ray.qd.selection.SELECTION_METHODS`.
 SelectionMethod = Literal["downsample", "random", "full"]
 #: Surrogate kinds: ancillary occupancy (``two_stage``), without it (``one_stage``), none (plain QD).
@@ -126,14 +126,16 @@ class SurrogateConfig:
 class QDConfig:
     """The QD optimizer used on the surrogate (inner loop) or directly (baselines)."""
 
-    #: ``map_elites`` (discrete bitmaps), ``cma_me`` (continuous latents) or ``random`` (DR).
+    #: ``map_elites`` (discrete bitmaps), ``cma_me`` (continuous latents), ``random`` (DR), or for continuous
+    #: vectors in a box (the domain's ``solution_bounds``, else [-1, 1]): ``gaussian`` (MAP-Elites with Gaussian
+    #: mutation of ``sigma0``), ``halton`` (quasi-random samples) or ``cross_entropy`` (a cross-entropy falsifier).
     emitter: EmitterName = "map_elites"
     num_emitters: int = 5
     batch_size: int = 30
     #: MAP-Elites: cells mutated per offspring; batches of uniform random solutions before mutating.
     mutation_cells: int = 10
     initial_random_batches: int = 4
-    #: CMA-ME.
+    #: CMA-ME's initial step size; ``gaussian``'s mutation std.
     sigma0: float = 0.2
     ranker: str = "2imp"
     #: Inner-loop iterations (N_exploit) per outer iteration.
@@ -179,9 +181,10 @@ class SelectionConfig:
     cost_offset: float = 1.0
     #: Each outer iteration after the first, also evaluate this many mutants of the ground-truth archive's best
     #: elites (``elite_share``), beside the surrogate's picks (not in the paper; :mod:`dsage_ray.qd.mutants`).
-    #: The mutation is MAP-Elites' (``qd.mutation_cells``) for bitmaps, Gaussian (``qd.sigma0``) for CMA-ME's
-    #: latents. An audit's never-solved levels are the best elites, and a mutant of one is often never solved
-    #: too, which the surrogate cannot predict within a cell. 0 (the paper): only the surrogate's picks.
+    #: The mutation is MAP-Elites' (``qd.mutation_cells``) for bitmaps, Gaussian (``qd.sigma0``, clipped to the
+    #: domain's ``solution_bounds``) for the continuous emitters' vectors. An audit's never-solved levels are the
+    #: best elites, and a mutant of one is often never solved too, which the surrogate cannot predict within a cell.
+    #: 0 (the paper): only the surrogate's picks.
     elite_mutants: int = 0
     #: ``elite_mutants``: the parents are drawn uniformly among this share of the ground-truth elites, the
     #: best by objective (ties with the last one included).
@@ -321,6 +324,11 @@ class RunConfig:
         layered.update(explicit)
         config = cls(domain=base.domain)
         _assign(config, layered)
+        # A section whose keys depend on each other fills in what was left to it (the gym domain's measures
+        # come from its space file), before validation sees them.
+        complete = getattr(config.domain_config, "complete", None)
+        if complete is not None:
+            complete(config)
         if config.surrogate.init:
             config.surrogate.init = str(Path(config.surrogate.init).expanduser().resolve())
         config.validate()

@@ -75,6 +75,12 @@ class Domain(Protocol):
     did that do not depend on the machine (Maze: ``steps``; Mario: ``search_iterations``, ``ticks``), read
     from its ``info``; ``selection.cost_measure`` may name one (:mod:`dsage_ray.qd.gain`).
 
+    Optional: ``solution_bounds: tuple[float, float]``, ``(low, high)`` in every dimension: the box a continuous
+    domain's solutions live in (e.g. ``(-1.0, 1.0)``; the domain clips what lies beyond when it decodes). The QD
+    emitters keep to it: ``cma_me`` resamples outside it, ``gaussian``, ``halton`` and ``cross_entropy`` search it
+    (they search [-1, 1] where a domain declares none), and elite mutants are clipped to it
+    (:func:`dsage_ray.qd.optimizer.make_emitters`).
+
     Optional: ``screen(solutions, *, episodes, seed, precision) -> [EvaluationResult]``, a cheap estimate of many
     levels with ``episodes`` episodes each, ``precision`` ``"fp32"`` or ``"bf16"`` (the agent's
     ``reduced_precision`` copy, where it has one); ``selection.screen_episodes`` uses it (Maze has one).

@@ -34,7 +34,8 @@ def test_surrogate_kinds_are_the_model_table_plus_none():
 
 @pytest.mark.parametrize("values, message", [
     ({"qd.emitter": "map_elite"},
-     "qd.emitter: must be 'map_elites', 'cma_me' or 'random' (got 'map_elite'; did you mean 'map_elites'?)"),
+     "qd.emitter: must be 'map_elites', 'cma_me', 'random', 'gaussian', 'halton' or 'cross_entropy' (got 'map_elite'; "
+     "did you mean 'map_elites'?)"),
     ({"selection.method": "downsampled"},
      "selection.method: must be 'downsample', 'random' or 'full' (got 'downsampled'; did you mean 'downsample'?)"),
     ({"maze.objective": "failure"}, "(got 'failure'; did you mean 'failure_rate'?)"),

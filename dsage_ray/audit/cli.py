@@ -45,6 +45,7 @@ def add_subparser(subparsers) -> None:
     what.add_argument("--reference", metavar="SPEC",
                       help="maze: search where --agent does worse than this agent, on the same seeds "
                            "(objective regression)")
+    add_gym_arguments(audit)
     search = audit.add_argument_group("the search")
     add_config_arguments(search)
     search.add_argument("--variant", default="dsage",
@@ -87,6 +88,33 @@ def add_subparser(subparsers) -> None:
     add_series_subparser(subparsers)
 
 
+#: The gym domain's flags, as the config keys they set (``--param`` and ``--env-arg`` repeat).
+GYM_FLAGS = {"env": "gym.env", "space": "gym.space", "param": "gym.params", "env_arg": "gym.env_args"}
+
+
+def add_gym_arguments(parser) -> None:
+    """The flags of an audit of any Gymnasium environment (``--domain gym``), each a ``gym.*`` config key."""
+    gym = parser.add_argument_group("any Gymnasium environment (--domain gym)")
+    gym.add_argument("--env", metavar="ID", help="the environment id, e.g. CartPole-v1 (default: the space's)")
+    gym.add_argument("--space", metavar="FILE|NAME",
+                     help="the parameter space: a TOML file, or a shipped one: cartpole (default), lunarlander")
+    gym.add_argument("--param", action="append", metavar="NAME=LOW:HIGH",
+                     help="a searched parameter (repeat): NAME=LOW:HIGH (a gym.make keyword), attr.NAME=LOW:HIGH "
+                          "(an attribute of env.unwrapped after reset), reset.NAME=LOW:HIGH (a reset option); "
+                          "LOW:HIGH:int for integers, A|B|C for choices")
+    gym.add_argument("--env-arg", action="append", metavar="KEY=VALUE",
+                     help="a fixed gym.make keyword (repeat), e.g. enable_wind=true")
+
+
+def gym_overrides(args: argparse.Namespace) -> dict:
+    """The ``gym.*`` config keys the gym flags set; refused for another domain."""
+    given = {key: getattr(args, flag) for flag, key in GYM_FLAGS.items() if getattr(args, flag, None)}
+    if given and args.domain != "gym":
+        flags = ", ".join("--" + flag.replace("_", "-") for flag in GYM_FLAGS if getattr(args, flag, None))
+        raise InputError(f"{flags}: only for --domain gym (this audit's domain is {args.domain!r})")
+    return {key: tuple(value) if isinstance(value, list) else value for key, value in given.items()}
+
+
 def agent_help() -> str:
     """The agent spec forms of each domain, for help texts: ``maze: builtin:NAME, ...; mario: astar[:ITERATIONS]``."""
     from dsage_ray.domains import agent_forms
@@ -108,7 +136,7 @@ def run_audit_command(args: argparse.Namespace) -> int:
     collection = run_audit(
         agent=args.agent, domain=args.domain, reference=args.reference, preset=args.preset, variant=args.variant,
         objective=args.objective, measures=measures, budget=args.budget, seed=args.seed,
-        overrides=config_overrides(args), out=args.out, local=args.local,
+        overrides={**gym_overrides(args), **config_overrides(args)}, out=args.out, local=args.local,
         workers=args.workers, address=args.address, resume=args.resume, episodes=args.episodes,
         max_levels=args.max_levels, collect_only=args.collect_only)
     print(f"collection: {collection.path}")

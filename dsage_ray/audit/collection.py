@@ -105,8 +105,9 @@ def audit_config(
     values: dict[str, Any] = {"name": name or f"audit_{agent_slug(agent)}", "domain": domain, "variant": variant,
                               "preset": preset, "seed": seed}
     values.update(cls.audit_values(agent=agent, reference=reference, objective=objective, measures=measures))
-    num_measures = len(values[f"{domain}.measures"])
-    if num_measures != 2:
+    # A domain may leave the measures to its config section (the gym domain's space file names them).
+    num_measures = len(values.get(f"{domain}.measures", ()))
+    if num_measures not in (0, 2):
         # The presets' downsampling blocks are per measure for the usual two; keep their scale otherwise.
         values["selection.block"] = (4,) * num_measures
     if budget is not None:

@@ -156,7 +156,8 @@ class Proposer(Protocol):
 
 
 class DirectQD:
-    """MAP-Elites, CMA-ME or DR: the configured QD optimizer asks for solutions and is told their real results.
+    """MAP-Elites, CMA-ME, DR or a continuous search (``qd.emitter``): the configured QD optimizer asks for solutions
+    and is told their real results.
 
     With ``selection.screen_episodes`` (MAP-Elites only), each batch after the random start-up is instead chosen
     from ``selection.screen_pool`` times as many mutants of the archive's elites by the domain's screen
@@ -174,8 +175,11 @@ class DirectQD:
         self.config = config
         self.archive = archive
         self.seeds = seeds
+        #: The domain's optional ``solution_bounds``: the box its solutions live in (``None``: unbounded).
+        self.solution_bounds = getattr(domain, "solution_bounds", None)
         self.scheduler = make_scheduler(archive, config=config.qd, solution_dim=domain.solution_dim,
-                                        random_solutions=domain.random_solutions, seed=seeds.next_qd_seed())
+                                        random_solutions=domain.random_solutions, seed=seeds.next_qd_seed(),
+                                        bounds=self.solution_bounds)
         self.screen = domain_screen(config, domain, seeds)
         #: The screen's errors on evaluated levels (``selection.screen_gain`` ranks by them; None: off).
         self.screen_errors = _screen_errors(config)
@@ -193,7 +197,7 @@ class DirectQD:
         tic = time.perf_counter()
         batch = qd.num_emitters * qd.batch_size
         mutants = elite_mutants(self.archive, count=int(round(self.config.selection.screen_pool * batch)), share=1.0,
-                                qd=qd, rng=self.seeds.rng)
+                                qd=qd, rng=self.seeds.rng, bounds=self.solution_bounds)
         screened = keep_screened(mutants, self.archive, screen=self.screen, limit=batch, errors=self.screen_errors,
                                  neighbours=self.config.selection.gain_neighbours, cost=self.evaluation_cost)
         fallback = len(screened.kept) == 0
@@ -415,7 +419,8 @@ class SurrogateAssisted:
             proposal.metrics["selection_capped"] = float(cap)
         if self.config.selection.elite_mutants:
             mutants = elite_mutants(self.archive, count=self.config.selection.elite_mutants,
-                                    share=self.config.selection.elite_share, qd=self.config.qd, rng=self.seeds.rng)
+                                    share=self.config.selection.elite_share, qd=self.config.qd, rng=self.seeds.rng,
+                                    bounds=getattr(self.domain, "solution_bounds", None))
             proposal.solutions = np.concatenate([proposal.solutions, mutants])
             if proposal.screened is not None:
                 proposal.screened = np.concatenate([proposal.screened,
@@ -491,7 +496,8 @@ class SurrogateAssisted:
         """Model exploitation: a fresh surrogate archive and fresh emitters, ``qd.exploit_iterations`` ask → predict → tell."""
         archive = domain_archive(self.domain, with_occupancy=False, seed=self.seeds.next_qd_seed())
         scheduler = make_scheduler(archive, config=self.config.qd, solution_dim=self.domain.solution_dim,
-                                   random_solutions=self.domain.random_solutions, seed=self.seeds.next_qd_seed())
+                                   random_solutions=self.domain.random_solutions, seed=self.seeds.next_qd_seed(),
+                                   bounds=getattr(self.domain, "solution_bounds", None))
 
         def predict(solutions: Solutions):
             prediction = self.surrogate.predict(encode_solutions(self.domain, solutions))

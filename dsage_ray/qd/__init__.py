@@ -6,7 +6,7 @@ from dsage_ray.qd.archives import (
     archive_to_dataframe,
     make_archive,
 )
-from dsage_ray.qd.emitters import MapElitesBitmapEmitter, RandomEmitter
+from dsage_ray.qd.emitters import CrossEntropyEmitter, HaltonEmitter, MapElitesBitmapEmitter, RandomEmitter
 from dsage_ray.qd.gain import EvaluationCost, GainPicks, Outcomes, PickErrors, best_per_block, expected_outcomes
 from dsage_ray.qd.optimizer import InnerLoopTimings, emitter_seeds, make_emitters, make_scheduler, run_inner_loop
 from dsage_ray.qd.selection import (
@@ -21,9 +21,11 @@ from dsage_ray.qd.selection import (
 __all__ = [
     "OCCUPANCY_FIELD",
     "SELECTION_METHODS",
+    "CrossEntropyEmitter",
     "EvaluationCost",
     "FilledSkip",
     "GainPicks",
+    "HaltonEmitter",
     "InnerLoopTimings",
     "MapElitesBitmapEmitter",
     "Outcomes",

@@ -36,11 +36,12 @@ def best_elites(archive: ArchiveBase, *, share: float) -> np.ndarray:
 
 
 def elite_mutants(archive: ArchiveBase, *, count: int, share: float, qd: QDConfig,
-                  rng: np.random.Generator) -> np.ndarray:
+                  rng: np.random.Generator, bounds: tuple[float, float] | None = None) -> np.ndarray:
     """``count`` mutants of parents drawn uniformly (with replacement) among :func:`best_elites`.
 
     The mutation is the one of the configured direct search: ``qd.mutation_cells`` cells redrawn for
-    ``map_elites`` (0/1 bitmaps), Gaussian noise of ``qd.sigma0`` for ``cma_me`` (latent vectors).
+    ``map_elites`` (0/1 bitmaps), Gaussian noise of ``qd.sigma0`` for ``cma_me``, ``gaussian``, ``halton`` and
+    ``cross_entropy`` (continuous vectors).
 
     Args:
         archive: The ground-truth archive; nothing is drawn when it is empty.
@@ -48,6 +49,7 @@ def elite_mutants(archive: ArchiveBase, *, count: int, share: float, qd: QDConfi
         share: See :func:`best_elites`.
         qd: The run's QD config (its emitter names the mutation).
         rng: Draws the parents and the mutations.
+        bounds: The domain's ``solution_bounds``: the mutants are clipped to them (``None``: not clipped).
 
     Returns:
         ``(count, solution_dim)`` solutions in the archive's solution dtype, or none when the archive is empty.
@@ -59,7 +61,8 @@ def elite_mutants(archive: ArchiveBase, *, count: int, share: float, qd: QDConfi
     if count == 0 or archive.empty:
         return np.empty((0, archive.solution_dim), dtype=dtype)
     solutions = np.asarray(archive.data("solution"), dtype=dtype)
-    return mutate(solutions[rng.choice(best_elites(archive, share=share), size=count)], qd=qd, rng=rng)
+    return mutate(solutions[rng.choice(best_elites(archive, share=share), size=count)], qd=qd, rng=rng,
+                  bounds=bounds)
 
 
 def _gaussian(parents: np.ndarray, qd: QDConfig, rng: np.random.Generator) -> np.ndarray:
@@ -76,15 +79,23 @@ def _bitmap(parents: np.ndarray, qd: QDConfig, rng: np.random.Generator) -> np.n
 MUTATIONS: dict[MutatingEmitter, Callable[[np.ndarray, QDConfig, np.random.Generator], np.ndarray]] = {
     "map_elites": _bitmap,
     "cma_me": _gaussian,
+    "gaussian": _gaussian,
+    "halton": _gaussian,
+    "cross_entropy": _gaussian,
 }
 
 
-def mutate(parents: np.ndarray, *, qd: QDConfig, rng: np.random.Generator) -> np.ndarray:
+def mutate(parents: np.ndarray, *, qd: QDConfig, rng: np.random.Generator,
+           bounds: tuple[float, float] | None = None) -> np.ndarray:
     """One mutant of each parent, with the operator of ``qd.emitter`` (see :func:`elite_mutants`).
+
+    Args:
+        bounds: ``(low, high)``: the mutants are clipped to them in every dimension (``None``: not clipped).
 
     Raises:
         ValueError: ``qd.emitter`` has no mutation (``random`` draws fresh levels).
     """
     if qd.emitter not in MUTATIONS:
         raise ValueError(f"qd.emitter {qd.emitter!r} has no mutation to make elite mutants with")
-    return MUTATIONS[qd.emitter](parents, qd, rng)
+    mutants = MUTATIONS[qd.emitter](parents, qd, rng)
+    return mutants if bounds is None else np.clip(mutants, *bounds).astype(mutants.dtype, copy=False)

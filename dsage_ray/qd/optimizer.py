@@ -8,12 +8,19 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 from ribs.archives import ArchiveBase
-from ribs.emitters import EmitterBase, EvolutionStrategyEmitter
+from ribs.emitters import EmitterBase, EvolutionStrategyEmitter, GaussianEmitter
 from ribs.schedulers import Scheduler
 
 from dsage_ray.config import ConfigError, EmitterName, QDConfig
 from dsage_ray.errors import did_you_mean
-from dsage_ray.qd.emitters import MapElitesBitmapEmitter, RandomEmitter, Sampler
+from dsage_ray.qd.emitters import (CrossEntropyEmitter, HaltonEmitter, MapElitesBitmapEmitter, RandomEmitter, Sampler,
+                                   check_box)
+
+#: The box the continuous searches (``gaussian``, ``halton``, ``cross_entropy``) keep to when the domain declares
+#: no ``solution_bounds``.
+DEFAULT_BOX: tuple[float, float] = (-1.0, 1.0)
+#: ``cross_entropy``: the share of each batch its distribution is refitted to (a constant, not a config key).
+CROSS_ENTROPY_ELITE_FRACTION = 0.2
 
 #: ``predict(solutions) -> (objective (n,), measures (n, m), extra fields {name: (n, ...)})``.
 Predictor = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, Mapping[str, np.ndarray]]]
@@ -27,30 +34,59 @@ def emitter_seeds(seed: int | None, n: int) -> list[int | None]:
 
 
 def _map_elites(archive: ArchiveBase, config: QDConfig, solution_dim: int, random_solutions: Sampler,
-                seed: int | None) -> EmitterBase:
+                seed: int | None, bounds: tuple[float, float] | None) -> EmitterBase:
     return MapElitesBitmapEmitter(archive, solution_dim=solution_dim, batch_size=config.batch_size,
                                   mutation_cells=config.mutation_cells,
                                   initial_random_batches=config.initial_random_batches, seed=seed)
 
 
 def _cma_me(archive: ArchiveBase, config: QDConfig, solution_dim: int, random_solutions: Sampler,
-            seed: int | None) -> EmitterBase:
-    # CMA-ME's improvement emitter (SPEC §5): CMA-ES from the origin, two-stage improvement ranking.
+            seed: int | None, bounds: tuple[float, float] | None) -> EmitterBase:
+    # CMA-ME's improvement emitter (SPEC §5): CMA-ES from the origin, two-stage improvement ranking. In a box
+    # pyribs' CMA-ES redraws every solution that falls outside until none does (the origin must lie in the box): a
+    # step size large against the box, in many dimensions, makes that slow (pyribs warns after 100 rounds).
     return EvolutionStrategyEmitter(archive, x0=np.zeros(solution_dim), sigma0=config.sigma0, ranker=config.ranker,
-                                    batch_size=config.batch_size, seed=seed)
+                                    batch_size=config.batch_size, seed=seed,
+                                    bounds=None if bounds is None else [bounds] * solution_dim)
 
 
 def _random(archive: ArchiveBase, config: QDConfig, solution_dim: int, random_solutions: Sampler,
-            seed: int | None) -> EmitterBase:
+            seed: int | None, bounds: tuple[float, float] | None) -> EmitterBase:
     return RandomEmitter(archive, sampler=random_solutions, batch_size=config.batch_size, seed=seed)
 
 
-#: One emitter of each ``qd.emitter`` name: ``build(archive, config, solution_dim, random_solutions, seed)``.
-#: Its keys are the config's :data:`~dsage_ray.config.EmitterName`.
-EMITTERS: dict[EmitterName, Callable[[ArchiveBase, QDConfig, int, Sampler, int | None], EmitterBase]] = {
+def _gaussian(archive: ArchiveBase, config: QDConfig, solution_dim: int, random_solutions: Sampler,
+              seed: int | None, bounds: tuple[float, float] | None) -> EmitterBase:
+    # MAP-Elites with Gaussian mutation (pyribs' own): while the archive is empty it returns its initial
+    # solutions, a batch of the domain's random ones (pyribs takes them instead of an x0, not beside one),
+    # then elites plus N(0, sigma0) noise, clipped to the box.
+    initial = random_solutions(config.batch_size, np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0]))
+    return GaussianEmitter(archive, sigma=config.sigma0, initial_solutions=initial,
+                           bounds=[bounds or DEFAULT_BOX] * solution_dim, batch_size=config.batch_size, seed=seed)
+
+
+def _halton(archive: ArchiveBase, config: QDConfig, solution_dim: int, random_solutions: Sampler,
+            seed: int | None, bounds: tuple[float, float] | None) -> EmitterBase:
+    return HaltonEmitter(archive, bounds=bounds or DEFAULT_BOX, batch_size=config.batch_size, seed=seed)
+
+
+def _cross_entropy(archive: ArchiveBase, config: QDConfig, solution_dim: int, random_solutions: Sampler,
+                   seed: int | None, bounds: tuple[float, float] | None) -> EmitterBase:
+    return CrossEntropyEmitter(archive, bounds=bounds or DEFAULT_BOX, batch_size=config.batch_size,
+                               elite_fraction=CROSS_ENTROPY_ELITE_FRACTION, seed=seed)
+
+
+#: One emitter of each ``qd.emitter`` name: ``build(archive, config, solution_dim, random_solutions, seed, bounds)``,
+#: ``bounds`` the domain's ``solution_bounds`` or ``None``. Its keys are the config's
+#: :data:`~dsage_ray.config.EmitterName`.
+EMITTERS: dict[EmitterName, Callable[[ArchiveBase, QDConfig, int, Sampler, int | None, tuple[float, float] | None],
+                                     EmitterBase]] = {
     "map_elites": _map_elites,
     "cma_me": _cma_me,
     "random": _random,
+    "gaussian": _gaussian,
+    "halton": _halton,
+    "cross_entropy": _cross_entropy,
 }
 
 
@@ -61,19 +97,27 @@ def make_emitters(
     solution_dim: int,
     random_solutions: Sampler,
     seed: int | None,
+    bounds: tuple[float, float] | None = None,
 ) -> list[EmitterBase]:
     """``config.num_emitters`` emitters of kind ``config.emitter``, each with its own derived seed.
 
+    Args:
+        bounds: The domain's ``solution_bounds``, ``(low, high)`` in every dimension, or ``None`` (unbounded).
+            ``cma_me`` keeps to them when given; ``gaussian``, ``halton`` and ``cross_entropy`` keep to them,
+            or to :data:`DEFAULT_BOX` when ``None``; ``map_elites`` and ``random`` ignore them.
+
     Raises:
-        ValueError: Unknown ``config.emitter`` or ``solution_dim`` not matching the archive.
+        ValueError: Unknown ``config.emitter``, ``solution_dim`` not matching the archive, or bad ``bounds``.
     """
     if solution_dim != archive.solution_dim:
         raise ValueError(f"solution_dim {solution_dim} does not match archive.solution_dim {archive.solution_dim}")
+    if bounds is not None:
+        bounds = check_box(bounds)
     if config.emitter not in EMITTERS:
         raise ConfigError(f"qd.emitter: unknown emitter {config.emitter!r} (known: {', '.join(EMITTERS)})"
                           f"{did_you_mean(config.emitter, EMITTERS)}")
     build = EMITTERS[config.emitter]
-    return [build(archive, config, solution_dim, random_solutions, s)
+    return [build(archive, config, solution_dim, random_solutions, s, bounds)
             for s in emitter_seeds(seed, config.num_emitters)]
 
 
@@ -84,11 +128,13 @@ def make_scheduler(
     solution_dim: int,
     random_solutions: Sampler,
     seed: int | None,
+    bounds: tuple[float, float] | None = None,
 ) -> Scheduler:
-    """A pyribs scheduler over :func:`make_emitters`; one :meth:`~Scheduler.ask` yields
+    """A pyribs scheduler over :func:`make_emitters` (``bounds``: see there); one :meth:`~Scheduler.ask` yields
     ``num_emitters × batch_size`` solutions."""
     emitters = make_emitters(
-        archive, config=config, solution_dim=solution_dim, random_solutions=random_solutions, seed=seed
+        archive, config=config, solution_dim=solution_dim, random_solutions=random_solutions, seed=seed,
+        bounds=bounds,
     )
     return Scheduler(archive, emitters)
 

@@ -60,6 +60,8 @@ def pad_to_power_of_two(encoded: np.ndarray, pad_channel: int = 0) -> np.ndarray
         already has that shape.
     """
     n, channels, height, width = encoded.shape
+    if (height, width) == (1, 1):  # a parameter vector (the gym domain's levels), read by an MLP: no grid to pad
+        return np.asarray(encoded, dtype=np.float32)
     if not 0 <= pad_channel < channels:
         raise ValueError(f"pad_channel {pad_channel} is not one of the {channels} channels")
     size = max(8, 1 << (max(height, width) - 1).bit_length())
@@ -251,6 +253,51 @@ class OneStageModel(nn.Module):
         scalars = self.statistics(levels) if self.statistics is not None else None
         objective, measures = self.measure_predictor(levels, scalars)
         return ModelOutput(objective, measures, None)
+
+
+def _mlp(inputs: int, width: int, outputs: int) -> nn.Sequential:
+    return nn.Sequential(nn.Linear(inputs, width), nn.LeakyReLU(LEAKY_SLOPE), nn.Linear(width, width),
+                         nn.LeakyReLU(LEAKY_SLOPE), nn.Linear(width, outputs))
+
+
+class VectorTwoStageModel(nn.Module):
+    """The two-stage model for levels that are parameter vectors ``(n, P, 1, 1)`` (the gym domain): one MLP predicts
+    the occupancy histogram ``(H, W)`` from the parameters, a second the objective and measures from the parameters
+    and that histogram.
+
+    Args:
+        input_channels: Parameters per level.
+        occupancy_shape: ``(H, W)`` of the histogram.
+        num_measures: Number of measure heads.
+        width: Hidden units of each MLP (``surrogate.channels``).
+    """
+
+    def __init__(self, *, input_channels: int, occupancy_shape: tuple[int, int], num_measures: int,
+                 width: int = BASE_CHANNELS) -> None:
+        super().__init__()
+        self.occupancy_shape = tuple(occupancy_shape)
+        cells = int(np.prod(self.occupancy_shape))
+        self.occupancy_predictor = _mlp(input_channels, width, cells)
+        self.measure_predictor = _mlp(input_channels + cells, width, 1 + num_measures)
+
+    def forward(self, levels: torch.Tensor, *, bf16_blocks: bool = False) -> ModelOutput:
+        """``bf16_blocks`` is accepted for a uniform interface; these MLPs run in float32."""
+        parameters = levels.flatten(1)
+        occupancy = self.occupancy_predictor(parameters)
+        out = self.measure_predictor(torch.cat([parameters, occupancy], dim=1))
+        return ModelOutput(out[:, 0], out[:, 1:], occupancy.reshape(-1, *self.occupancy_shape))
+
+
+class VectorOneStageModel(nn.Module):
+    """The one-stage ablation for parameter vectors: one MLP from the parameters to the objective and measures."""
+
+    def __init__(self, *, input_channels: int, num_measures: int, width: int = BASE_CHANNELS) -> None:
+        super().__init__()
+        self.measure_predictor = _mlp(input_channels, width, 1 + num_measures)
+
+    def forward(self, levels: torch.Tensor, *, bf16_blocks: bool = False) -> ModelOutput:
+        out = self.measure_predictor(levels.flatten(1))
+        return ModelOutput(out[:, 0], out[:, 1:], None)
 
 
 class Distances(NamedTuple):

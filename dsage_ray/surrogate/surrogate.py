@@ -27,7 +27,8 @@ from torch.nn import functional as F
 
 from dsage_ray.config import SurrogateConfig
 from dsage_ray.surrogate.dataset import SurrogateDataset, Targets
-from dsage_ray.surrogate.models import LevelStatistics, ModelOutput, OneStageModel, TwoStageModel, encode_solutions
+from dsage_ray.surrogate.models import (LevelStatistics, ModelOutput, OneStageModel, TwoStageModel, VectorTwoStageModel,
+                                       VectorOneStageModel, encode_solutions)
 from dsage_ray.types import EncodedLevels, EvaluationResult
 
 #: Encoded levels ``(n, C, S, S)`` → ``{measure name or "objective": (n,) values}``.
@@ -36,12 +37,18 @@ LevelValues = Callable[[np.ndarray], dict[str, np.ndarray]]
 #: Surrogate kinds by name: ``two_stage`` predicts occupancy first (DSAGE), ``one_stage`` does not.
 #: With ``"none"`` (plain QD, no surrogate) these are the config's ``surrogate.kind`` names. Each is
 #: built from the input's shape and the config's architecture keys (``channels``, ``dilations``).
+#: A 1×1 input is a parameter vector (the gym domain's levels), which the vector models read with MLPs of
+#: ``channels`` hidden units.
 MODELS: dict[str, Callable[..., nn.Module]] = {
     "two_stage": lambda *, input_channels, input_size, occupancy_shape, num_measures, config, statistics=None:
+        VectorTwoStageModel(input_channels=input_channels, occupancy_shape=occupancy_shape,
+                            num_measures=num_measures, width=config.channels) if input_size == 1 else
         TwoStageModel(input_channels=input_channels, input_size=input_size, occupancy_shape=occupancy_shape,
                       num_measures=num_measures, channels=config.channels, dilations=tuple(config.dilations),
                       statistics=statistics),
     "one_stage": lambda *, input_channels, input_size, occupancy_shape, num_measures, config, statistics=None:
+        VectorOneStageModel(input_channels=input_channels, num_measures=num_measures, width=config.channels)
+        if input_size == 1 else
         OneStageModel(input_channels=input_channels, input_size=input_size, num_measures=num_measures,
                       channels=config.channels, statistics=statistics),
 }
@@ -214,7 +221,7 @@ class Surrogate:
         # A wrapper (models.WithInputFields) predicts what the network it wraps predicts.
         while not isinstance(model, TwoStageModel) and hasattr(model, "model"):
             model = model.model
-        return (*names, "occupancy") if isinstance(model, TwoStageModel) else names
+        return (*names, "occupancy") if isinstance(model, (TwoStageModel, VectorTwoStageModel)) else names
 
     def make_dataset(self, **kwargs: Any) -> SurrogateDataset:
         """An empty dataset whose shapes match this model; ``kwargs`` go to :class:`SurrogateDataset`."""

@@ -15,6 +15,11 @@ def bitmap_sampler(n: int, rng: np.random.Generator) -> np.ndarray:
     return rng.integers(0, 2, size=(n, DIM))
 
 
+def box_sampler(n: int, rng: np.random.Generator) -> np.ndarray:
+    """Module-level (hence picklable) sampler of a continuous domain: uniform in [-1, 1]^DIM."""
+    return rng.uniform(-1.0, 1.0, size=(n, DIM))
+
+
 def bitmap_predict(solutions: np.ndarray):
     """Deterministic fake surrogate: measures spread the bitmaps over a 16×8 archive."""
     x = np.asarray(solutions, dtype=np.float64)

@@ -55,3 +55,15 @@ def test_no_mutant_of_an_empty_archive_and_none_without_an_operator(bitmap_archi
     _add(bitmap_archive, _distinct_bitmaps(3), [1.0, 0.5, 0.0])
     with pytest.raises(ValueError, match="'random' has no mutation"):
         elite_mutants(bitmap_archive, count=5, share=0.1, qd=QDConfig(emitter="random"), rng=rng)
+
+
+@pytest.mark.parametrize("emitter", ["gaussian", "halton", "cross_entropy"])
+def test_box_emitters_mutate_with_gaussian_noise_clipped_to_the_bounds(latent_archive, emitter):
+    parent = np.full((1, latent_archive.solution_dim), 0.9)
+    latent_archive.add(parent, *latent_predict(parent)[:2], **latent_predict(parent)[2])
+    qd = QDConfig(emitter=emitter, sigma0=0.3)
+    free = elite_mutants(latent_archive, count=500, share=1.0, qd=qd, rng=np.random.default_rng(1))
+    clipped = elite_mutants(latent_archive, count=500, share=1.0, qd=qd, rng=np.random.default_rng(1),
+                            bounds=(-1.0, 1.0))
+    assert free.max() > 1.0 and clipped.max() == 1.0
+    np.testing.assert_array_equal(clipped, np.clip(free, -1.0, 1.0))

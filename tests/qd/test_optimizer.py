@@ -1,9 +1,11 @@
 import numpy as np
 import pytest
-from ribs.emitters import EvolutionStrategyEmitter
+from ribs.emitters import EvolutionStrategyEmitter, GaussianEmitter
 
 from dsage_ray.config import QDConfig
 from dsage_ray.qd import (
+    CrossEntropyEmitter,
+    HaltonEmitter,
     MapElitesBitmapEmitter,
     RandomEmitter,
     archive_stats,
@@ -11,21 +13,24 @@ from dsage_ray.qd import (
     make_scheduler,
     run_inner_loop,
 )
-from tests.qd.helpers import (DIM, bitmap_predict, bitmap_sampler, checkpoint_round_trip, latent_predict, make_bitmap_archive,
-                             make_latent_archive)
+from tests.qd.helpers import (DIM, bitmap_predict, bitmap_sampler, box_sampler, checkpoint_round_trip, latent_predict,
+                              make_bitmap_archive, make_latent_archive)
 
 KINDS = {
-    "map_elites": (MapElitesBitmapEmitter, make_bitmap_archive, bitmap_predict),
-    "cma_me": (EvolutionStrategyEmitter, make_latent_archive, latent_predict),
-    "random": (RandomEmitter, make_bitmap_archive, bitmap_predict),
+    "map_elites": (MapElitesBitmapEmitter, make_bitmap_archive, bitmap_predict, bitmap_sampler),
+    "cma_me": (EvolutionStrategyEmitter, make_latent_archive, latent_predict, bitmap_sampler),
+    "random": (RandomEmitter, make_bitmap_archive, bitmap_predict, bitmap_sampler),
+    "gaussian": (GaussianEmitter, make_latent_archive, latent_predict, box_sampler),
+    "halton": (HaltonEmitter, make_latent_archive, latent_predict, box_sampler),
+    "cross_entropy": (CrossEntropyEmitter, make_latent_archive, latent_predict, box_sampler),
 }
 
 
 def _scheduler(kind, seed=0, archive_seed=3):
-    cls, make, predict = KINDS[kind]
+    cls, make, predict, sampler = KINDS[kind]
     config = QDConfig(emitter=kind, num_emitters=3, batch_size=4, mutation_cells=2, initial_random_batches=1)
     archive = make(seed=archive_seed)
-    return make_scheduler(archive, config=config, solution_dim=DIM, random_solutions=bitmap_sampler, seed=seed), predict
+    return make_scheduler(archive, config=config, solution_dim=DIM, random_solutions=sampler, seed=seed), predict
 
 
 @pytest.mark.parametrize("kind", sorted(KINDS))
@@ -73,6 +78,34 @@ def test_cma_me_settings():
     assert scheduler.ask().shape == (7, DIM)
 
 
+def test_cma_me_keeps_to_the_domain_bounds():
+    config = QDConfig(emitter="cma_me", num_emitters=1, batch_size=20, sigma0=0.2)
+    unbounded = make_scheduler(make_latent_archive(), config=config, solution_dim=DIM,
+                               random_solutions=bitmap_sampler, seed=0)
+    assert np.isinf(unbounded.emitters[0].upper_bounds).all()  # no bounds: today's behaviour
+    scheduler = make_scheduler(make_latent_archive(), config=config, solution_dim=DIM,
+                               random_solutions=bitmap_sampler, seed=0, bounds=(-0.5, 0.5))
+    np.testing.assert_array_equal(scheduler.emitters[0].lower_bounds, -0.5)
+    np.testing.assert_array_equal(scheduler.emitters[0].upper_bounds, 0.5)
+    for _ in range(3):
+        batch = scheduler.ask()
+        assert np.abs(batch).max() <= 0.5
+        scheduler.tell(*latent_predict(batch)[:2], **latent_predict(batch)[2])
+
+
+@pytest.mark.parametrize("kind", ["gaussian", "halton", "cross_entropy"])
+def test_box_emitters_search_the_domain_bounds_else_the_unit_box(kind):
+    config = QDConfig(emitter=kind, num_emitters=2, batch_size=5)
+    for bounds, expected in [(None, (-1.0, 1.0)), ((0.0, 2.0), (0.0, 2.0))]:
+        scheduler = make_scheduler(make_latent_archive(), config=config, solution_dim=DIM, random_solutions=box_sampler,
+                                   seed=0, bounds=bounds)
+        for emitter in scheduler.emitters:
+            np.testing.assert_array_equal(emitter.lower_bounds, expected[0])
+            np.testing.assert_array_equal(emitter.upper_bounds, expected[1])
+        batch = scheduler.ask()
+        assert batch.shape == (10, DIM) and batch.min() >= expected[0] and batch.max() <= expected[1]
+
+
 def test_make_scheduler_rejects_bad_input():
     with pytest.raises(ValueError, match="unknown emitter"):
         make_scheduler(make_bitmap_archive(), config=QDConfig(emitter="nope"), solution_dim=DIM,
@@ -80,6 +113,9 @@ def test_make_scheduler_rejects_bad_input():
     with pytest.raises(ValueError, match="solution_dim"):
         make_scheduler(make_bitmap_archive(), config=QDConfig(), solution_dim=DIM + 1,
                        random_solutions=bitmap_sampler, seed=0)
+    with pytest.raises(ValueError, match="low < high"):
+        make_scheduler(make_latent_archive(), config=QDConfig(emitter="halton"), solution_dim=DIM,
+                       random_solutions=box_sampler, seed=0, bounds=(1.0, -1.0))
 
 
 @pytest.mark.parametrize("kind", sorted(KINDS))

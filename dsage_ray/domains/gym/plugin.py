@@ -1,0 +1,123 @@
+"""The gym domain's registration: any Gymnasium environment, re-parameterised per level (imports nothing heavy).
+
+Named by the ``gym`` entry point of the ``dsage_ray.domains`` group (pyproject.toml). A level is one value per
+parameter of a space (:mod:`dsage_ray.domains.gym.space`): a shipped one (``cartpole``, ``lunarlander``), a TOML
+file, or ``--param`` strings on the command line.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Callable, Literal
+
+from dsage_ray.domains.registry import AgentKinds, AuditSpec, DomainSpec, ReportField
+
+#: ``failure_rate``: the share of the level's episodes that fail the space's success test.
+GymObjective = Literal["failure_rate"]
+
+
+@dataclasses.dataclass
+class GymConfig:
+    """The ``[gym]`` section of a run config."""
+
+    #: A shipped space's name (``cartpole``, ``lunarlander``), a space file (TOML), or "" (``params`` only).
+    space: str = "cartpole"
+    #: The Gymnasium id; "" takes the space's ``[env] id``.
+    env: str = ""
+    #: ``--param`` strings over the space's parameters: ``NAME=LOW:HIGH`` (a gym.make keyword), ``attr.NAME=...``
+    #: (an attribute of env.unwrapped after reset), ``reset.NAME=...`` (a reset option); ``LOW:HIGH:int``, ``A|B|C``.
+    params: tuple[str, ...] = ()
+    #: ``--env-arg KEY=VALUE`` strings: fixed gym.make keywords over the space's ``[env] args``.
+    env_args: tuple[str, ...] = ()
+    #: The agent spec (:data:`dsage_ray.domains.gym.agents.GYM_AGENT_FORMS`).
+    agent: str = "rllib:ppo_cartpole"
+    objective: GymObjective = "failure_rate"
+    #: Episodes per evaluation, played side by side.
+    episodes: int = 10
+    #: Archive measures, names of the space's measures; ``()``: the space's ``[audit] measures``.
+    measures: tuple[str, ...] = ()
+    #: Cells per measure; ``()``: each measure's ``cells``.
+    archive_dims: tuple[int, ...] = ()
+    #: ``()``: each measure's declared range.
+    measure_ranges: tuple[tuple[float, float], ...] = ()
+
+    def complete(self, run: Any) -> None:
+        """Reads the space and fills what was left to it: the measures (its ``[audit] measures``, else its first two
+        declared ones), their cells, and one downsampling block size per measure.
+
+        Raises:
+            SpaceError: A space that does not load, or a measure it does not declare.
+        """
+        from dsage_ray.domains.gym.space import load_space
+
+        space = load_space(self)
+        if not self.measures:
+            declared = [name for name in space.measures if not name.startswith("param.")
+                        and name not in ("terminated", "truncated")]
+            self.measures = space.audit_measures or tuple((declared + [f"param.{p.name}" for p in space.params])[:2])
+        for name in self.measures:
+            space.measure(name)
+        if not self.archive_dims:
+            self.archive_dims = tuple(space.measures[name].cells for name in self.measures)
+        if len(run.selection.block) != len(self.measures):
+            run.selection.block = tuple(min(4, cells) for cells in self.archive_dims)
+
+    def validate(self, need: Callable[[bool, str, str], None]) -> None:
+        need(self.episodes >= 1, "episodes", "must be positive")
+        need(bool(self.space or self.params), "space", "give a space (a shipped name or a TOML file) or params")
+        need(not self.archive_dims or all(d >= 1 for d in self.archive_dims), "archive_dims", "must be positive")
+
+
+#: Keys every gym preset shares. A parameter measure is exact (the level holds it), so the surrogate's prediction
+#: of it is replaced by the level's own value. CMA-ME searches the continuous box in the inner loop.
+_SEARCH = {
+    "surrogate.exact_level_values": True,
+    "qd.emitter": "cma_me",
+    "qd.num_emitters": 5,
+    "qd.batch_size": 30,
+    "qd.sigma0": 0.2,
+    "selection.block": (4, 4),
+}
+
+#: ``demo`` is the few-minute audit a newcomer pastes; ``cpu`` an audit of a named agent on 2 cores; ``tiny``
+#: for tests and smoke runs.
+PRESETS: dict[str, dict[str, Any]] = {
+    "paper": {**_SEARCH, "budget": 5_000, "n_rand": 200, "qd.exploit_iterations": 1_000, "surrogate.epochs": 20},
+    "cpu": {**_SEARCH, "budget": 1_000, "n_rand": 100, "gym.episodes": 10, "qd.exploit_iterations": 200,
+            "surrogate.epochs": 20, "surrogate.batch_size": 16},
+    "demo": {**_SEARCH, "budget": 300, "n_rand": 60, "gym.episodes": 10, "qd.exploit_iterations": 100,
+             "surrogate.epochs": 20, "surrogate.batch_size": 16},
+    "tiny": {**_SEARCH, "budget": 40, "n_rand": 20, "gym.episodes": 2, "qd.exploit_iterations": 5,
+             "qd.num_emitters": 2, "qd.batch_size": 10, "surrogate.epochs": 2, "surrogate.batch_size": 8,
+             "selection.block": (2, 2)},
+}
+
+#: The baselines on the same box: direct QD searches with no surrogate.
+VARIANTS: dict[str, dict[str, Any]] = {
+    "cma_me": {"surrogate.kind": "none", "qd.emitter": "cma_me", "qd.num_emitters": 5, "qd.batch_size": 30},
+}
+
+
+DOMAIN = DomainSpec(
+    name="gym",
+    config=GymConfig,
+    domain="dsage_ray.domains.gym.domain:GymDomain",
+    presets=PRESETS,
+    variants=VARIANTS,
+    comparison=("dsage", "cma_me", "dr"),
+    audit=AuditSpec(
+        objectives=("failure_rate",),
+        measures=(),  # the space's [audit] measures
+        default_agent="rllib:ppo_cartpole",
+        episodes_key="gym.episodes",
+        # Every numeric entry key is a column: the mean and worst return, the mean length, each parameter.
+        settings=(ReportField(key="env", label="environment"),
+                  ReportField(key="success", label="an episode succeeds when"),
+                  ReportField(key="max_steps", label="step limit", format="{} steps per episode")),
+    ),
+    agents=AgentKinds(forms={
+        "rllib": "rllib:PATH", "sb3": "sb3:PATH.zip", "torchscript": "torchscript:PATH",
+        "python": "python:MODULE:FUNCTION", "random": "random",
+    }),
+    cli="dsage_ray.domains.gym.cli",
+)

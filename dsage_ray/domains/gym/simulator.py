@@ -1,0 +1,270 @@
+"""Plays an agent on one level of a Gymnasium environment: the episodes run side by side, one batched action per step.
+
+Each episode has its own environment instance (built with the level's ``gym.make`` keywords), reset with its
+own seed and the level's reset options; then the level's attributes are set on ``env.unwrapped``, the space's
+derived attributes recomputed, and, where the space says so, the first observation re-read. The agent acts on
+the observations of the episodes still running, so a neural policy costs one forward pass per step, not one per
+episode.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+import warnings
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from dsage_ray.domains.gym.space import EnvSpace, Signal, SpaceError, evaluate_expression
+
+_INDEXED = re.compile(r"^([A-Za-z_]\w*)\[(\d+)\]$")
+
+
+@dataclasses.dataclass
+class Episodes:
+    """What the episodes of one evaluation did, one entry per episode.
+
+    Attributes:
+        returns, lengths, terminated, truncated, success: Per episode.
+        signals: Each asked :class:`Signal`'s value per episode, keyed by :func:`signal_key`.
+        occupancy: Steps per histogram bin, summed over the episodes and divided by ``episodes × step limit``
+            (so it sums to the mean share of the step limit the episodes lasted).
+    """
+
+    returns: np.ndarray
+    lengths: np.ndarray
+    terminated: np.ndarray
+    truncated: np.ndarray
+    success: np.ndarray
+    signals: dict[str, np.ndarray]
+    occupancy: np.ndarray
+
+
+def signal_key(signal: Signal) -> str:
+    """A signal's key in :attr:`Episodes.signals` (``info:x:end``)."""
+    return f"{signal.source}:{signal.key}:{signal.at}"
+
+
+def make_env(space: EnvSpace, values: Mapping[str, Any], *, render_mode: str | None = None):
+    """The environment of one level: ``gym.make`` with the fixed keywords and the level's keyword parameters.
+
+    Raises:
+        SpaceError: An unknown environment id, or keywords the environment does not take (one line).
+    """
+    import gymnasium as gym
+
+    kwargs = {**space.env_args, **{p.key: values[p.name] for p in space.params if p.target == "make"}}
+    if space.max_episode_steps:
+        kwargs["max_episode_steps"] = space.max_episode_steps
+    if render_mode:
+        kwargs["render_mode"] = render_mode
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # gymnasium warns about out-of-range physics parameters: that is the point
+            return gym.make(space.env_id, **kwargs)
+    except gym.error.Error as exc:  # NameNotFound, VersionNotFound, ... carry gymnasium's own did-you-mean
+        raise SpaceError(f"environment {space.env_id!r}: {_first_line(exc)}") from None
+    except TypeError as exc:
+        raise SpaceError(f"environment {space.env_id!r} does not take these gym.make keywords "
+                         f"{sorted(kwargs)}: {_first_line(exc)}") from None
+    except ModuleNotFoundError as exc:
+        raise SpaceError(f"environment {space.env_id!r} needs the module {exc.name!r}: install it "
+                         f"(LunarLander: pip install 'dsage_ray[gym]')") from None
+
+
+def reset_env(env, space: EnvSpace, values: Mapping[str, Any], *, seed: int) -> Any:
+    """Resets ``env`` to the level (reset options, then attributes and derived attributes); the first observation.
+
+    Raises:
+        SpaceError: An attribute parameter the environment lacks, or a derived attribute that names one.
+    """
+    options = {p.key: values[p.name] for p in space.params if p.target == "reset"}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        observation, _ = env.reset(seed=seed, options=options or None)
+    unwrapped = env.unwrapped
+    for p in space.params:
+        if p.target == "attr":
+            set_attribute(unwrapped, p.key, values[p.name], env_id=space.env_id)
+    for name, expression in space.derived.items():
+        try:
+            setattr(unwrapped, name, evaluate_expression(expression, _Attributes(unwrapped)))
+        except KeyError as exc:
+            raise SpaceError(f"environment {space.env_id!r}: derived attribute {name} = {expression!r} names "
+                             f"{exc.args[0]!r}, which the environment lacks") from None
+    if space.observation_attr:
+        if not hasattr(unwrapped, space.observation_attr):
+            raise SpaceError(f"environment {space.env_id!r} has no attribute {space.observation_attr!r} "
+                             f"(observation_attr)")
+        observation = np.asarray(getattr(unwrapped, space.observation_attr),
+                                 dtype=env.observation_space.dtype).reshape(env.observation_space.shape)
+    return observation
+
+
+class _Attributes(Mapping):
+    """An object's attributes as a read-only mapping, for derived-attribute expressions."""
+
+    def __init__(self, obj: Any) -> None:
+        self._obj = obj
+
+    def __getitem__(self, name: str) -> Any:
+        if name.startswith("_") or not hasattr(self._obj, name):
+            raise KeyError(name)
+        return getattr(self._obj, name)
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and not name.startswith("_") and hasattr(self._obj, name)
+
+    def __iter__(self):
+        return iter(())
+
+    def __len__(self) -> int:
+        return 0
+
+
+def set_attribute(obj: Any, key: str, value: Any, *, env_id: str) -> None:
+    """Sets ``obj.key`` (``name[i]``: element ``i`` of the array attribute ``name``)."""
+    match = _INDEXED.match(key)
+    name = match.group(1) if match else key
+    if name.startswith("_") or not hasattr(obj, name):
+        public = sorted(a for a in vars(obj) if not a.startswith("_")) if hasattr(obj, "__dict__") else []
+        raise SpaceError(f"environment {env_id!r} has no attribute {name!r} to set (its attributes: "
+                         f"{', '.join(public[:25])})")
+    if not match:
+        setattr(obj, name, value)
+        return
+    array = getattr(obj, name)
+    index = int(match.group(2))
+    try:
+        array = np.array(array, copy=True)
+        array[index] = value
+    except (IndexError, TypeError, ValueError) as exc:
+        raise SpaceError(f"environment {env_id!r}: cannot set {key} ({_first_line(exc)})") from None
+    setattr(obj, name, array)
+
+
+def step_limit(env, space: EnvSpace) -> int:
+    """The episode's step limit: the space's ``max_episode_steps``, else the environment's registered one.
+
+    Raises:
+        SpaceError: Neither is set (an episode could last for ever).
+    """
+    limit = space.max_episode_steps or (env.spec.max_episode_steps if env.spec is not None else None)
+    if not limit:
+        raise SpaceError(f"environment {space.env_id!r} has no step limit: set [env] max_episode_steps in the space")
+    return int(limit)
+
+
+def read_signal(signal: Signal, observation: Any, info: Mapping[str, Any], values: Mapping[str, Any]) -> float:
+    """One step's value of an ``info``, ``obs`` or ``param`` signal.
+
+    Raises:
+        KeyError: The ``info`` key is missing (:func:`run_episodes` names it).
+    """
+    if signal.source == "info":
+        return float(np.asarray(info[signal.key], dtype=np.float64).ravel()[0])
+    if signal.source == "obs":
+        return float(np.asarray(observation, dtype=np.float64).ravel()[int(signal.key)])
+    return float(values[signal.key])
+
+
+def run_episodes(space: EnvSpace, agent, values: Mapping[str, Any], *, seed: int, episodes: int,
+                 signals: Sequence[Signal] = ()) -> Episodes:
+    """Plays ``agent`` for ``episodes`` episodes of the level ``values``; deterministic for ``seed``.
+
+    Args:
+        space: The parameter space.
+        agent: A batched :class:`~dsage_ray.agents.base.Agent` of this environment's spaces.
+        values: ``{parameter name: value}`` of the level.
+        seed: Draws each episode's reset seed and the agent's random numbers.
+        episodes: Episodes played side by side.
+        signals: Per-episode values to record beside the episode statistics (measures' and occupancy's).
+
+    Raises:
+        SpaceError: A missing ``info`` key or observation entry, named.
+    """
+    from dsage_ray.domains.gym.agents import stack_observations
+
+    seeds = np.random.SeedSequence(seed).spawn(2)
+    reset_seeds = seeds[0].generate_state(episodes).tolist()
+    rng = np.random.default_rng(seeds[1])
+    envs = [make_env(space, values) for _ in range(episodes)]
+    try:
+        limit = step_limit(envs[0], space)
+        observations = [reset_env(env, space, values, seed=s) for env, s in zip(envs, reset_seeds)]
+        stepped = [s for s in signals if s.source in ("info", "obs")]
+        sums = {signal_key(s): np.zeros(episodes) for s in stepped}
+        last = {signal_key(s): np.zeros(episodes) for s in stepped}
+        returns, lengths = np.zeros(episodes), np.zeros(episodes, dtype=np.int64)
+        terminated, truncated = np.zeros(episodes, bool), np.zeros(episodes, bool)
+        success = np.zeros(episodes, bool)
+        occupancy = np.zeros(space.occupancy_shape, dtype=np.float64)
+        active = np.arange(episodes)
+        state = agent.initial_state(episodes)
+        while len(active):
+            batch = stack_observations([observations[i] for i in active], envs[0].observation_space)
+            actions, state = agent.act(batch, state, rng)
+            finished = []
+            for row, i in enumerate(active):
+                observation, reward, term, trunc, info = envs[i].step(actions[row])
+                observations[i] = observation
+                returns[i] += float(reward)
+                lengths[i] += 1
+                for s in stepped:
+                    key = signal_key(s)
+                    try:
+                        last[key][i] = read_signal(s, observation, info, values)
+                    except (KeyError, IndexError):
+                        raise SpaceError(f"environment {space.env_id!r}: {s.describe()} is not there "
+                                         f"(info keys: {', '.join(sorted(info)) or 'none'}; observation size "
+                                         f"{np.asarray(observation).size})") from None
+                    sums[key][i] += last[key][i]
+                if space.occupancy:
+                    occupancy[_bin(space, observation, info)] += 1.0
+                if term or trunc or lengths[i] >= limit:
+                    terminated[i], truncated[i] = bool(term), not term
+                    success[i] = (bool(info.get(space.success.info_key, False)) if space.success.info_key
+                                  else returns[i] >= space.success.return_at_least)
+                    finished.append(row)
+            if finished:
+                keep = np.setdiff1d(np.arange(len(active)), finished)
+                active = active[keep]
+                if len(active):
+                    state = agent.select_state(state, keep)
+    finally:
+        for env in envs:
+            env.close()
+    if not space.occupancy:
+        occupancy[0, 0] = lengths.sum()
+    occupancy /= episodes * limit
+    recorded: dict[str, np.ndarray] = {}
+    for s in signals:
+        key = signal_key(s)
+        if s.source in ("info", "obs"):
+            recorded[key] = last[key] if s.at == "end" else sums[key] / np.maximum(lengths, 1)
+        elif s.source == "param":
+            recorded[key] = np.full(episodes, float(values[s.key]))
+        else:
+            recorded[key] = {"return": returns, "length": lengths, "terminated": terminated,
+                             "truncated": truncated}[s.source].astype(np.float64)
+    return Episodes(returns=returns, lengths=lengths, terminated=terminated, truncated=truncated, success=success,
+                    signals=recorded, occupancy=occupancy.astype(np.float32))
+
+
+def _bin(space: EnvSpace, observation: Any, info: Mapping[str, Any]) -> tuple[int, int]:
+    cells = []
+    for coordinate, bins in zip(space.occupancy, space.bins):
+        try:
+            value = read_signal(coordinate.signal, observation, info, {})
+        except (KeyError, IndexError):
+            raise SpaceError(f"environment {space.env_id!r}: occupancy coordinate {coordinate.signal.describe()} "
+                             f"is not there") from None
+        share = (value - coordinate.low) / (coordinate.high - coordinate.low)
+        cells.append(int(np.clip(np.floor(share * bins), 0, bins - 1)) if np.isfinite(share) else 0)
+    return cells[0], cells[1]
+
+
+def _first_line(exc: BaseException) -> str:
+    lines = str(exc).strip().splitlines()
+    return lines[0] if lines else type(exc).__name__

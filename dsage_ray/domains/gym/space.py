@@ -1,0 +1,637 @@
+"""A Gymnasium environment's parameter space: what a level is, what is measured, and what success means.
+
+A *level* is one value per named parameter. The space declares each parameter's range and where the
+environment takes it, the measures (episode statistics, ``info`` keys, observation entries or the parameters
+themselves), the success test and, optionally, two state coordinates whose visitation histogram is the
+surrogate's ancillary target (the paper's occupancy). It comes from a TOML file (:func:`load_space_file`), a
+shipped name (``cartpole``, ``lunarlander``) or command-line strings (:func:`parse_param`,
+:func:`parse_env_arg`), and is plain data: reading it runs no code.
+
+A space file::
+
+    [env]
+    id = "LunarLander-v3"
+    args = {enable_wind = true}           # fixed gym.make keywords, not searched
+
+    [params.gravity]                      # a gym.make keyword (the default)
+    range = [-12.0, -2.0]
+    [params.length]
+    range = [0.25, 2.0]
+    attr = "length"                       # an attribute of env.unwrapped, set after every reset
+    [params.initial_angle]
+    range = [-0.2, 0.2]
+    attr = "state[2]"                     # an element of an array attribute
+
+    [measures.landing_x]
+    obs = 0                               # observation entry 0 ...
+    at = "end"                            # ... at the episode's end ("mean": over the episode)
+    range = [-1.0, 1.0]
+    [measures.length]                     # episode statistics: return, length, terminated, truncated
+    range = [0, 1000]
+
+    [success]
+    return_at_least = 200.0               # or: info = "is_success"
+
+    [occupancy]                           # optional: the two-stage surrogate's visitation histogram
+    x = {obs = 0, range = [-1.5, 1.5]}
+    y = {obs = 1, range = [-0.5, 2.0]}
+
+    [audit]
+    measures = ["landing_x", "length"]    # the default audit's archive measures
+
+Solutions are points of ``[-1, 1]^P`` (one coordinate per parameter, in declaration order): the box's centre is
+every range's midpoint, so CMA-ME's search from the origin starts in the middle of the space.
+"""
+
+from __future__ import annotations
+
+import ast
+import dataclasses
+import math
+import operator
+import re
+import tomllib
+from pathlib import Path
+from typing import Any, Literal, Mapping, Sequence
+
+import numpy as np
+
+from dsage_ray.errors import InputError, did_you_mean
+
+#: Where a parameter goes: a ``gym.make`` keyword, a ``reset(options=...)`` entry, or an attribute of
+#: ``env.unwrapped`` set after each reset.
+Target = Literal["make", "reset", "attr"]
+TARGETS: tuple[str, ...] = ("make", "reset", "attr")
+#: Episode statistics a measure may name directly.
+EPISODE_STATISTICS: tuple[str, ...] = ("return", "length", "terminated", "truncated")
+#: Spaces shipped with the package, by name (``--space cartpole``).
+SHIPPED_DIR = Path(__file__).resolve().parent / "spaces"
+#: Default archive cells per measure.
+DEFAULT_CELLS = 20
+#: Default histogram bins per occupancy coordinate.
+DEFAULT_BINS = 8
+_ATTRIBUTE = re.compile(r"^([A-Za-z_]\w*)(?:\[(\d+)\])?$")
+
+
+class SpaceError(InputError):
+    """A space file or ``--param`` string that does not describe a parameter space; the message says where."""
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class Parameter:
+    """One searched parameter.
+
+    Attributes:
+        name: What the level files and the report call it.
+        target: Where the environment takes it (:data:`Target`).
+        key: The keyword, reset option or attribute (``state[2]``: element 2 of the array attribute ``state``).
+        kind: ``float``, ``int`` or ``choice``.
+        low, high: The range (``choice``: 0 and the number of choices − 1).
+        choices: The values of a ``choice`` parameter.
+    """
+
+    name: str
+    target: Target = "make"
+    key: str = ""
+    kind: Literal["float", "int", "choice"] = "float"
+    low: float = 0.0
+    high: float = 1.0
+    choices: tuple[Any, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not self.key:
+            object.__setattr__(self, "key", self.name)
+        if self.target not in TARGETS:
+            raise SpaceError(f"parameter {self.name!r}: set = {self.target!r} is not one of {', '.join(TARGETS)}")
+        if self.target == "attr" and not _ATTRIBUTE.match(self.key):
+            raise SpaceError(f"parameter {self.name!r}: attribute {self.key!r} is not NAME or NAME[INDEX]")
+        if self.kind == "choice":
+            if len(self.choices) < 2:
+                raise SpaceError(f"parameter {self.name!r}: a choice needs at least two values, got {list(self.choices)}")
+            object.__setattr__(self, "low", 0.0)
+            object.__setattr__(self, "high", float(len(self.choices) - 1))
+        elif not (math.isfinite(self.low) and math.isfinite(self.high) and self.low < self.high):
+            raise SpaceError(f"parameter {self.name!r}: range [{self.low:g}, {self.high:g}] needs low < high")
+
+    def value(self, unit: float) -> Any:
+        """The parameter's value at box coordinate ``unit`` (clipped to ``[-1, 1]``)."""
+        x = self.low + (self.high - self.low) * (float(np.clip(unit, -1.0, 1.0)) + 1.0) / 2.0
+        if self.kind == "float":
+            return x
+        index = int(round(x))
+        return self.choices[index] if self.kind == "choice" else index
+
+    def unit(self, value: Any) -> float:
+        """The box coordinate of ``value`` (the inverse of :meth:`value`).
+
+        Raises:
+            SpaceError: A value outside the range, or not one of the choices.
+        """
+        if self.kind == "choice":
+            if value not in self.choices:
+                raise SpaceError(f"parameter {self.name!r}: {value!r} is not one of {list(self.choices)}")
+            x = float(self.choices.index(value))
+        else:
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise SpaceError(f"parameter {self.name!r}: {value!r} is not a number")
+            x = float(value)
+            if not self.low - 1e-9 * abs(self.high - self.low) <= x <= self.high + 1e-9 * abs(self.high - self.low):
+                raise SpaceError(f"parameter {self.name!r}: {x:g} is outside its range [{self.low:g}, {self.high:g}]")
+        return 2.0 * (x - self.low) / (self.high - self.low) - 1.0
+
+    def describe(self) -> str:
+        """``name in [low, high] (attribute state[2])``: one line for messages and help."""
+        span = "{" + ", ".join(map(str, self.choices)) + "}" if self.kind == "choice" else (
+            f"[{self.low:g}, {self.high:g}]" + (" integers" if self.kind == "int" else ""))
+        where = {"make": "gym.make keyword", "reset": "reset option", "attr": "attribute"}[self.target]
+        return f"{self.name} in {span} ({where} {self.key})"
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class Signal:
+    """A number read off each episode: an episode statistic, an ``info`` key, an observation entry or a parameter.
+
+    Attributes:
+        source: ``return``, ``length``, ``terminated``, ``truncated``, ``info``, ``obs`` or ``param``.
+        key: The ``info`` key, the observation index (as text) or the parameter name.
+        at: ``end`` (the last step's value) or ``mean`` (over the episode's steps); info and observations only.
+    """
+
+    source: str
+    key: str = ""
+    at: Literal["end", "mean"] = "end"
+
+    def describe(self) -> str:
+        if self.source in EPISODE_STATISTICS:
+            return f"episode {self.source}"
+        where = {"info": f"info[{self.key!r}]", "obs": f"observation[{self.key}]", "param": f"parameter {self.key}"}
+        return where[self.source] + ("" if self.source == "param" else f" at the {'end' if self.at == 'end' else 'mean'}")
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class Measure:
+    """A measure of the archive: a :class:`Signal`, averaged over the episodes, with its range and cells."""
+
+    name: str
+    signal: Signal
+    low: float
+    high: float
+    cells: int = DEFAULT_CELLS
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class Coordinate:
+    """One axis of the occupancy histogram: an observation entry (or ``info`` key) and its range."""
+
+    signal: Signal
+    low: float
+    high: float
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class Success:
+    """An episode succeeds when ``info[info_key]`` is true at its end, or when its return is at least ``return_at_least``."""
+
+    info_key: str = ""
+    return_at_least: float | None = None
+
+    def describe(self) -> str:
+        return f"info[{self.info_key!r}] at the end" if self.info_key else f"return >= {self.return_at_least:g}"
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class EnvSpace:
+    """A whole parameter space (module docstring); built by :func:`build_space`.
+
+    Attributes:
+        env_id: The Gymnasium id, as ``gym.make`` takes it.
+        env_args: Fixed ``gym.make`` keywords.
+        params: The searched parameters, in solution order.
+        measures: Every declared measure, by name.
+        success: The success test.
+        occupancy: The two coordinates of the visitation histogram, or ``()``.
+        bins: Histogram bins per coordinate.
+        derived: Attributes recomputed after the parameters are set (``total_mass = "masspole + masscart"``):
+            arithmetic over ``env.unwrapped``'s attributes, evaluated without ``eval``.
+        observation_attr: An attribute of ``env.unwrapped`` the first observation is re-read from after the
+            parameters are set (CartPole's ``state``), for parameters that move the initial state.
+        max_episode_steps: The episode's step limit (default: the environment's registered one).
+        audit_measures: The default audit's measures.
+        source: Where the space came from, for messages.
+    """
+
+    env_id: str
+    env_args: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    params: tuple[Parameter, ...] = ()
+    measures: Mapping[str, Measure] = dataclasses.field(default_factory=dict)
+    success: Success = Success(return_at_least=0.0)
+    occupancy: tuple[Coordinate, ...] = ()
+    bins: tuple[int, int] = (DEFAULT_BINS, DEFAULT_BINS)
+    derived: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    observation_attr: str = ""
+    max_episode_steps: int | None = None
+    audit_measures: tuple[str, ...] = ()
+    source: str = "command line"
+
+    @property
+    def dim(self) -> int:
+        return len(self.params)
+
+    @property
+    def occupancy_shape(self) -> tuple[int, int]:
+        """The histogram's shape, ``(1, 1)`` without coordinates (then it holds the share of the step limit used)."""
+        return tuple(self.bins) if self.occupancy else (1, 1)
+
+    def values(self, solution: np.ndarray) -> dict[str, Any]:
+        """``{parameter name: value}`` of a solution (a point of ``[-1, 1]^P``, clipped)."""
+        solution = np.asarray(solution, dtype=np.float64).ravel()
+        if solution.shape != (self.dim,):
+            raise ValueError(f"a solution of this space has {self.dim} values, got {solution.shape[0]}")
+        return {p.name: p.value(u) for p, u in zip(self.params, solution)}
+
+    def solution(self, values: Mapping[str, Any]) -> np.ndarray:
+        """The solution of ``{parameter name: value}`` (the inverse of :meth:`values`).
+
+        Raises:
+            SpaceError: A parameter missing or unknown, or a value out of its range.
+        """
+        names = [p.name for p in self.params]
+        unknown, missing = sorted(set(values) - set(names)), [n for n in names if n not in values]
+        if unknown or missing:
+            raise SpaceError(f"level values {'lack ' + ', '.join(missing) if missing else ''}"
+                             f"{'; ' if unknown and missing else ''}{'name unknown ' + ', '.join(unknown) if unknown else ''}"
+                             f" (the space's parameters: {', '.join(names)})")
+        return np.array([p.unit(values[p.name]) for p in self.params], dtype=np.float32)
+
+    def measure(self, name: str) -> Measure:
+        if name not in self.measures:
+            raise SpaceError(f"unknown measure {name!r} (this space's: {', '.join(self.measures)})"
+                             + did_you_mean(name, list(self.measures)))
+        return self.measures[name]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The space as a space file's TOML tables (:func:`build_space` reads it back): level files embed it."""
+        def signal(s: Signal) -> dict[str, Any]:
+            if s.source in EPISODE_STATISTICS:
+                return {"stat": s.source}
+            return {s.source: int(s.key) if s.source == "obs" else s.key, **({"at": s.at} if s.source != "param" else {})}
+
+        params = {}
+        for p in self.params:
+            entry: dict[str, Any] = ({"choices": list(p.choices)} if p.kind == "choice"
+                                     else {"range": [int(p.low), int(p.high)] if p.kind == "int" else [p.low, p.high]})
+            if p.kind == "int":
+                entry["int"] = True
+            if p.target != "make" or p.key != p.name:
+                entry[p.target] = p.key
+            params[p.name] = entry
+        space: dict[str, Any] = {
+            "env": {"id": self.env_id, "args": dict(self.env_args), "derived": dict(self.derived),
+                    **({"observation_attr": self.observation_attr} if self.observation_attr else {}),
+                    **({"max_episode_steps": self.max_episode_steps} if self.max_episode_steps else {})},
+            "params": params,
+            "measures": {m.name: {**signal(m.signal), "range": [m.low, m.high], "cells": m.cells}
+                         for m in self.measures.values()},
+            "success": ({"info": self.success.info_key} if self.success.info_key
+                        else {"return_at_least": self.success.return_at_least}),
+            "audit": {"measures": list(self.audit_measures)},
+        }
+        if self.occupancy:
+            space["occupancy"] = {axis: {**signal(c.signal), "range": [c.low, c.high]}
+                                  for axis, c in zip("xy", self.occupancy)}
+            space["occupancy"]["bins"] = list(self.bins)
+        return space
+
+
+# ------------------------------------------------------------------------------------------ reading
+
+
+def shipped_spaces() -> list[str]:
+    """Names of the spaces shipped with the package (``--space NAME``)."""
+    return sorted(p.stem for p in SHIPPED_DIR.glob("*.toml"))
+
+
+def read_space_tables(space: str) -> tuple[dict[str, Any], str]:
+    """The TOML tables of a space file path or a shipped space's name, and where they came from.
+
+    Raises:
+        SpaceError: No such file or shipped space, or not TOML.
+    """
+    path = Path(space).expanduser()
+    if not path.is_file() and "/" not in space and not space.endswith(".toml"):
+        shipped = SHIPPED_DIR / f"{space}.toml"
+        if not shipped.is_file():
+            raise SpaceError(f"space {space!r}: no such file, and not a shipped space (shipped: "
+                             f"{', '.join(shipped_spaces())})" + did_you_mean(space, shipped_spaces()))
+        path = shipped
+    if not path.is_file():
+        raise SpaceError(f"space file {str(path)!r}: not found")
+    try:
+        return tomllib.loads(path.read_text()), str(path)
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise SpaceError(f"space file {str(path)!r}: not TOML ({exc})") from None
+
+
+def parse_range(name: str, text: str) -> dict[str, Any]:
+    """A ``--param`` range: ``LOW:HIGH`` (float), ``LOW:HIGH:int`` or ``A|B|C`` (choices), as a space file entry.
+
+    Raises:
+        SpaceError: Any other form.
+    """
+    if "|" in text:
+        return {"choices": [_scalar(part) for part in text.split("|")]}
+    parts = text.split(":")
+    if len(parts) in (2, 3) and (len(parts) == 2 or parts[2] in ("int", "float")):
+        try:
+            low, high = float(parts[0]), float(parts[1])
+        except ValueError:
+            pass
+        else:
+            entry: dict[str, Any] = {"range": [low, high]}
+            if len(parts) == 3 and parts[2] == "int":
+                entry["int"] = True
+            return entry
+    raise SpaceError(f"--param {name}={text}: expected LOW:HIGH, LOW:HIGH:int or A|B|C")
+
+
+def parse_param(text: str) -> tuple[str, dict[str, Any]]:
+    """A ``--param`` string as ``(name, space file entry)``.
+
+    Forms: ``NAME=RANGE`` (a ``gym.make`` keyword), ``attr.NAME=RANGE`` or ``attr.NAME[I]=RANGE`` (an attribute of
+    ``env.unwrapped`` after reset), ``reset.NAME=RANGE`` (a reset option), ``make.NAME=RANGE``; RANGE as in
+    :func:`parse_range`.
+    """
+    name, eq, text_range = text.partition("=")
+    name = name.strip()
+    if not eq or not name:
+        raise SpaceError(f"--param {text!r}: expected NAME=LOW:HIGH (or attr.NAME=..., reset.NAME=...)")
+    target, dot, key = name.partition(".")
+    entry = parse_range(name, text_range.strip())
+    if dot and target in TARGETS:
+        entry[target] = key
+        return key, entry
+    return name, entry
+
+
+def parse_env_arg(text: str) -> tuple[str, Any]:
+    """An ``--env-arg KEY=VALUE`` (the value read as TOML: ``true``, ``3``, ``"x"``; else kept as text)."""
+    key, eq, raw = text.partition("=")
+    if not eq or not key.strip():
+        raise SpaceError(f"--env-arg {text!r}: expected KEY=VALUE")
+    return key.strip(), _scalar(raw.strip())
+
+
+def _scalar(raw: str) -> Any:
+    try:
+        return tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        return raw
+
+
+def build_space(tables: Mapping[str, Any] | None = None, *, env_id: str = "", params: Sequence[str] = (),
+                env_args: Sequence[str] = (), source: str = "command line") -> EnvSpace:
+    """The space of a space file's tables, with the command line's environment, parameters and keywords over it.
+
+    Args:
+        tables: A space file's tables (:func:`read_space_tables`), or None.
+        env_id: Overrides ``[env] id``.
+        params: ``--param`` strings (:func:`parse_param`); a name the file declares is replaced.
+        env_args: ``--env-arg`` strings (:func:`parse_env_arg`), over ``[env] args``.
+        source: Where ``tables`` came from, for messages.
+
+    Raises:
+        SpaceError: Anything malformed, named by its table and key.
+    """
+    tables = dict(tables or {})
+    unknown = sorted(set(tables) - {"env", "params", "measures", "success", "occupancy", "audit"})
+    if unknown:
+        raise SpaceError(f"{source}: unknown table(s) {', '.join(unknown)} (known: env, params, measures, success, "
+                         f"occupancy, audit)")
+    env = _table(tables, "env", source)
+    _known_keys(env, ("id", "args", "derived", "observation_attr", "max_episode_steps"), f"{source} [env]")
+    env_id = env_id or str(env.get("id", ""))
+    if not env_id:
+        raise SpaceError(f"{source}: no environment id (give --env ID or [env] id in a space file)")
+    args = dict(_table(env, "args", f"{source} [env]"))
+    args.update(parse_env_arg(a) for a in env_args)
+    declared = dict(_table(tables, "params", source))
+    declared.update(parse_param(p) for p in params)
+    if not declared:
+        raise SpaceError(f"{source}: no parameters to search (declare [params.NAME] tables or give --param NAME=LOW:HIGH)")
+    parameters = tuple(_parameter(name, entry, source) for name, entry in declared.items())
+    steps = env.get("max_episode_steps")
+    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int) or steps < 1):
+        raise SpaceError(f"{source} [env] max_episode_steps: must be a positive integer, got {steps!r}")
+    names = {p.name for p in parameters}
+    measures = {name: _measure(name, entry, source, parameters, steps)
+                for name, entry in _table(tables, "measures", source).items()}
+    # Every parameter is also a measure (param.NAME), without declaring it.
+    for p in parameters:
+        measures.setdefault(f"param.{p.name}", Measure(name=f"param.{p.name}", signal=Signal(source="param", key=p.name),
+                                                       low=p.low, high=p.high))
+    for name in EPISODE_STATISTICS[2:]:
+        measures.setdefault(name, Measure(name=name, signal=Signal(source=name), low=0.0, high=1.0))
+    success = _success(_table(tables, "success", source), source)
+    occupancy_table = dict(_table(tables, "occupancy", source))
+    bins = occupancy_table.pop("bins", [DEFAULT_BINS, DEFAULT_BINS])
+    if not (isinstance(bins, list) and len(bins) == 2 and all(isinstance(b, int) and b >= 1 for b in bins)):
+        raise SpaceError(f"{source} [occupancy] bins: expected two positive integers, got {bins!r}")
+    if occupancy_table and set(occupancy_table) != {"x", "y"}:
+        raise SpaceError(f"{source} [occupancy]: declare exactly x and y (and bins), got {', '.join(occupancy_table)}")
+    occupancy = tuple(_coordinate(axis, occupancy_table[axis], source) for axis in "xy") if occupancy_table else ()
+    audit = _table(tables, "audit", source)
+    audit_measures = tuple(audit.get("measures", ()))
+    for name in audit_measures:
+        if name not in measures:
+            raise SpaceError(f"{source} [audit] measures: unknown measure {name!r} (declared: {', '.join(measures)})")
+    derived = dict(_table(env, "derived", f"{source} [env]"))
+    for name, expression in derived.items():
+        check_expression(expression, where=f"{source} [env.derived] {name}")
+    for p in parameters:
+        if p.target == "attr" and p.key in derived:
+            raise SpaceError(f"{source}: parameter {p.name!r} sets {p.key!r}, which [env.derived] also computes")
+    del names
+    return EnvSpace(env_id=env_id, env_args=args, params=parameters, measures=measures, success=success,
+                    occupancy=occupancy, bins=tuple(bins), derived=derived,
+                    observation_attr=str(env.get("observation_attr", "")), max_episode_steps=steps,
+                    audit_measures=audit_measures, source=source)
+
+
+def _table(tables: Mapping[str, Any], name: str, source: str) -> Mapping[str, Any]:
+    table = tables.get(name, {})
+    if not isinstance(table, Mapping):
+        raise SpaceError(f"{source}: {name} must be a table, got {table!r}")
+    return table
+
+
+def _known_keys(entry: Mapping[str, Any], known: Sequence[str], where: str) -> None:
+    unknown = sorted(set(entry) - set(known))
+    if unknown:
+        raise SpaceError(f"{where}: unknown key(s) {', '.join(unknown)} (known: {', '.join(known)})"
+                         + did_you_mean(unknown[0], list(known)))
+
+
+def _pair(value: Any, where: str) -> tuple[float, float]:
+    if not (isinstance(value, list) and len(value) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
+        raise SpaceError(f"{where}: range must be [LOW, HIGH], got {value!r}")
+    low, high = float(value[0]), float(value[1])
+    if not low < high:
+        raise SpaceError(f"{where}: range [{low:g}, {high:g}] needs low < high")
+    return low, high
+
+
+def _parameter(name: str, entry: Any, source: str) -> Parameter:
+    where = f"{source} [params.{name}]"
+    if not isinstance(entry, Mapping):
+        raise SpaceError(f"{where}: expected a table with range = [LOW, HIGH] or choices = [...]")
+    _known_keys(entry, ("range", "int", "choices", *TARGETS), where)
+    targets = [t for t in TARGETS if t in entry]
+    if len(targets) > 1:
+        raise SpaceError(f"{where}: give one of make, reset, attr, not {' and '.join(targets)}")
+    target = targets[0] if targets else "make"
+    key = str(entry.get(target, name))
+    if "choices" in entry:
+        if "range" in entry:
+            raise SpaceError(f"{where}: give range or choices, not both")
+        choices = entry["choices"]
+        if not isinstance(choices, list):
+            raise SpaceError(f"{where}: choices must be a list")
+        if len(set(map(repr, choices))) != len(choices):
+            raise SpaceError(f"{where}: choices repeat a value: {choices}")
+        return Parameter(name=name, target=target, key=key, kind="choice", choices=tuple(choices))
+    if "range" not in entry:
+        raise SpaceError(f"{where}: needs range = [LOW, HIGH] or choices = [...]")
+    low, high = _pair(entry["range"], where)
+    integer = entry.get("int", False)
+    if not isinstance(integer, bool):
+        raise SpaceError(f"{where}: int must be true or false")
+    if integer and (low != int(low) or high != int(high)):
+        raise SpaceError(f"{where}: an integer range needs integer bounds, got [{low:g}, {high:g}]")
+    return Parameter(name=name, target=target, key=key, kind="int" if integer else "float", low=low, high=high)
+
+
+def _signal(entry: Mapping[str, Any], where: str, *, name: str = "") -> Signal:
+    sources = [s for s in ("stat", "info", "obs", "param") if s in entry]
+    if len(sources) > 1:
+        raise SpaceError(f"{where}: give one of stat, info, obs, param, not {' and '.join(sources)}")
+    at = entry.get("at", "end")
+    if at not in ("end", "mean"):
+        raise SpaceError(f"{where}: at must be 'end' or 'mean', got {at!r}")
+    if not sources:
+        if name in EPISODE_STATISTICS:
+            return Signal(source=name)
+        raise SpaceError(f"{where}: say what it reads: stat = one of {', '.join(EPISODE_STATISTICS)}, info = KEY, "
+                         f"obs = INDEX or param = NAME (or name the measure after an episode statistic)")
+    source = sources[0]
+    value = entry[source]
+    if source == "stat":
+        if value not in EPISODE_STATISTICS:
+            raise SpaceError(f"{where}: stat must be one of {', '.join(EPISODE_STATISTICS)}, got {value!r}")
+        return Signal(source=value)
+    if source == "obs" and (isinstance(value, bool) or not isinstance(value, int) or value < 0):
+        raise SpaceError(f"{where}: obs must be a non-negative index, got {value!r}")
+    if source in ("info", "param") and not (isinstance(value, str) and value):
+        raise SpaceError(f"{where}: {source} must name a key, got {value!r}")
+    return Signal(source=source, key=str(value), at=at)
+
+
+def _measure(name: str, entry: Any, source: str, params: Sequence[Parameter], steps: int | None) -> Measure:
+    where = f"{source} [measures.{name}]"
+    if not isinstance(entry, Mapping):
+        raise SpaceError(f"{where}: expected a table")
+    _known_keys(entry, ("stat", "info", "obs", "param", "at", "range", "cells"), where)
+    signal = _signal(entry, where, name=name)
+    if "range" in entry:
+        low, high = _pair(entry["range"], where)
+    elif signal.source == "param":
+        found = [p for p in params if p.name == signal.key]
+        if not found:
+            raise SpaceError(f"{where}: param {signal.key!r} is not a parameter of the space")
+        low, high = found[0].low, found[0].high
+    elif signal.source in ("terminated", "truncated"):
+        low, high = 0.0, 1.0
+    elif signal.source == "length" and steps:
+        low, high = 0.0, float(steps)
+    else:
+        raise SpaceError(f"{where}: needs range = [LOW, HIGH]")
+    cells = entry.get("cells", DEFAULT_CELLS)
+    if isinstance(cells, bool) or not isinstance(cells, int) or cells < 1:
+        raise SpaceError(f"{where}: cells must be a positive integer, got {cells!r}")
+    if signal.source == "param" and signal.key not in {p.name for p in params}:
+        raise SpaceError(f"{where}: param {signal.key!r} is not a parameter of the space")
+    return Measure(name=name, signal=signal, low=low, high=high, cells=cells)
+
+
+def _coordinate(axis: str, entry: Any, source: str) -> Coordinate:
+    where = f"{source} [occupancy.{axis}]"
+    if not isinstance(entry, Mapping):
+        raise SpaceError(f"{where}: expected a table such as {{obs = 0, range = [-1, 1]}}")
+    _known_keys(entry, ("info", "obs", "at", "range"), where)
+    if "range" not in entry:
+        raise SpaceError(f"{where}: needs range = [LOW, HIGH]")
+    signal = _signal(entry, where)
+    if signal.source not in ("obs", "info"):
+        raise SpaceError(f"{where}: a coordinate is an observation entry (obs = INDEX) or an info key (info = KEY)")
+    low, high = _pair(entry["range"], where)
+    return Coordinate(signal=signal, low=low, high=high)
+
+
+def _success(entry: Mapping[str, Any], source: str) -> Success:
+    where = f"{source} [success]"
+    _known_keys(entry, ("info", "return_at_least"), where)
+    if ("info" in entry) == ("return_at_least" in entry):
+        raise SpaceError(f"{where}: say how an episode succeeds: info = \"is_success\" or return_at_least = NUMBER "
+                         f"(one of them)")
+    if "info" in entry:
+        if not (isinstance(entry["info"], str) and entry["info"]):
+            raise SpaceError(f"{where}: info must name a key")
+        return Success(info_key=entry["info"])
+    threshold = entry["return_at_least"]
+    if isinstance(threshold, bool) or not isinstance(threshold, (int, float)):
+        raise SpaceError(f"{where}: return_at_least must be a number, got {threshold!r}")
+    return Success(return_at_least=float(threshold))
+
+
+# ------------------------------------------------------------------------- derived attributes
+
+_OPERATORS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,
+              ast.Pow: operator.pow, ast.USub: operator.neg, ast.UAdd: operator.pos}
+
+
+def check_expression(expression: Any, *, where: str) -> None:
+    """Refuses anything but arithmetic (``+ - * / **``, numbers, attribute names) in a derived attribute."""
+    if not isinstance(expression, str):
+        raise SpaceError(f"{where}: expected an arithmetic expression as a string, got {expression!r}")
+    try:
+        tree = ast.parse(expression, mode="eval")
+    except SyntaxError:
+        raise SpaceError(f"{where}: {expression!r} is not an expression") from None
+    for node in ast.walk(tree):
+        if not isinstance(node, (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Name, ast.Load, ast.Constant,
+                                 *_OPERATORS)) or (isinstance(node, ast.Constant)
+                                                   and not isinstance(node.value, (int, float))):
+            raise SpaceError(f"{where}: {expression!r} may hold only numbers, attribute names and + - * / **")
+
+
+def evaluate_expression(expression: str, names: Mapping[str, Any]) -> float:
+    """The value of a checked arithmetic expression (:func:`check_expression`) with ``names`` as its variables."""
+    def value(node: ast.AST) -> float:
+        if isinstance(node, ast.Constant):
+            return node.value
+        if isinstance(node, ast.Name):
+            if node.id not in names:
+                raise KeyError(node.id)
+            return names[node.id]
+        if isinstance(node, ast.UnaryOp):
+            return _OPERATORS[type(node.op)](value(node.operand))
+        return _OPERATORS[type(node.op)](value(node.left), value(node.right))
+
+    return float(value(ast.parse(expression, mode="eval").body))
+
+
+def load_space(config: Any) -> EnvSpace:
+    """The space a ``[gym]`` config section describes: its space file (or shipped name), then its command-line
+    environment id, parameters and keywords over it."""
+    tables, source = read_space_tables(config.space) if config.space else ({}, "command line")
+    return build_space(tables, env_id=config.env, params=config.params, env_args=config.env_args, source=source)
