@@ -3,7 +3,8 @@
 Levels are stored bit-packed: the surrogate's inputs are one-hot (0/1), so one bit per value
 holds them exactly. A 5×16×16 Maze level takes 160 bytes instead of 5 KiB as float32 (100k Maze
 samples: 16 MB of levels + 100 MB of float32 occupancy), and a padded 17×64×64 Mario level 8.5 KiB
-instead of 272 KiB. Minibatches are unpacked on demand.
+instead of 272 KiB. Minibatches are unpacked on demand. Levels that are parameter vectors ``(P, 1, 1)`` (the gym
+domain's, real numbers) are kept as float32.
 """
 
 from __future__ import annotations
@@ -95,7 +96,8 @@ class SurrogateDataset:
 
     def _allocate(self, capacity: int) -> dict[str, np.ndarray]:
         arrays = {
-            "levels": np.zeros((capacity, self._packed_bytes), dtype=np.uint8),
+            "levels": (np.zeros((capacity, self.level_shape[0]), dtype=np.float32) if _dense(self.level_shape)
+                       else np.zeros((capacity, self._packed_bytes), dtype=np.uint8)),
             "objective": np.zeros(capacity, dtype=np.float64),
             "measures": np.zeros((capacity, self.num_measures), dtype=np.float64),
             "occupancy": np.zeros((capacity, *self.occupancy_shape), dtype=np.float32),
@@ -121,7 +123,8 @@ class SurrogateDataset:
         """Stores the successful evaluations of a batch.
 
         Args:
-            encoded: The evaluated levels as the surrogate reads them, ``(n, *level_shape)``, 0/1 values.
+            encoded: The evaluated levels as the surrogate reads them, ``(n, *level_shape)``, 0/1 values (any values
+                for parameter vectors).
             results: One result per level; failed ones are skipped (they hold placeholders, not data).
             solutions: ``(n, solution_dim)``; required when the dataset keeps solutions.
 
@@ -131,7 +134,8 @@ class SurrogateDataset:
         encoded = np.asarray(encoded)
         if encoded.shape[1:] != self.level_shape or len(encoded) != len(results):
             raise ValueError(f"expected {len(results)} levels of shape {self.level_shape}, got {encoded.shape}")
-        if not np.all((encoded == 0) | (encoded == 1)):
+        dense = _dense(self.level_shape)
+        if not dense and not np.all((encoded == 0) | (encoded == 1)):
             raise ValueError("encoded levels must be one-hot (0/1 values) to be stored bit-packed")
         if (solutions is None) != (self.solution_dim is None):
             raise ValueError("pass solutions exactly when the dataset was built with solution_dim")
@@ -140,8 +144,8 @@ class SurrogateDataset:
         count = len(targets.objective)
         start, stop = self._size, self._size + count
         self._reserve(stop)
-        self._arrays["levels"][start:stop] = np.packbits(encoded[targets.valid].reshape(count, -1).astype(bool),
-                                                         axis=1)
+        kept = encoded[targets.valid].reshape(count, -1)
+        self._arrays["levels"][start:stop] = kept if dense else np.packbits(kept.astype(bool), axis=1)
         self._arrays["objective"][start:stop] = targets.objective
         self._arrays["measures"][start:stop] = targets.measures
         self._arrays["occupancy"][start:stop] = targets.occupancy
@@ -201,6 +205,13 @@ class SurrogateDataset:
         self._arrays, self._size = arrays, size
 
 
+def _dense(level_shape: tuple[int, ...]) -> bool:
+    """Parameter vectors ``(P, 1, 1)`` are real numbers, stored as they are; one-hot grids are bit-packed."""
+    return tuple(level_shape[1:]) == (1, 1)
+
+
 def _unpack(packed: np.ndarray, level_shape: tuple[int, int, int]) -> np.ndarray:
+    if _dense(level_shape):
+        return np.asarray(packed, dtype=np.float32).reshape(len(packed), *level_shape)
     bits = np.unpackbits(packed, axis=1, count=int(np.prod(level_shape)))
     return bits.reshape(len(packed), *level_shape).astype(np.float32)

@@ -94,7 +94,7 @@ def load_gym_agent(spec: str, *, observation_space: gymnasium.Space, action_spac
         raise AgentError(f"agent spec {spec!r}: action space {action_space} is not supported "
                          f"(Discrete, Box, MultiDiscrete or MultiBinary)")
     if spec.strip() == "random":
-        agent, label = RandomGymAgent(action_space=action_space), "random agent"
+        agent, label = RandomGymAgent(action_space=action_space), f"agent spec {spec!r}"
     else:
         kind, target, options = parse_spec(spec)
         loader = _LOADERS.get(kind)
@@ -126,8 +126,8 @@ def check_actions(agent: Agent, *, observation_space: gymnasium.Space, action_sp
     """Calls ``agent`` once on sampled observations; AgentError unless its actions lie in ``action_space``."""
     sampler = copy.deepcopy(observation_space)  # seeding the caller's space would change its own draws
     sampler.seed(0)
-    batch = stack_observations([sampler.sample() for _ in range(_CHECK_BATCH)], observation_space)
     try:
+        batch = stack_observations([sampler.sample() for _ in range(_CHECK_BATCH)], observation_space)
         actions, _ = agent.act(batch, agent.initial_state(_CHECK_BATCH), np.random.default_rng(0))
     except AgentError as exc:
         raise AgentError(f"{label}: {exc}") from None
@@ -182,7 +182,9 @@ def finish_actions(actions: Any, space: gymnasium.Space) -> np.ndarray:
     actions = actions.reshape((n, *space.shape))
     if isinstance(space, spaces.Box):
         clipped = np.clip(actions.astype(np.float64), space.low, space.high)
-        return clipped.astype(np.float32) if np.issubdtype(space.dtype, np.floating) else np.rint(clipped).astype(space.dtype)
+        if np.issubdtype(space.dtype, np.floating):
+            return clipped.astype(np.float32)
+        return np.rint(clipped).astype(space.dtype)
     return actions.astype(np.int8 if isinstance(space, spaces.MultiBinary) else np.int64)
 
 

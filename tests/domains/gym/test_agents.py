@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 import sys
 import textwrap
+import warnings
 
 import gymnasium as gym
 import numpy as np
@@ -194,21 +195,21 @@ def test_rllib_bad_targets_fail_in_one_line(tmp_path, rllib_modules):
 def sb3_models(tmp_path_factory):
     sb3 = pytest.importorskip("stable_baselines3")
     root = tmp_path_factory.mktemp("sb3")
-    small = {"net_arch": [16]}
     with pytest.MonkeyPatch.context() as patch:
         # pytest imports this test folder as the top-level package `gym`; SB3's save() probes `gym.__version__`
         # (legacy OpenAI Gym) and fails on it, so make that import fail as it does outside the tests.
         patch.setitem(sys.modules, "gym", None)
-        save_sb3_models(sb3, root, small)
+        save_sb3_models(sb3, root)
     return root
 
 
-def save_sb3_models(sb3, root, small):
-    sb3.PPO("MlpPolicy", "CartPole-v1", n_steps=64, batch_size=32, policy_kwargs=small, device="cpu",
+def save_sb3_models(sb3, root):
+    # A fresh policy_kwargs each: SB3 adds keys to the dict it is given (SAC's use_sde breaks DQN).
+    sb3.PPO("MlpPolicy", "CartPole-v1", n_steps=64, batch_size=32, policy_kwargs={"net_arch": [16]}, device="cpu",
             seed=0).save(root / "ppo_cartpole.zip")
-    sb3.SAC("MlpPolicy", "Pendulum-v1", buffer_size=10, policy_kwargs=small, device="cpu",
+    sb3.SAC("MlpPolicy", "Pendulum-v1", buffer_size=10, policy_kwargs={"net_arch": [16]}, device="cpu",
             seed=0).save(root / "sac_pendulum.zip")
-    sb3.DQN("MlpPolicy", "CartPole-v1", buffer_size=10, policy_kwargs=small, device="cpu",
+    sb3.DQN("MlpPolicy", "CartPole-v1", buffer_size=10, policy_kwargs={"net_arch": [16]}, device="cpu",
             seed=0).save(root / "dqn_cartpole.zip")
 
 
@@ -254,7 +255,9 @@ def test_sb3_missing_extra_is_one_line(monkeypatch, tmp_path):
 
 def script(tmp_path, name: str, module: torch.nn.Module):
     path = tmp_path / name
-    torch.jit.script(module).save(str(path))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # torch 2.9+ deprecates TorchScript
+        torch.jit.script(module).save(str(path))
     return path
 
 
