@@ -43,10 +43,10 @@ def test_surrogate_kinds_are_the_model_table_plus_none():
     ({"surrogate.kind": "twostage"}, "surrogate.kind: must be 'two_stage', 'one_stage' or 'none' (got 'twostage'; "
                                      "did you mean 'two_stage'?)"),
     ({"surrogate.epoch": 5}, "surrogate.epoch: unknown config key (did you mean surrogate.epochs"),
-    ({"surrogat.epochs": 5}, "surrogat: unknown config section (known: mario, maze, surrogate, qd, selection, ray); "
+    ({"surrogat.epochs": 5}, "surrogat: unknown config section (known: gym, mario, maze, surrogate, qd, selection, ray); "
                              "did you mean 'surrogate'?"),
-    ({"marioo.runs": 1}, "marioo: unknown config section (known: mario, maze, "),
-    ({"domain": "mazes"}, "domain: unknown domain 'mazes' (known: mario, maze"),
+    ({"marioo.runs": 1}, "marioo: unknown config section (known: gym, mario, maze, "),
+    ({"domain": "mazes"}, "domain: unknown domain 'mazes' (known: gym, mario, maze"),
     ({"domain": "mazes"}, "; did you mean 'maze'?"),
     ({"variant": "dsage_basc"}, "; did you mean 'dsage_basic'?"),
     ({"preset": "tiney"}, "; did you mean 'tiny'?"),

@@ -24,7 +24,7 @@ def audit_error(argv: list[str]) -> str:
 
 def test_unknown_domain(tmp_path):
     message = audit_error(["--domain", "zelda", "--out", str(tmp_path / "a")])
-    assert "unknown domain 'zelda' (known: mario, maze" in message
+    assert "unknown domain 'zelda' (known: gym, mario, maze" in message
     assert audit_error(["--domain", "mazee", "--out", str(tmp_path / "a")]).endswith("; did you mean 'maze'?")
     assert not (tmp_path / "a").exists()
 
@@ -38,7 +38,7 @@ def test_a_domain_without_an_audit_declaration(tmp_path):
         message = audit_error(["--domain", "maze_no_audit", "--out", str(tmp_path / "a")])
     finally:
         unregister_domain("maze_no_audit")
-    assert "domain 'maze_no_audit' declares no audit (auditable: mario, maze" in message
+    assert "domain 'maze_no_audit' declares no audit (auditable: gym, mario, maze" in message
 
 
 def test_reference_that_fails_to_load(tmp_path):

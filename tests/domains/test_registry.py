@@ -83,7 +83,7 @@ def test_registering_a_second_spec_under_a_taken_name_is_an_error(toy):
 def test_an_unknown_domain_lists_the_known_ones_with_a_guess():
     with pytest.raises(InputError) as error:
         get_domain("mazr")
-    assert "unknown domain 'mazr' (known: mario, maze" in str(error.value)
+    assert "unknown domain 'mazr' (known: gym, mario, maze" in str(error.value)
     assert str(error.value).endswith("; did you mean 'maze'?")
 
 

@@ -92,9 +92,15 @@ PRESETS: dict[str, dict[str, Any]] = {
              "selection.block": (2, 2)},
 }
 
-#: The baselines on the same box: direct QD searches with no surrogate.
+_DIRECT = {"surrogate.kind": "none", "qd.num_emitters": 5, "qd.batch_size": 30}
+#: The baselines on the same box, none with a surrogate: MAP-Elites (Gaussian mutation), CMA-ME, and the falsifiers
+#: people use for this job (VerifAI's samplers): random (``dr``, common to every domain), Halton, cross-entropy.
 VARIANTS: dict[str, dict[str, Any]] = {
-    "cma_me": {"surrogate.kind": "none", "qd.emitter": "cma_me", "qd.num_emitters": 5, "qd.batch_size": 30},
+    "map_elites": {**_DIRECT, "qd.emitter": "gaussian"},
+    "cma_me": {**_DIRECT, "qd.emitter": "cma_me"},
+    "halton": {**_DIRECT, "qd.emitter": "halton"},
+    # One distribution refitted to the worst fifth of each batch of 30.
+    "cross_entropy": {**_DIRECT, "qd.emitter": "cross_entropy", "qd.num_emitters": 1},
 }
 
 
@@ -104,7 +110,7 @@ DOMAIN = DomainSpec(
     domain="dsage_ray.domains.gym.domain:GymDomain",
     presets=PRESETS,
     variants=VARIANTS,
-    comparison=("dsage", "cma_me", "dr"),
+    comparison=("dsage", "map_elites", "cma_me", "dr", "halton", "cross_entropy"),
     audit=AuditSpec(
         objectives=("failure_rate",),
         measures=(),  # the space's [audit] measures
