@@ -45,7 +45,8 @@ def test_maze_and_mario_come_from_dsage_rays_own_entry_points():
     points = {p.name: p.value for p in importlib.metadata.entry_points(group=registry.ENTRY_POINT_GROUP)}
     assert points["maze"] == "dsage_ray.domains.maze.plugin:DOMAIN"
     assert points["mario"] == "dsage_ray.domains.mario.plugin:DOMAIN"
-    assert domain_names()[:2] == ["mario", "maze"]
+    assert points["gym"] == "dsage_ray.domains.gym.plugin:DOMAIN"
+    assert domain_names()[:3] == ["gym", "mario", "maze"]
     maze = get_domain("maze")
     assert maze.audit.episodes_key == "maze.episodes" and maze.domain_class().__name__ == "MazeDomain"
     assert get_domain("mario").audit.default_agent == "astar" and get_domain("mario").actor_env is not None

@@ -414,11 +414,11 @@ def build_space(tables: Mapping[str, Any] | None = None, *, env_id: str = "", pa
         raise SpaceError(f"{source}: no environment id (give --env ID or [env] id in a space file)")
     args = dict(_table(env, "args", f"{source} [env]"))
     args.update(parse_env_arg(a) for a in env_args)
-    declared = dict(_table(tables, "params", source))
-    declared.update(parse_param(p) for p in params)
+    declared = {name: (entry, source) for name, entry in _table(tables, "params", source).items()}
+    declared.update((name, (entry, f"--param {text}")) for text in params for name, entry in [parse_param(text)])
     if not declared:
         raise SpaceError(f"{source}: no parameters to search (declare [params.NAME] tables or give --param NAME=LOW:HIGH)")
-    parameters = tuple(_parameter(name, entry, source) for name, entry in declared.items())
+    parameters = tuple(_parameter(name, entry, where) for name, (entry, where) in declared.items())
     steps = env.get("max_episode_steps")
     if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int) or steps < 1):
         raise SpaceError(f"{source} [env] max_episode_steps: must be a positive integer, got {steps!r}")
@@ -482,7 +482,7 @@ def _pair(value: Any, where: str) -> tuple[float, float]:
 
 
 def _parameter(name: str, entry: Any, source: str) -> Parameter:
-    where = f"{source} [params.{name}]"
+    where = source if source.startswith("--param") else f"{source} [params.{name}]"
     if not isinstance(entry, Mapping):
         raise SpaceError(f"{where}: expected a table with range = [LOW, HIGH] or choices = [...]")
     _known_keys(entry, ("range", "int", "choices", *TARGETS), where)

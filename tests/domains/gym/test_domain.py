@@ -1,0 +1,144 @@
+"""The gym domain: episodes on a re-parameterised environment, its checks before a search, and a whole audit."""
+
+import json
+import textwrap
+
+import numpy as np
+import pytest
+
+from dsage_ray.config import RunConfig
+from dsage_ray.domains import build_domain
+from dsage_ray.domains.gym.simulator import make_env, reset_env, run_episodes
+from dsage_ray.domains.gym.space import SpaceError, build_space, read_space_tables
+from dsage_ray.errors import InputError
+
+#: Pushes the cart the way the pole leans: balances the default CartPole for a while, not a heavy long pole.
+POLICY = '''
+import numpy as np
+
+def act(observation):
+    return int(observation[2] + 0.5 * observation[3] > 0)
+'''
+
+
+@pytest.fixture
+def policy_file(tmp_path):
+    path = tmp_path / "lean.py"
+    path.write_text(POLICY)
+    return f"python:{path}:act"
+
+
+def config(**keys):
+    return RunConfig.build({"domain": "gym", "preset": "tiny", "gym.agent": "random", **keys})
+
+
+def test_attributes_derived_values_and_the_first_observation_follow_the_level():
+    tables, source = read_space_tables("cartpole")
+    space = build_space(tables, source=source)
+    values = space.values(np.array([1.0, 1.0, -1.0, 0.0, 1.0]))
+    env = make_env(space, values)
+    observation = reset_env(env, space, values, seed=3)
+    unwrapped = env.unwrapped
+    assert unwrapped.length == pytest.approx(2.0) and unwrapped.masspole == pytest.approx(0.5)
+    assert unwrapped.polemass_length == pytest.approx(1.0) and unwrapped.total_mass == pytest.approx(1.0)
+    # The initial angle is written into the state, and the agent's first observation says so.
+    assert observation[2] == pytest.approx(0.15) and unwrapped.state[2] == pytest.approx(0.15)
+
+
+def test_episodes_are_deterministic_for_a_seed_and_differ_between_seeds(policy_file):
+    domain = build_domain(config(**{"gym.agent": policy_file, "gym.episodes": 4}))
+    solution = np.zeros(domain.solution_dim, dtype=np.float32)
+    first, again, other = (domain.evaluate(solution, seed) for seed in (5, 5, 6))
+    assert first.info == again.info and np.array_equal(first.measures, again.measures)
+    assert not np.array_equal(first.measures, other.measures)  # where the cart ends up
+    assert first.occupancy.shape == (8, 8) and first.occupancy.sum() == pytest.approx(first.info["mean_length"] / 500)
+    assert first.objective == pytest.approx(1.0 - first.info["success_rate"])
+
+
+def test_physics_changes_what_the_agent_achieves(policy_file):
+    domain = build_domain(config(**{"gym.agent": policy_file, "gym.episodes": 5}))
+    easy = domain.space.solution({"length": 0.5, "masspole": 0.1, "masscart": 1.0, "force_mag": 10.0,
+                                  "initial_angle": 0.0})
+    hard = domain.space.solution({"length": 0.25, "masspole": 0.5, "masscart": 0.5, "force_mag": 20.0,
+                                  "initial_angle": 0.15})
+    assert domain.evaluate(easy, 0).info["mean_length"] > 2 * domain.evaluate(hard, 0).info["mean_length"]
+
+
+def test_a_level_file_reproduces_the_evaluation(policy_file, tmp_path):
+    from dsage_ray.domains.gym.domain import read_level
+
+    domain = build_domain(config(**{"gym.agent": policy_file}))
+    solution = np.array([0.3, -0.2, 0.5, 0.1, -0.4], dtype=np.float32)
+    path = tmp_path / "level.txt"
+    path.write_text(domain.level_text(solution))
+    space, values = read_level(path)
+    assert values == pytest.approx(domain.values(solution))
+    np.testing.assert_allclose(domain.entry_solution({"level_file": "level.txt"}, tmp_path), solution, atol=1e-6)
+    path.write_text(json.dumps({"format": "other"}))
+    with pytest.raises(SpaceError, match="not a gym level"):
+        read_level(path)
+
+
+def test_parameter_measures_are_exact_for_the_surrogate():
+    domain = build_domain(config(**{"gym.measures": ("param.length", "length")}))
+    solutions = np.array([[-1, 0, 0, 0, 0], [1, 0, 0, 0, 0]], dtype=np.float32)
+    exact = domain.level_values(domain.encode(solutions))
+    assert set(exact) == {"param.length"}
+    np.testing.assert_allclose(exact["param.length"], [0.25, 2.0])
+
+
+@pytest.mark.parametrize("keys, message", [
+    ({"gym.env": "CartPol-v1"}, "Did you mean: `CartPole`?"),
+    ({"gym.params": ("bogus=0:1",)}, "does not take these gym.make keywords ['bogus']"),
+    ({"gym.params": ("attr.bogus=0:1",)}, "has no attribute 'bogus' to set"),
+    ({"gym.env_args": ("enable_wind=true",)}, "['enable_wind']"),
+])
+def test_preflight_names_what_the_environment_does_not_take(keys, message):
+    with pytest.raises(InputError) as error:
+        build_domain(config(**keys)).preflight()
+    assert message in str(error.value)
+
+
+def test_preflight_names_a_measure_key_absent_from_info(tmp_path):
+    space = tmp_path / "space.toml"
+    space.write_text(textwrap.dedent("""
+        [env]
+        id = "CartPole-v1"
+        [params.length]
+        range = [0.25, 2.0]
+        attr = "length"
+        [measures.speed]
+        info = "speed"
+        range = [0, 1]
+        [success]
+        return_at_least = 475
+    """))
+    domain = build_domain(config(**{"gym.space": str(space), "gym.measures": ("speed", "param.length")}))
+    with pytest.raises(SpaceError, match=r"info\['speed'\] at the end is not there"):
+        domain.preflight()
+
+
+def test_an_agent_for_another_environment_is_refused_before_the_search(tmp_path):
+    lander = tmp_path / "lander.py"
+    lander.write_text("def act(observation):\n    return 3  # LunarLander's main engine\n")
+    domain = build_domain(config(**{"gym.agent": f"python:{lander}:act"}))
+    with pytest.raises(InputError, match=r"not in the action space Discrete\(2\)"):
+        domain.preflight()
+
+
+def test_an_audit_ends_with_a_collection_a_report_and_reproducible_entries(policy_file, tmp_path, capsys):
+    from dsage_ray.audit.run import run_audit
+    from dsage_ray.cli import main
+
+    collection = run_audit(domain="gym", agent=policy_file, preset="tiny", local=True, out=tmp_path / "audit",
+                           overrides={"gym.episodes": 3})
+    assert collection.levels and collection.report_path.is_file()
+    assert (tmp_path / "audit" / "collection" / "heatmap.png").is_file()
+    worst = collection.levels[0]
+    assert worst.image_path.is_file() and worst.level_path.is_file()
+    record = json.loads((tmp_path / "audit" / "collection" / "collection.json").read_text())["levels"][0]
+    assert record["reproduce"].startswith("dsage-ray gym eval") and "param.length" in record
+    assert main(record["reproduce"].split()[1:] + ["--json"]) == 0
+    printed = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert printed["mean_return"] == pytest.approx(record["mean_return"])
+    assert printed["failure_rate"] == pytest.approx(record["objective"])
