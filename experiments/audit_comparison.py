@@ -43,7 +43,8 @@ from pathlib import Path
 
 #: The columns of the table: (summary key, heading).
 COLUMNS = (("never_solved", "Never solved"), ("failure_cells", "Cells with failure rate ≥ 0.5"),
-           ("with_failures", "Levels with failures"), ("levels", "Levels"), ("search_minutes", "Search minutes"),
+           ("with_failures", "Levels with failures"), ("levels", "Levels"), ("worst_return", "Worst return"),
+           ("evaluations", "Evaluations"), ("search_minutes", "Search minutes"),
            ("search_cpu_s", "Search CPU seconds"))
 
 
@@ -143,9 +144,16 @@ def search_time(collection_dir: Path) -> dict[str, float]:
     metrics = collection_dir.parent / "search" / "metrics.json"
     try:
         last = json.loads(metrics.read_text())[-1]
-        return {"search_minutes": float(last["wall_time"]) / 60, "search_cpu_s": float(last["cpu_time"])}
+        return {"search_minutes": float(last["wall_time"]) / 60, "search_cpu_s": float(last["cpu_time"]),
+                "evaluations": float(last["evals"])}
     except (OSError, ValueError, KeyError, IndexError):
-        return {"search_minutes": float("nan"), "search_cpu_s": float("nan")}
+        return {"search_minutes": float("nan"), "search_cpu_s": float("nan"), "evaluations": float("nan")}
+
+
+def shown_columns(per_run: dict[str, list[dict]]) -> list[tuple[str, str]]:
+    """The columns every audit has a number for (``worst_return`` only where the domain records returns)."""
+    runs = [run for summaries in per_run.values() for run in summaries]
+    return [(key, title) for key, title in COLUMNS if runs and all(run.get(key) is not None for run in runs)]
 
 
 def summarize(out: Path, variants: list[str], seeds: list[int]) -> str:
@@ -154,17 +162,18 @@ def summarize(out: Path, variants: list[str], seeds: list[int]) -> str:
     from dsage_ray.audit.summary import failure_summary
     from dsage_ray.core.metrics import format_mean_se, mean_se
 
-    lines = ["| Variant | Audits | " + " | ".join(title for _, title in COLUMNS) + " |",
-             "|---" * (len(COLUMNS) + 2) + "|"]
     per_run: dict[str, list[dict]] = {}
     for variant in variants:
-        summaries = [failure_summary(load_collection(collection_file(out, variant, seed).parent))
-                     | {"seed": seed, **search_time(collection_file(out, variant, seed).parent)}
-                     for seed in seeds if collection_file(out, variant, seed).is_file()]
-        per_run[variant] = summaries
+        per_run[variant] = [failure_summary(load_collection(collection_file(out, variant, seed).parent))
+                            | {"seed": seed, **search_time(collection_file(out, variant, seed).parent)}
+                            for seed in seeds if collection_file(out, variant, seed).is_file()]
+    columns = shown_columns(per_run)
+    lines = ["| Variant | Audits | " + " | ".join(title for _, title in columns) + " |",
+             "|---" * (len(columns) + 2) + "|"]
+    for variant, summaries in per_run.items():
         if not summaries:
             continue
-        cells = [format_mean_se(*mean_se(s[key] for s in summaries), ",.1f") for key, _ in COLUMNS]
+        cells = [format_mean_se(*mean_se(s[key] for s in summaries), ",.1f") for key, _ in columns]
         lines.append(f"| {variant} | {len(summaries)} | " + " | ".join(cells) + " |")
     (out / "summary.json").write_text(json.dumps(per_run, indent=1))
     return "\n".join(lines) + "\n\nPer audit:\n\n" + per_seed_table(per_run)
@@ -172,10 +181,11 @@ def summarize(out: Path, variants: list[str], seeds: list[int]) -> str:
 
 def per_seed_table(per_run: dict[str, list[dict]]) -> str:
     """Every audit's own numbers, a row per arm and seed, so that what holds on each seed is printed too."""
-    lines = ["| Variant | Seed | " + " | ".join(title for _, title in COLUMNS) + " |", "|---" * (len(COLUMNS) + 2) + "|"]
+    columns = shown_columns(per_run)
+    lines = ["| Variant | Seed | " + " | ".join(title for _, title in columns) + " |", "|---" * (len(columns) + 2) + "|"]
     for variant, summaries in per_run.items():
         for run in summaries:
-            cells = [f"{float(run[key]):,.{1 if key == 'search_minutes' else 0}f}" for key, _ in COLUMNS]
+            cells = [f"{float(run[key]):,.{1 if key == 'search_minutes' else 0}f}" for key, _ in columns]
             lines.append(f"| {variant} | {run['seed']} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

@@ -11,6 +11,8 @@ The numbers (the contract is ``COLLECTION_SCHEMA``'s "Summary numbers"):
   one cell are one kind of failure; many cells are many kinds.
 - ``cvar10``: the mean success rate of the worst ``ceil(10 %)`` of levels by success rate (the lower-tail
   CVaR at 10 %); None for an empty collection.
+- domains whose entries record ``min_return`` (the gym domain): ``worst_return``, the lowest episode return of
+  any level's re-evaluation.
 - regression audits only (entries carry ``regression``): ``regressed``, the levels with ``regression > 0``,
   and ``mean_regression_top10``, the mean regression of the ``ceil(10 %)`` levels with the largest
   regression (the same tail as ``cvar10``).
@@ -87,6 +89,8 @@ def failure_summary(collection: dict[str, Any]) -> dict[str, Any]:
             cells = grid_indices(measures, ranges=collection["measure_ranges"], dims=collection["archive_dims"])
             summary["failure_cells"] = len({tuple(c) for c in cells.tolist()})
         summary["cvar10"] = float(np.sort(success)[:_tail_size(len(levels))].mean())
+    if levels and all("min_return" in lv for lv in levels):
+        summary["worst_return"] = float(min(lv["min_return"] for lv in levels))
     if collection.get("reference") is not None or any("regression" in lv for lv in levels):
         regression = np.array([lv["regression"] for lv in levels], dtype=np.float64)
         summary["regressed"] = int((regression > 0).sum())
@@ -101,6 +105,8 @@ def format_summary(summary: dict[str, Any]) -> str:
     line = (f"{summary['levels']} levels: {summary['with_failures']} with failures, {summary['never_solved']} never "
             f"solved, {summary['failure_cells']} archive cells with failure rate >= {FAILURE_CELL_RATE:g}, "
             f"mean success of the worst 10% {cvar}")
+    if "worst_return" in summary:
+        line += f", worst return {summary['worst_return']:.1f}"
     if "regressed" in summary:
         top = summary["mean_regression_top10"]
         line += (f"; {summary['regressed']} regressed, mean regression of the worst 10% "
