@@ -210,4 +210,4 @@ def test_shipped_agent_loads_by_name():
         pytest.skip("no shipped agent in this checkout")
     agent = load_agent("rllib:ppo_maze")
     assert isinstance(agent, RLlibAgent)
-    assert "shipped agents: ppo_maze" in load_error("rllib:not_shipped")
+    assert "shipped agents: ppo_cartpole, ppo_lunarlander, ppo_maze" in load_error("rllib:not_shipped")
