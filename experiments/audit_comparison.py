@@ -145,7 +145,7 @@ def search_time(collection_dir: Path) -> dict[str, float]:
     try:
         last = json.loads(metrics.read_text())[-1]
         return {"search_minutes": float(last["wall_time"]) / 60, "search_cpu_s": float(last["cpu_time"]),
-                "evaluations": float(last["evals"])}
+                "evaluations": float(last.get("evals", "nan"))}
     except (OSError, ValueError, KeyError, IndexError):
         return {"search_minutes": float("nan"), "search_cpu_s": float("nan"), "evaluations": float("nan")}
 
