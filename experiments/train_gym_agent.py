@@ -28,6 +28,23 @@ is switched off with ``--no-x``)::
     # an env parameter changed for training (keyword arguments of gymnasium.make)
     nice -n 10 python experiments/train_gym_agent.py --env-id LunarLander-v3 --env-config '{"gravity": -8.0}'
 
+Audits while training (``--audit-every N``, ``dsage_ray.integrations.rllib.AuditCallback`` in the ``gym`` domain):
+every N iterations the current module is saved to ``tb_logs/<run_name>/checkpoints/iter_<N>`` and audited on a
+parameter space of the env (``--audit-space``: a shipped space's name or a space file; by default the shipped space
+of ``--env-id``, ``cartpole`` for CartPole-v1 and ``lunarlander`` for LunarLander-v3, and required for any other
+env): the regression suite of earlier audits' failures re-evaluated, then a short warm-started DSAGE search of
+``--audit-budget`` evaluations whose new failures join the suite. The audited env is ``--env-id`` with
+``--env-config`` as fixed ``gym.make`` keywords and the space's parameters varied over them. The series lives in
+``tb_logs/<run_name>/audit_series`` and its numbers go to the run's TensorBoard under ``audit/...`` with step =
+env steps. The audits run in a Ray actor with a CPU of its own while training goes on (one at a time: one that
+falls due while another runs is skipped with a warning; the end of training waits for the last);
+``--no-audit-background`` audits between iterations instead. A failed audit logs one warning line; training goes
+on::
+
+    nice -n 10 python experiments/train_gym_agent.py --run-name ppo_cartpole_audited --total-env-steps 200000 \\
+        --audit-every 10 --audit-budget 30
+    nice -n 10 python experiments/train_gym_agent.py --env-id Acrobot-v1 --audit-every 10 --audit-space acrobot.toml
+
 The run folder holds ``checkpoint/`` (the latest full algorithm checkpoint; also loadable as
 ``rllib:tb_logs/<run>/checkpoint``), ``args.json``, ``progress.json`` and TensorBoard event files.
 ``--export DIR`` copies the module-only checkpoint (``class_and_ctor_args.pkl``, ``module_state.pkl``,
@@ -47,6 +64,10 @@ import time
 from pathlib import Path
 
 import tyro
+
+from dsage_ray.integrations import DEFAULT_AUDIT_BUDGET, DEFAULT_PRESET
+from dsage_ray.integrations.training import (audit_callback, check_audit_flags, finish_audits_and_report,
+                                             print_audit)
 
 
 @dataclasses.dataclass
@@ -123,6 +144,23 @@ class Args:
     torch_threads: int = 1
     """torch threads for the learner (the machine is shared)"""
 
+    # Audits while training (dsage_ray.integrations.rllib.AuditCallback, in the gym domain)
+    audit_every: int = 0
+    """training iterations between audits of the current policy (0 = no audits)"""
+    audit_space: str = ""
+    """the audits' parameter space (gym.space): a shipped space's name or a space file (TOML); empty = the shipped
+    space of --env-id (CartPole-v1: cartpole, LunarLander-v3: lunarlander), required with --audit-every for
+    other envs"""
+    audit_budget: int = DEFAULT_AUDIT_BUDGET
+    """real evaluations of each audit's DSAGE search (at least 20: its first 20 are random levels)"""
+    audit_preset: str = DEFAULT_PRESET
+    """the audits' preset (their search settings; --audit-budget replaces its budget)"""
+    audit_episodes: int = 0
+    """episodes per level in the audits' evaluations (0 = the preset's gym.episodes: tiny 2)"""
+    audit_background: bool = True
+    """audit in a Ray actor with a CPU of its own while training goes on (--no-audit-background: in the training
+    process, between iterations)"""
+
 
 def parse_args(argv: list[str] | None = None) -> Args:
     """``Args`` from the command line (``--help`` lists every flag; a boolean ``--x`` has ``--no-x``)."""
@@ -160,6 +198,46 @@ def build_config(args: Args, env_config: dict):
         )
         .debugging(seed=args.seed)
     )
+
+
+def shipped_space_of(env_id: str) -> str | None:
+    """The name of the gym domain's shipped space whose ``[env] id`` is ``env_id`` (``CartPole-v1``: ``cartpole``)."""
+    from dsage_ray.domains.gym.space import read_space_tables, shipped_spaces
+
+    return next((name for name in shipped_spaces() if read_space_tables(name)[0].get("env", {}).get("id") == env_id),
+                None)
+
+
+def toml_value(value) -> str:
+    """``value`` (a JSON value of --env-config) as TOML, the form of a ``gym.env_args`` entry's value."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{json.dumps(str(k))} = {toml_value(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, list):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    return json.dumps(value)
+
+
+def audit_overrides(args: Args, env_config: dict) -> dict:
+    """The gym domain's config keys of the audits: the space (``--audit-space``, else the shipped one of ``--env-id``),
+    the env id, and the training's ``--env-config`` as fixed ``gym.make`` keywords (the space's parameters go over
+    them). InputError, naming the flag, when there is no space or it does not load."""
+    from dsage_ray.domains.gym.space import build_space, read_space_tables, shipped_spaces
+    from dsage_ray.errors import InputError
+
+    space = args.audit_space or shipped_space_of(args.env_id)
+    if space is None:
+        shipped = ", ".join(f"{name} ({read_space_tables(name)[0].get('env', {}).get('id')})"
+                            for name in shipped_spaces())
+        raise InputError(f"--audit-space: no shipped space is for --env-id {args.env_id} (shipped: {shipped}); give "
+                         f"--audit-space NAME or a space file (TOML) to audit with --audit-every")
+    env_args = tuple(f"{key}={toml_value(value)}" for key, value in env_config.items())
+    try:
+        build_space(read_space_tables(space)[0], env_id=args.env_id, env_args=env_args, source=space)
+    except InputError as exc:  # SpaceError
+        raise InputError(f"--audit-space {space}: {exc}") from None
+    return {"gym.space": space, "gym.env": args.env_id, "gym.env_args": env_args}
 
 
 def module_dir(checkpoint: Path) -> Path:
@@ -225,10 +303,18 @@ def main(argv: list[str] | None = None) -> int:
     from ray.rllib.core.rl_module.rl_module import RLModule
     from tensorboardX import SummaryWriter
 
+    from dsage_ray.errors import InputError
+
     try:
         gym.spec(args.env_id)
     except gym.error.Error as exc:
         print(f"error: --env-id {args.env_id}: {exc}", file=sys.stderr)
+        return 2
+    try:
+        overrides = audit_overrides(args, env_config) if args.audit_every else {}
+        check_audit_flags(args, domain="gym", overrides=overrides)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
         return 2
     torch.set_num_threads(args.torch_threads)
     run_dir = (Path("tb_logs") / args.run_name).resolve()  # RLlib reads paths as URIs: they must be absolute
@@ -240,7 +326,11 @@ def main(argv: list[str] | None = None) -> int:
 
     ray.init(num_cpus=args.num_cpus, include_dashboard=False, log_to_driver=False)
     writer = SummaryWriter(str(run_dir))
-    algo = build_config(args, env_config).build_algo()
+    config = build_config(args, env_config)
+    if args.audit_every:
+        config.callbacks(audit_callback(args, run_dir, writer, domain="gym", overrides=overrides))
+        print(f"auditing every {args.audit_every} iterations in the gym space {overrides['gym.space']}", flush=True)
+    algo = config.build_algo()
     progress = {"iteration": 0, "env_steps": 0, "wall_s": 0.0, "episode_return_mean": None}
     started = time.perf_counter()
     streak = 0  # consecutive iterations with a mean return >= --stop-return
@@ -277,10 +367,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"iter {progress['iteration']:4d}  steps {step:8d}  return {shown_return}  "
               f"len {scalars['train/episode_len_mean'] or 0:6.1f}  {scalars['train/env_steps_per_s']:.0f} steps/s  "
               f"{progress['wall_s'] / 60:.1f} min", flush=True)
+        if "audit" in result:
+            print_audit(result["audit"])
         if progress["iteration"] % args.checkpoint_every == 0 and not finished():
             save_checkpoint(algo, run_dir, progress)
 
     checkpoint = save_checkpoint(algo, run_dir, progress)
+    if args.audit_every:
+        finish_audits_and_report(algo, run_dir)
     algo.stop()
     writer.close()
     ray.shutdown()

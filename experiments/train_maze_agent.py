@@ -58,7 +58,9 @@ from pathlib import Path
 
 import tyro
 
-from dsage_ray.integrations import DEFAULT_AUDIT_BUDGET, DEFAULT_EPISODES, DEFAULT_PRESET
+from dsage_ray.integrations import DEFAULT_AUDIT_BUDGET, DEFAULT_PRESET
+from dsage_ray.integrations.training import (audit_callback, check_audit_flags, finish_audits_and_report,
+                                             print_audit)
 
 
 ENV_NAME = "dsage_ray/RandomMaze-v0"
@@ -140,7 +142,7 @@ class Args:
     audit_every: int = 0
     """training iterations between audits of the current policy (0 = no audits)"""
     audit_budget: int = DEFAULT_AUDIT_BUDGET
-    """real evaluations of each audit's DSAGE search"""
+    """real evaluations of each audit's DSAGE search (at least 20: its first 20 are random levels)"""
     audit_preset: str = DEFAULT_PRESET
     """the audits' preset (their search settings; --audit-budget replaces its budget)"""
     audit_episodes: int = 0
@@ -279,25 +281,6 @@ def load_initial_weights(algo, module: Path, spec: str) -> None:
                          f"{' '.join(lines[:2])}") from None
 
 
-def audit_callback(args: Args, run_dir: Path, writer):
-    """``--audit-every``: the RLlib callback factory (modules in ``run_dir/checkpoints``, series in
-    ``run_dir/audit_series``, scalars to ``writer``)."""
-    from dsage_ray.integrations.rllib import AuditCallback
-
-    return AuditCallback.configured(audit_every=args.audit_every, audit_budget=args.audit_budget, out_dir=run_dir,
-                                    writer=writer, preset=args.audit_preset, seed=args.seed,
-                                    background=args.audit_background, episodes=args.audit_episodes or DEFAULT_EPISODES)
-
-
-def print_audit(audit: dict) -> None:
-    """One line per audit that ended (``result["audit"]``)."""
-    success = audit.get("suite_success_rate")
-    print(f"  audit of iteration {audit.get('checkpoint_iteration', '?')}: suite success "
-          f"{'-' if success is None else f'{success:.3f}'}  fixed {audit.get('fixed', 0):.0f}  "
-          f"regressed {audit.get('regressed', 0):.0f}  new failures {audit.get('new_failures', 0):.0f}  "
-          f"never solved {audit.get('never_solved', 0):.0f}  {audit.get('wall_time', 0):.0f} s", flush=True)
-
-
 def difficulty_at(env_steps: int, args: Args) -> float:
     """Curriculum position: linear in env steps, 1 (furthest goal) from ``curriculum_steps`` on."""
     return 1.0 if args.curriculum_steps <= 0 else min(1.0, env_steps / args.curriculum_steps)
@@ -346,11 +329,7 @@ def main(argv: list[str] | None = None) -> int:
 
     levels = None
     try:
-        if args.audit_every < 0 or args.audit_budget < 1 or args.audit_episodes < 0:
-            raise InputError("--audit-every and --audit-episodes must be >= 0, --audit-budget >= 1")
-        if args.audit_every and args.audit_background and args.num_cpus < 2:
-            raise InputError(f"background audits need a CPU of their own: --num-cpus {args.num_cpus} leaves none "
-                             f"(raise it, or audit between iterations with --no-audit-background)")
+        check_audit_flags(args)
         if not 0.0 <= args.collection_share <= 1.0:
             raise InputError(f"--collection-share {args.collection_share} is not a probability in [0, 1]")
         if args.train_on_collection:
@@ -446,14 +425,7 @@ def main(argv: list[str] | None = None) -> int:
 
     checkpoint = save_checkpoint(algo, run_dir, progress)
     if args.audit_every:
-        from dsage_ray.integrations.rllib import finish_audits
-
-        print("waiting for the last audit ...", flush=True)
-        for iteration, record, _ in finish_audits(algo):
-            if record is not None:
-                print_audit({k.removeprefix("audit/"): v for k, v in record.scalars().items()} | {
-                    "checkpoint_iteration": iteration})
-        print(f"audit series: {run_dir / 'audit_series'}", flush=True)
+        finish_audits_and_report(algo, run_dir)
     if args.export:
         export = Path(args.export)
         if export.exists():

@@ -89,7 +89,8 @@ def add_subparser(subparsers) -> None:
 
 
 #: The gym domain's flags, as the config keys they set (``--param`` and ``--env-arg`` repeat).
-GYM_FLAGS = {"env": "gym.env", "space": "gym.space", "param": "gym.params", "env_arg": "gym.env_args"}
+GYM_FLAGS = {"env": "gym.env", "space": "gym.space", "param": "gym.params", "env_arg": "gym.env_args",
+             "space_set": "gym.space_set"}
 
 
 def add_gym_arguments(parser) -> None:
@@ -97,20 +98,24 @@ def add_gym_arguments(parser) -> None:
     gym = parser.add_argument_group("any Gymnasium environment (--domain gym)")
     gym.add_argument("--env", metavar="ID", help="the environment id, e.g. CartPole-v1 (default: the space's)")
     gym.add_argument("--space", metavar="FILE|NAME",
-                     help="the parameter space: a TOML file, or a shipped one: cartpole (default), lunarlander")
+                     help="the parameter space: a TOML file, a shipped one (cartpole, the default; lunarlander), or '' "
+                          "for --env and --param alone")
     gym.add_argument("--param", action="append", metavar="NAME=LOW:HIGH",
                      help="a searched parameter (repeat): NAME=LOW:HIGH (a gym.make keyword), attr.NAME=LOW:HIGH "
                           "(an attribute of env.unwrapped after reset), reset.NAME=LOW:HIGH (a reset option); "
                           "LOW:HIGH:int for integers, A|B|C for choices")
     gym.add_argument("--env-arg", action="append", metavar="KEY=VALUE",
                      help="a fixed gym.make keyword (repeat), e.g. enable_wind=true")
+    gym.add_argument("--space-set", action="append", metavar="LINE",
+                     help="a line of a space file (repeat), e.g. 'success.return_at_least = 200' or "
+                          "'measures.x_end = {obs = 0, at = \"end\", range = [-1.5, 1.5]}' (docs/GYM.md)")
 
 
 def gym_overrides(args: argparse.Namespace) -> dict:
     """The ``gym.*`` config keys the gym flags set; refused for another domain."""
-    given = {key: getattr(args, flag) for flag, key in GYM_FLAGS.items() if getattr(args, flag, None)}
+    given = {key: getattr(args, flag) for flag, key in GYM_FLAGS.items() if getattr(args, flag, None) is not None}
     if given and args.domain != "gym":
-        flags = ", ".join("--" + flag.replace("_", "-") for flag in GYM_FLAGS if getattr(args, flag, None))
+        flags = ", ".join("--" + flag.replace("_", "-") for flag in GYM_FLAGS if getattr(args, flag, None) is not None)
         raise InputError(f"{flags}: only for --domain gym (this audit's domain is {args.domain!r})")
     return {key: tuple(value) if isinstance(value, list) else value for key, value in given.items()}
 

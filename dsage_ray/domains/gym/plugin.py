@@ -29,6 +29,9 @@ class GymConfig:
     params: tuple[str, ...] = ()
     #: ``--env-arg KEY=VALUE`` strings: fixed gym.make keywords over the space's ``[env] args``.
     env_args: tuple[str, ...] = ()
+    #: ``--space-set`` lines of a space file set over it (``success.return_at_least = 200``): anything a space
+    #: file declares, so a one-off audit needs no file.
+    space_set: tuple[str, ...] = ()
     #: The agent spec (:data:`dsage_ray.domains.gym.agents.GYM_AGENT_FORMS`).
     agent: str = "rllib:ppo_cartpole"
     objective: GymObjective = "failure_rate"

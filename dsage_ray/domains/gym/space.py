@@ -630,8 +630,39 @@ def evaluate_expression(expression: str, names: Mapping[str, Any]) -> float:
     return float(value(ast.parse(expression, mode="eval").body))
 
 
+def merge_space_lines(tables: Mapping[str, Any], lines: Sequence[str]) -> dict[str, Any]:
+    """``tables`` with each line of a space file (``success.return_at_least = 200``,
+    ``measures.speed = {info = "speed", range = [0, 1]}``) set over it, as ``--space-set`` gives them.
+
+    Raises:
+        SpaceError: A line that is not one TOML key/value pair.
+    """
+    merged = _deep_copy(tables)
+    for line in lines:
+        try:
+            update = tomllib.loads(line)
+        except tomllib.TOMLDecodeError as exc:
+            raise SpaceError(f"--space-set {line!r}: not a line of a space file, KEY = VALUE in TOML ({exc})") from None
+        _deep_update(merged, update)
+    return merged
+
+
+def _deep_copy(tables: Mapping[str, Any]) -> dict[str, Any]:
+    return {k: _deep_copy(v) if isinstance(v, Mapping) else v for k, v in tables.items()}
+
+
+def _deep_update(target: dict[str, Any], update: Mapping[str, Any]) -> None:
+    for key, value in update.items():
+        if isinstance(value, Mapping) and isinstance(target.get(key), Mapping):
+            _deep_update(target[key], value)
+        else:
+            target[key] = _deep_copy(value) if isinstance(value, Mapping) else value
+
+
 def load_space(config: Any) -> EnvSpace:
-    """The space a ``[gym]`` config section describes: its space file (or shipped name), then its command-line
-    environment id, parameters and keywords over it."""
+    """The space a ``[gym]`` config section describes: its space file (or shipped name), its ``space_set`` lines, then
+    its command-line environment id, parameters and keywords over it."""
     tables, source = read_space_tables(config.space) if config.space else ({}, "command line")
+    if config.space_set:
+        tables = merge_space_lines(tables, config.space_set)
     return build_space(tables, env_id=config.env, params=config.params, env_args=config.env_args, source=source)
