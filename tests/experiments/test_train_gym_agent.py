@@ -1,5 +1,6 @@
 """``experiments/train_gym_agent.py`` (RLlib PPO) and ``experiments/train_sb3_agent.py`` (SB3 PPO) end to end:
-one tiny training on CartPole-v1 each, in a subprocess run in a tmp folder (their ``tb_logs/`` lands there)."""
+one tiny training on CartPole-v1 each, in a subprocess run in a tmp folder (their ``tb_logs/`` lands there); the
+RLlib script's audits during training (``--audit-every``) in the gym domain."""
 
 from __future__ import annotations
 
@@ -10,6 +11,8 @@ import sys
 from pathlib import Path
 
 import pytest
+
+from tests.scripts import import_script
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 GYM_SCRIPT = REPO_ROOT / "experiments" / "train_gym_agent.py"
@@ -45,6 +48,54 @@ def test_rllib_script_trains_one_iteration_and_exports_a_loadable_module(tmp_pat
     env = gym.make("CartPole-v1")
     assert module.observation_space == env.observation_space
     assert module.action_space == env.action_space
+
+
+def test_rllib_script_audits_each_iteration_in_the_shipped_space_of_its_env(tmp_path):
+    done = run_script(GYM_SCRIPT, ["--run-name", "audited", "--total-env-steps", "257", "--train-batch-size", "256",
+                                   "--minibatch-size", "128", "--num-epochs", "1", "--num-envs", "2",
+                                   "--eval-episodes", "1", "--audit-every", "1", "--audit-budget", "20",
+                                   "--audit-preset", "tiny", "--no-audit-background", "--audit-episodes", "2"],
+                      tmp_path)
+    run_dir = tmp_path / "tb_logs" / "audited"
+    series = json.loads((run_dir / "audit_series" / "series.json").read_text())
+    assert series["domain"] == "gym" and series["budget"] == 20 and series["episodes"] == 2
+    assert series["overrides"]["gym.space"] == "cartpole" and series["overrides"]["gym.env"] == "CartPole-v1"
+    audited = [r for r in series["records"] if r["error"] is None]
+    assert audited, series["records"]
+    assert {r["label"] for r in series["records"]} <= {"iter_1", "iter_2"}
+    assert (run_dir / "checkpoints" / "iter_1").is_dir()
+    assert "  audit of iteration 1: suite success" in done.stdout
+    assert f"audit series: {run_dir.resolve() / 'audit_series'}" in done.stdout
+
+
+@pytest.mark.parametrize("flags, message", [
+    (["--env-id", "Acrobot-v1"], "error: --audit-space: no shipped space is for --env-id Acrobot-v1"),
+    (["--audit-space", "nosuch"], "error: --audit-space nosuch: space 'nosuch': no such file"),
+    (["--audit-budget", "10"], "--audit-budget 10): budget: must be at least n_rand=20"),
+    (["--num-cpus", "1"], "background audits need a CPU of their own"),
+])
+def test_rllib_script_refuses_audits_it_cannot_run_before_anything_runs(flags, message, tmp_path, monkeypatch,
+                                                                        capsys):
+    script = import_script(GYM_SCRIPT, monkeypatch)
+    monkeypatch.chdir(tmp_path)
+    assert script.main(["--audit-every", "1", *flags]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "tb_logs").exists()
+
+
+def test_rllib_script_audits_its_env_id_with_its_env_config_as_fixed_keywords(monkeypatch):
+    from dsage_ray.domains.gym.space import build_space, parse_env_arg, read_space_tables
+
+    script = import_script(GYM_SCRIPT, monkeypatch)
+    env_config = {"gravity": -8.0, "enable_wind": False, "render_mode": "rgb_array", "nested": {"a": [1, 2]}}
+    args = script.parse_args(["--env-id", "LunarLander-v3", "--audit-every", "5"])
+    overrides = script.audit_overrides(args, env_config)
+    assert (overrides["gym.space"], overrides["gym.env"]) == ("lunarlander", "LunarLander-v3")
+    assert dict(parse_env_arg(a) for a in overrides["gym.env_args"]) == env_config
+    space = build_space(read_space_tables("lunarlander")[0], env_args=overrides["gym.env_args"])
+    assert space.env_args["enable_wind"] is False  # over the space file's [env] args
+    assert script.audit_overrides(script.parse_args([]), {}) == {"gym.space": "cartpole", "gym.env": "CartPole-v1",
+                                                                 "gym.env_args": ()}
 
 
 def test_sb3_script_trains_a_few_hundred_steps_and_saves_a_loadable_model(tmp_path):

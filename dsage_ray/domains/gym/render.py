@@ -43,7 +43,9 @@ def first_frame(space: EnvSpace, values: Mapping[str, Any]) -> np.ndarray | None
 def level_picture(space: EnvSpace, values: Mapping[str, Any], *, occupancy: np.ndarray | None = None,
                   title: str | None = None, occupancy_max: float | None = None,
                   result: EvaluationResult | None = None) -> bytes:
-    """A PNG: the first frame, the occupancy histogram (when the space declares coordinates) and the numbers.
+    """A PNG, one panel above the other so that it stays legible in a report card about 330 px wide: the first
+    frame (with the level's parameters set), the occupancy histogram (when the space declares coordinates), and,
+    without either, the parameter values as text.
 
     Args:
         space: The level's space.
@@ -51,49 +53,56 @@ def level_picture(space: EnvSpace, values: Mapping[str, Any], *, occupancy: np.n
         occupancy: The evaluation's histogram.
         title: Shown above the panels.
         occupancy_max: Top of the histogram's colour scale (one value for a whole collection).
-        result: The evaluation, whose returns and success are listed beside the parameters.
+        result: The evaluation (its failure rate joins the title).
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     frame = first_frame(space, values)
     show_occupancy = bool(space.occupancy) and occupancy is not None
-    panels = [p for p, shown in (("frame", frame is not None), ("occupancy", show_occupancy), ("text", True)) if shown]
-    widths = {"frame": 3.6, "occupancy": 3.4, "text": 3.2}
-    fig = Figure(figsize=(sum(widths[p] for p in panels), 3.4), dpi=100)
+    panels = [p for p, shown in (("frame", frame is not None), ("occupancy", show_occupancy)) if shown] or ["text"]
+    heights = {"frame": 2.2, "occupancy": 2.9, "text": 0.4 + 0.22 * len(values)}
+    fig = Figure(figsize=(3.6, 0.5 + sum(heights[p] for p in panels)), dpi=100)
     FigureCanvasAgg(fig)
-    axes = fig.subplots(1, len(panels), gridspec_kw={"width_ratios": [widths[p] for p in panels]}, squeeze=False)[0]
-    for ax, panel in zip(axes, panels):
+    axes = fig.subplots(len(panels), 1, gridspec_kw={"height_ratios": [heights[p] for p in panels]}, squeeze=False)
+    for ax, panel in zip(axes[:, 0], panels):
         if panel == "frame":
-            ax.imshow(frame)
+            ax.imshow(_crop(frame))
             ax.set_axis_off()
-            ax.set_title("first frame", fontsize=FONT_SIZE)
         elif panel == "occupancy":
             x, y = space.occupancy
             grid = np.asarray(occupancy, dtype=float)
             image = ax.imshow(grid.T, origin="lower", aspect="auto", cmap="YlOrRd", vmin=0,
                               vmax=occupancy_max or max(float(grid.max()), 1e-9),
                               extent=(x.low, x.high, y.low, y.high))
-            ax.set_xlabel(x.signal.describe().replace(" at the end", ""), fontsize=FONT_SIZE)
-            ax.set_ylabel(y.signal.describe().replace(" at the end", ""), fontsize=FONT_SIZE)
+            ax.set_xlabel(x.label, fontsize=FONT_SIZE)
+            ax.set_ylabel(y.label, fontsize=FONT_SIZE)
             ax.tick_params(labelsize=FONT_SIZE - 1)
-            ax.set_title("time spent", fontsize=FONT_SIZE)
+            ax.set_title("share of the time spent", fontsize=FONT_SIZE)
             colorbar = fig.colorbar(image, ax=ax, fraction=0.08)
             colorbar.ax.tick_params(labelsize=FONT_SIZE - 2)
         else:
             ax.set_axis_off()
-            lines = [f"{name} = {_short(value)}" for name, value in values.items()]
-            if result is not None and "mean_return" in result.info:
-                lines += ["", f"failure rate {result.objective:.2f}", f"mean return {result.info['mean_return']:.1f}",
-                          f"worst return {result.info['min_return']:.1f}",
-                          f"mean length {result.info['mean_length']:.0f}"]
-            ax.text(0.0, 1.0, "\n".join(lines), va="top", ha="left", fontsize=FONT_SIZE, family="monospace",
-                    transform=ax.transAxes)
-    fig.suptitle(title or space.env_id, fontsize=FONT_SIZE + 1)
+            ax.text(0.0, 1.0, "\n".join(f"{name} = {_short(value)}" for name, value in values.items()), va="top",
+                    ha="left", fontsize=FONT_SIZE, family="monospace", transform=ax.transAxes)
+    if title is None and result is not None:
+        title = f"failure rate {result.objective:.2f}"
+    fig.suptitle(title or space.env_id, fontsize=FONT_SIZE)
     fig.tight_layout()
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png")
     return buffer.getvalue()
+
+
+def _crop(frame: np.ndarray) -> np.ndarray:
+    """The frame without its uniform border rows and columns (CartPole's track sits in a mostly white frame)."""
+    background = frame[0, 0]
+    content = np.any(frame != background, axis=2)
+    rows, cols = np.flatnonzero(content.any(axis=1)), np.flatnonzero(content.any(axis=0))
+    if not len(rows) or not len(cols):
+        return frame
+    pad = 8
+    return frame[max(rows[0] - pad, 0):rows[-1] + pad + 1, max(cols[0] - pad, 0):cols[-1] + pad + 1]
 
 
 def _short(value: Any) -> str:

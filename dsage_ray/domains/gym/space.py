@@ -181,11 +181,17 @@ class Measure:
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class Coordinate:
-    """One axis of the occupancy histogram: an observation entry (or ``info`` key) and its range."""
+    """One axis of the occupancy histogram: an observation entry (or ``info`` key), its range and its axis label."""
 
     signal: Signal
     low: float
     high: float
+    name: str = ""
+
+    @property
+    def label(self) -> str:
+        return self.name or (f"observation[{self.signal.key}]" if self.signal.source == "obs"
+                             else f"info[{self.signal.key!r}]")
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -297,7 +303,7 @@ class EnvSpace:
             "audit": {"measures": list(self.audit_measures)},
         }
         if self.occupancy:
-            space["occupancy"] = {axis: {**signal(c.signal), "range": [c.low, c.high]}
+            space["occupancy"] = {axis: {**signal(c.signal), "range": [c.low, c.high], **({"label": c.name} if c.name else {})}
                                   for axis, c in zip("xy", self.occupancy)}
             space["occupancy"]["bins"] = list(self.bins)
         return space
@@ -567,14 +573,14 @@ def _coordinate(axis: str, entry: Any, source: str) -> Coordinate:
     where = f"{source} [occupancy.{axis}]"
     if not isinstance(entry, Mapping):
         raise SpaceError(f"{where}: expected a table such as {{obs = 0, range = [-1, 1]}}")
-    _known_keys(entry, ("info", "obs", "at", "range"), where)
+    _known_keys(entry, ("info", "obs", "at", "range", "label"), where)
     if "range" not in entry:
         raise SpaceError(f"{where}: needs range = [LOW, HIGH]")
     signal = _signal(entry, where)
     if signal.source not in ("obs", "info"):
         raise SpaceError(f"{where}: a coordinate is an observation entry (obs = INDEX) or an info key (info = KEY)")
     low, high = _pair(entry["range"], where)
-    return Coordinate(signal=signal, low=low, high=high)
+    return Coordinate(signal=signal, low=low, high=high, name=str(entry.get("label", "")))
 
 
 def _success(entry: Mapping[str, Any], source: str) -> Success:
