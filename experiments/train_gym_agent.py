@@ -57,17 +57,16 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import shutil
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import tyro
 
 from dsage_ray.integrations import DEFAULT_AUDIT_BUDGET, DEFAULT_PRESET
-from dsage_ray.integrations.training import (audit_callback, check_audit_flags, finish_audits_and_report,
-                                             print_audit)
+from dsage_ray.integrations.training import (audit_callback, check_audit_flags, check_env_flags, export_module,
+                                             finish_audits_and_report, greedy_returns, module_dir, print_audit,
+                                             record_iteration, report_evaluation, save_checkpoint, write_scalars)
 
 
 @dataclasses.dataclass
@@ -240,82 +239,44 @@ def audit_overrides(args: Args, env_config: dict) -> dict:
     return {"gym.space": space, "gym.env": args.env_id, "gym.env_args": env_args}
 
 
-def module_dir(checkpoint: Path) -> Path:
-    """The RLModule folder inside an algorithm checkpoint (what ``RLModule.from_checkpoint`` reads)."""
-    return checkpoint / "learner_group" / "learner" / "rl_module" / "default_policy"
-
-
-def save_checkpoint(algo, run_dir: Path, progress: dict) -> Path:
-    """Writes the full algorithm checkpoint to a staging folder, then swaps it in (a crash keeps the old one)."""
-    staging = Path(tempfile.mkdtemp(prefix=".checkpoint.", dir=run_dir))
-    algo.save_to_path(str(staging))
-    target = run_dir / "checkpoint"
-    if target.exists():
-        shutil.rmtree(target)
-    staging.rename(target)
-    (run_dir / "progress.json").write_text(json.dumps(progress, indent=2))
-    return target
-
-
-def greedy_returns(module, env_id: str, episodes: int, seed: int) -> list[float]:
-    """Returns of ``episodes`` greedy episodes (argmax of the action logits) of ``gymnasium.make(env_id)``."""
+def greedy_action(module):
+    """``act(observation, action_space)`` of :func:`~dsage_ray.integrations.training.greedy_returns` for an
+    RLModule: the argmax of its action logits (Discrete), or its Gaussian's mean clipped to the space (Box)."""
     import gymnasium as gym
     import numpy as np
     import torch
     from ray.rllib.core.columns import Columns
 
-    env = gym.make(env_id)
-    returns = []
-    for episode in range(episodes):
-        obs, _ = env.reset(seed=seed + episode)
-        total, done = 0.0, False
-        while not done:
-            with torch.no_grad():
-                out = module.forward_inference({Columns.OBS: torch.as_tensor(np.asarray(obs, np.float32))[None]})
-            logits = out[Columns.ACTION_DIST_INPUTS][0]
-            if isinstance(env.action_space, gym.spaces.Discrete):
-                action = int(torch.argmax(logits))
-            else:  # Box: a diagonal Gaussian's inputs are [mean, log_std]; greedy = the mean, clipped
-                mean = logits[: logits.shape[-1] // 2].numpy()
-                action = np.clip(mean, env.action_space.low, env.action_space.high)
-            obs, reward, terminated, truncated, _ = env.step(action)
-            total += float(reward)
-            done = terminated or truncated
-        returns.append(total)
-    env.close()
-    return returns
+    def act(obs, action_space):
+        with torch.no_grad():
+            out = module.forward_inference({Columns.OBS: torch.as_tensor(np.asarray(obs, np.float32))[None]})
+        logits = out[Columns.ACTION_DIST_INPUTS][0]
+        if isinstance(action_space, gym.spaces.Discrete):
+            return int(torch.argmax(logits))
+        # Box: a diagonal Gaussian's inputs are [mean, log_std]; greedy = the mean, clipped
+        mean = logits[: logits.shape[-1] // 2].numpy()
+        return np.clip(mean, action_space.low, action_space.high)
+
+    return act
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     os.environ.setdefault("RAY_AUTH_MODE", "disabled")
-    try:
-        env_config = json.loads(args.env_config)
-        if not isinstance(env_config, dict):
-            raise ValueError("not a JSON object")
-    except ValueError as exc:
-        print(f"error: --env-config {args.env_config!r}: {exc}", file=sys.stderr)
-        return 2
-    import gymnasium as gym
-    import numpy as np
-    import ray
-    import torch
-    from ray.rllib.core.rl_module.rl_module import RLModule
-    from tensorboardX import SummaryWriter
-
     from dsage_ray.errors import InputError
 
     try:
-        gym.spec(args.env_id)
-    except gym.error.Error as exc:
-        print(f"error: --env-id {args.env_id}: {exc}", file=sys.stderr)
-        return 2
-    try:
+        env_config = check_env_flags(args)
         overrides = audit_overrides(args, env_config) if args.audit_every else {}
         check_audit_flags(args, domain="gym", overrides=overrides)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    import ray
+    import torch
+    from ray.rllib.core.rl_module.rl_module import RLModule
+    from tensorboardX import SummaryWriter
+
     torch.set_num_threads(args.torch_threads)
     run_dir = (Path("tb_logs") / args.run_name).resolve()  # RLlib reads paths as URIs: they must be absolute
     if (run_dir / "checkpoint").exists():
@@ -342,26 +303,12 @@ def main(argv: list[str] | None = None) -> int:
 
     while not finished():
         result = algo.train()
-        progress["iteration"] += 1
-        progress["env_steps"] += int(result["env_runners"]["num_env_steps_sampled"])
-        progress["wall_s"] = time.perf_counter() - started
+        scalars = record_iteration(result, progress, started)
         step = progress["env_steps"]
-        runners = result["env_runners"]
-        learner = result["learners"]["default_policy"]
-        episode_return = runners.get("episode_return_mean")
+        episode_return = scalars["train/episode_return_mean"]
         progress["episode_return_mean"] = None if episode_return is None else float(episode_return)
         streak = streak + 1 if episode_return is not None and episode_return >= args.stop_return else 0
-        scalars = {
-            "train/episode_return_mean": episode_return,
-            "train/episode_len_mean": runners.get("episode_len_mean"),
-            "train/env_steps_per_s": step / max(progress["wall_s"], 1e-9),
-            "loss/policy": learner.get("policy_loss"),
-            "loss/vf": learner.get("vf_loss"),
-            "loss/entropy": learner.get("entropy"),
-        }
-        for tag, value in scalars.items():
-            if value is not None:
-                writer.add_scalar(tag, float(value), step)
+        write_scalars(writer, scalars, step)
         writer.flush()
         shown_return = "       -" if episode_return is None else f"{episode_return:8.2f}"  # no episode ended yet
         print(f"iter {progress['iteration']:4d}  steps {step:8d}  return {shown_return}  "
@@ -378,27 +325,14 @@ def main(argv: list[str] | None = None) -> int:
     algo.stop()
     writer.close()
     ray.shutdown()
-    module_path = module_dir(checkpoint)
-    if args.export:
-        export = Path(args.export)
-        if export.exists():
-            shutil.rmtree(export)
-        shutil.copytree(module_path, export)
-        module_path = export
+    module_path = export_module(checkpoint, args.export) if args.export else module_dir(checkpoint)
 
     # The evaluation reads the checkpoint back as a user would: RLModule.from_checkpoint, then our own loop.
     module = RLModule.from_checkpoint(str(Path(module_path).resolve()))
-    returns = greedy_returns(module, args.env_id, args.eval_episodes, args.eval_seed)
-    evaluation = {"env_id": args.env_id, "episodes": len(returns), "seeds": [args.eval_seed, args.eval_seed + len(returns) - 1],
-                  "mean_return": float(np.mean(returns)), "std_return": float(np.std(returns)),
-                  "min_return": float(np.min(returns)), "max_return": float(np.max(returns))}
-    (run_dir / "evaluation.json").write_text(json.dumps(evaluation, indent=2))
+    returns = greedy_returns(greedy_action(module), args.env_id, args.eval_episodes, args.eval_seed)
     print(f"done: {progress['env_steps']} env steps, {progress['iteration']} iterations in "
           f"{progress['wall_s'] / 60:.1f} min")
-    print(f"greedy evaluation on {args.env_id} (default parameters), {len(returns)} episodes, seeds "
-          f"{args.eval_seed}..{args.eval_seed + len(returns) - 1}: mean return {evaluation['mean_return']:.2f} "
-          f"(std {evaluation['std_return']:.2f}, min {evaluation['min_return']:.2f}, "
-          f"max {evaluation['max_return']:.2f})")
+    report_evaluation(run_dir, args.env_id, returns, args.eval_seed)
     print(f"algorithm checkpoint: {checkpoint}")
     print(f"module checkpoint: {module_dir(checkpoint)}")
     if args.export:

@@ -52,15 +52,15 @@ import json
 import os
 import shutil
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import tyro
 
 from dsage_ray.integrations import DEFAULT_AUDIT_BUDGET, DEFAULT_PRESET
-from dsage_ray.integrations.training import (audit_callback, check_audit_flags, finish_audits_and_report,
-                                             print_audit)
+from dsage_ray.integrations.training import (audit_callback, check_audit_flags, export_module,
+                                             finish_audits_and_report, module_dir, print_audit, record_iteration,
+                                             save_checkpoint, write_scalars)
 
 
 ENV_NAME = "dsage_ray/RandomMaze-v0"
@@ -306,22 +306,6 @@ def evaluate_module(module_dir: Path, args: Args) -> dict[str, float]:
             "mean_path_length": float(np.mean([r.mean_path_length for r in results]))}
 
 
-def save_checkpoint(algo, run_dir: Path, progress: dict) -> Path:
-    """Writes the full algorithm checkpoint to a staging folder, then swaps it in (a crash keeps the old one)."""
-    from dsage_ray.io import atomic_write_json, replace_dir
-
-    staging = Path(tempfile.mkdtemp(prefix=".checkpoint.", dir=run_dir))
-    algo.save_to_path(str(staging))
-    replace_dir(staging, run_dir / "checkpoint")
-    atomic_write_json(run_dir / "progress.json", progress)
-    return run_dir / "checkpoint"
-
-
-def module_dir(checkpoint: Path) -> Path:
-    """The RLModule folder inside an algorithm checkpoint (what the ``rllib:`` loader reads)."""
-    return checkpoint / "learner_group" / "learner" / "rl_module" / "default_policy"
-
-
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     os.environ.setdefault("RAY_AUTH_MODE", "disabled")
@@ -388,24 +372,10 @@ def main(argv: list[str] | None = None) -> int:
     while not finished():
         set_difficulty(algo, difficulty_at(progress["env_steps"], args))
         result = algo.train()
-        progress["iteration"] += 1
-        progress["env_steps"] += int(result["env_runners"]["num_env_steps_sampled"])
-        progress["wall_s"] = time.perf_counter() - started
+        scalars = record_iteration(result, progress, started)
         step = progress["env_steps"]
-        runners = result["env_runners"]
-        learner = result["learners"]["default_policy"]
-        scalars = {
-            "train/episode_return_mean": runners.get("episode_return_mean"),
-            "train/episode_len_mean": runners.get("episode_len_mean"),
-            "train/difficulty": difficulty_at(step, args),
-            "train/env_steps_per_s": step / max(progress["wall_s"], 1e-9),
-            "loss/policy": learner.get("policy_loss"),
-            "loss/vf": learner.get("vf_loss"),
-            "loss/entropy": learner.get("entropy"),
-        }
-        for tag, value in scalars.items():
-            if value is not None:
-                writer.add_scalar(tag, float(value), step)
+        scalars["train/difficulty"] = difficulty_at(step, args)
+        write_scalars(writer, scalars, step)
         print(f"iter {progress['iteration']:4d}  steps {step:8d}  return {scalars['train/episode_return_mean'] or 0:.3f}  "
               f"len {scalars['train/episode_len_mean'] or 0:6.1f}  difficulty {scalars['train/difficulty']:.2f}  "
               f"{scalars['train/env_steps_per_s']:.0f} steps/s", flush=True)
@@ -427,11 +397,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.audit_every:
         finish_audits_and_report(algo, run_dir)
     if args.export:
-        export = Path(args.export)
-        if export.exists():
-            shutil.rmtree(export)
-        shutil.copytree(module_dir(checkpoint), export)
-        print(f"module checkpoint exported to {export}")
+        print(f"module checkpoint exported to {export_module(checkpoint, args.export)}")
     writer.close()
     algo.stop()
     ray.shutdown()

@@ -31,6 +31,8 @@ from pathlib import Path
 
 import tyro
 
+from dsage_ray.integrations.training import check_env_flags, greedy_returns, report_evaluation
+
 
 @dataclasses.dataclass
 class Args:
@@ -83,46 +85,20 @@ def parse_args(argv: list[str] | None = None) -> Args:
     return tyro.cli(Args, args=argv, description=__doc__.split("\n\n")[0])
 
 
-def greedy_returns(model, env_id: str, episodes: int, seed: int) -> list[float]:
-    """Returns of ``episodes`` greedy episodes (``deterministic=True``) of ``gymnasium.make(env_id)``."""
-    import gymnasium as gym
-
-    env = gym.make(env_id)
-    returns = []
-    for episode in range(episodes):
-        obs, _ = env.reset(seed=seed + episode)
-        total, done = 0.0, False
-        while not done:
-            action, _ = model.predict(obs, deterministic=True)
-            obs, reward, terminated, truncated, _ = env.step(action)
-            total += float(reward)
-            done = terminated or truncated
-        returns.append(total)
-    env.close()
-    return returns
-
-
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    from dsage_ray.errors import InputError
+
     try:
-        env_config = json.loads(args.env_config)
-        if not isinstance(env_config, dict):
-            raise ValueError("not a JSON object")
-    except ValueError as exc:
-        print(f"error: --env-config {args.env_config!r}: {exc}", file=sys.stderr)
+        env_config = check_env_flags(args)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
         return 2
-    import gymnasium as gym
-    import numpy as np
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.env_util import make_vec_env
 
-    try:
-        gym.spec(args.env_id)
-    except gym.error.Error as exc:
-        print(f"error: --env-id {args.env_id}: {exc}", file=sys.stderr)
-        return 2
     torch.set_num_threads(args.torch_threads)
     run_dir = Path("tb_logs") / args.run_name
     run_dir.mkdir(parents=True, exist_ok=True)
@@ -145,17 +121,11 @@ def main(argv: list[str] | None = None) -> int:
     model_path = run_dir / "model.zip"
     model.save(model_path)
 
-    returns = greedy_returns(PPO.load(model_path, device="cpu"), args.env_id, args.eval_episodes, args.eval_seed)
-    evaluation = {"env_id": args.env_id, "env_steps": int(model.num_timesteps), "wall_s": wall_s,
-                  "episodes": len(returns), "seeds": [args.eval_seed, args.eval_seed + len(returns) - 1],
-                  "mean_return": float(np.mean(returns)), "std_return": float(np.std(returns)),
-                  "min_return": float(np.min(returns)), "max_return": float(np.max(returns))}
-    (run_dir / "evaluation.json").write_text(json.dumps(evaluation, indent=2))
+    loaded = PPO.load(model_path, device="cpu")  # evaluated as a user would read it back
+    returns = greedy_returns(lambda obs, _space: loaded.predict(obs, deterministic=True)[0], args.env_id,
+                             args.eval_episodes, args.eval_seed)
     print(f"done: {model.num_timesteps} env steps in {wall_s / 60:.1f} min")
-    print(f"greedy evaluation on {args.env_id} (default parameters), {len(returns)} episodes, seeds "
-          f"{args.eval_seed}..{args.eval_seed + len(returns) - 1}: mean return {evaluation['mean_return']:.2f} "
-          f"(std {evaluation['std_return']:.2f}, min {evaluation['min_return']:.2f}, "
-          f"max {evaluation['max_return']:.2f})")
+    report_evaluation(run_dir, args.env_id, returns, args.eval_seed, env_steps=int(model.num_timesteps), wall_s=wall_s)
     print(f"model: {model_path.resolve()}")
     print(f"args, evaluation: {(run_dir / 'args.json').resolve()}, {(run_dir / 'evaluation.json').resolve()}")
     print(f"open it in TensorBoard: tensorboard --logdir {run_dir.resolve()}")

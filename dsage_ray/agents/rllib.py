@@ -29,7 +29,7 @@ from __future__ import annotations
 import io
 import pickle
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import torch
@@ -166,8 +166,16 @@ def check_spaces(module: Any, *, source: str) -> None:
         raise AgentError(f"rllib checkpoint {source!r}: action space {actions} is not Discrete(k), k <= {NUM_ACTIONS}")
 
 
-def load_rllib_module(target: str, *, policy: str = "default_policy"):
-    """Loads only the RLModule a checkpoint holds (no Ray cluster), with its spaces checked."""
+def load_rllib_module(target: str, *, policy: str = "default_policy",
+                      check: Callable[..., None] | None = check_spaces):
+    """Loads only the RLModule a checkpoint holds (no Ray cluster), with its spaces checked.
+
+    Args:
+        target: What ``rllib:PATH`` names (module docstring).
+        policy: Module id inside an algorithm checkpoint.
+        check: ``check(module, source=module_dir)``, raising AgentError when the module does not fit where it
+            will act: by default :func:`check_spaces` (the Maze's spaces); None checks nothing.
+    """
     from dsage_ray.agents.rllib_module import drop_rlmodule_config_warning
 
     module_dir = resolve_module_dir(target, policy=policy)
@@ -177,7 +185,8 @@ def load_rllib_module(target: str, *, policy: str = "default_policy"):
         module = cls.from_checkpoint(module_dir.resolve())  # relative paths read as URIs without a scheme
     except Exception as exc:  # noqa: BLE001 - missing/corrupt state files surface as many types
         raise AgentError(f"rllib checkpoint {str(module_dir)!r}: cannot load the module ({describe_exception(exc)})") from None
-    check_spaces(module, source=str(module_dir))
+    if check is not None:
+        check(module, source=str(module_dir))
     return module
 
 

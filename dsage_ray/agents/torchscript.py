@@ -33,7 +33,6 @@ from dsage_ray.agents.loader import SpecOptions, describe_exception, require_fil
 from dsage_ray.agents.sampling import sample_from_logits
 
 
-
 class TorchScriptAgent(Agent):
     """Wraps a loaded TorchScript policy; state is ``None`` (stateless) or a ``(n, state_size)`` tensor.
 
@@ -64,16 +63,21 @@ class TorchScriptAgent(Agent):
         return sample_from_logits(logits, rng), state
 
 
-def load_torchscript_agent(target: str, options: SpecOptions) -> TorchScriptAgent:
-    """Factory for ``torchscript:PATH``; checks the calling convention with one dummy call."""
-    path = require_file(target, what="torchscript file")
+def load_script_module(path: pathlib.Path) -> torch.jit.ScriptModule:
+    """The TorchScript module in the file ``path``, on the CPU; AgentError when it holds none."""
     try:
         with warnings.catch_warnings():
             # torch 2.9+ marks TorchScript deprecated; the user asked for this format explicitly.
             warnings.simplefilter("ignore", DeprecationWarning)
-            module = torch.jit.load(str(path), map_location="cpu")
+            return torch.jit.load(str(path), map_location="cpu")
     except Exception as exc:  # torch reports non-TorchScript files as assorted RuntimeErrors
         raise AgentError(f"torchscript file {str(path)!r}: not a TorchScript module ({describe_exception(exc)})") from None
+
+
+def load_torchscript_agent(target: str, options: SpecOptions) -> TorchScriptAgent:
+    """Factory for ``torchscript:PATH``; checks the calling convention with one dummy call."""
+    path = require_file(target, what="torchscript file")
+    module = load_script_module(path)
     state_size = _state_size(module, path)
     agent = TorchScriptAgent(module=module, state_size=state_size)
     _check_convention(agent, path)

@@ -331,24 +331,23 @@ def _is_squashed_gaussian(module: Any) -> bool:
 
 def _load_rllib(target: str, options: SpecOptions, observation_space: gymnasium.Space,
                 action_space: gymnasium.Space) -> tuple[Agent, str]:
-    from dsage_ray.agents.rllib import module_class, resolve_module_dir
-    from dsage_ray.agents.rllib_module import drop_rlmodule_config_warning
+    from dsage_ray.agents.rllib import load_rllib_module
 
     policy = options.get_str("policy", "default_policy")
     greedy = options.get_bool("greedy", False)
     normalize = options.get_bool("normalize_actions", True)
-    module_dir = resolve_module_dir(target, policy=policy)
-    label = f"rllib checkpoint {str(module_dir)!r}"
-    cls = module_class(module_dir)
-    drop_rlmodule_config_warning()
-    try:
-        module = cls.from_checkpoint(module_dir.resolve())  # relative paths read as URIs without a scheme
-    except Exception as exc:  # noqa: BLE001 - missing/corrupt state files surface as many types
-        raise AgentError(f"{label}: cannot load the module ({describe_exception(exc)})") from None
-    _check_space(module.observation_space, observation_space, which="observation", label=label)
-    _check_space(module.action_space, action_space, which="action", label=label)
-    _require_discrete_or_box(action_space, label=label)
-    return RLlibGymAgent(module=module, greedy=greedy, normalize_actions=normalize), label
+    labels = []
+
+    def check_env_spaces(module: Any, *, source: str) -> None:
+        """The env's spaces in place of :func:`~dsage_ray.agents.rllib.check_spaces`'s Maze ones."""
+        label = f"rllib checkpoint {source!r}"
+        _check_space(module.observation_space, observation_space, which="observation", label=label)
+        _check_space(module.action_space, action_space, which="action", label=label)
+        _require_discrete_or_box(action_space, label=label)
+        labels.append(label)
+
+    module = load_rllib_module(target, policy=policy, check=check_env_spaces)
+    return RLlibGymAgent(module=module, greedy=greedy, normalize_actions=normalize), labels[0]
 
 
 # --- sb3 ------------------------------------------------------------------------------------------------------
@@ -514,21 +513,12 @@ class TorchScriptGymAgent(Agent):
 
 def _load_torchscript(target: str, options: SpecOptions, observation_space: gymnasium.Space,
                       action_space: gymnasium.Space) -> tuple[Agent, str]:
-    import warnings
-
-    import torch
+    from dsage_ray.agents.torchscript import load_script_module
 
     path = require_file(target, what="torchscript file")
     label = f"torchscript file {str(path)!r}"
     _require_discrete_or_box(action_space, label=label)
-    try:
-        with warnings.catch_warnings():
-            # torch 2.9+ marks TorchScript deprecated; the user asked for this format explicitly.
-            warnings.simplefilter("ignore", DeprecationWarning)
-            module = torch.jit.load(str(path), map_location="cpu")
-    except Exception as exc:  # noqa: BLE001 - torch reports non-TorchScript files as assorted RuntimeErrors
-        raise AgentError(f"{label}: not a TorchScript module ({describe_exception(exc)})") from None
-    return TorchScriptGymAgent(module=module, action_space=action_space), label
+    return TorchScriptGymAgent(module=load_script_module(path), action_space=action_space), label
 
 
 # --- python ---------------------------------------------------------------------------------------------------
