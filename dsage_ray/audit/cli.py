@@ -14,6 +14,9 @@ examples:
   dsage-ray audit --agent builtin:random --preset tiny --local               # a smoke test, no Ray
   dsage-ray audit --agent rllib:path/to/new --reference rllib:path/to/old    # where new is worse than old
   dsage-ray audit --domain mario --agent astar --preset tiny
+  dsage-ray audit --domain gym --env CartPole-v1 --space cartpole --agent rllib:ppo_cartpole --preset demo
+  dsage-ray audit --domain gym --env LunarLander-v3 --param gravity=-11.9:-2 --env-arg enable_wind=true \
+      --space '' --space-set 'success.return_at_least = 200' --agent sb3:model.zip    # no space file
   dsage-ray compare --agent rllib:ppo_maze --agent builtin:wall_follower --collection tb_logs/audit_mine/collection
   dsage-ray compare --agent astar --agent astar:200 --collection tb_logs/audit_mario/collection
   dsage-ray audit --agent dcd:accel --out tb_logs/audit_accel --resume        # after Ctrl+C
@@ -37,7 +40,8 @@ def add_subparser(subparsers) -> None:
         epilog=AUDIT_EXAMPLES)
     what = audit.add_argument_group("what to audit")
     what.add_argument("--domain", default="maze",
-                      help="maze (default), mario, or a plug-in domain that declares audits")
+                      help="maze (default), mario, gym (any Gymnasium environment: --env, --space, --param), or a "
+                           "plug-in domain that declares audits")
     what.add_argument("--agent", metavar="SPEC", action=LazyHelp,
                       help_text=lambda: f"agent spec, of a kind the domain plays ({agent_help()}). Without it: a "
                                         f"demo audit of the domain's shipped agent (maze: rllib:ppo_maze) with the "
@@ -230,7 +234,7 @@ def add_series_subparser(subparsers) -> None:
                         help_text=lambda: f"checkpoint agent specs, oldest first ({agent_help()})")
     series.add_argument("--out", required=True, metavar="DIR",
                         help="series folder; one that holds series.json is continued")
-    series.add_argument("--domain", default="maze", help="maze (default), mario, or a plug-in domain with audits")
+    series.add_argument("--domain", default="maze", help="maze (default), mario, gym, or a plug-in domain with audits")
     search = series.add_argument_group("each checkpoint's audit")
     add_config_arguments(search, preset_default="cpu")
     search.add_argument("--budget", type=int,
