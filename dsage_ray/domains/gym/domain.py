@@ -117,7 +117,7 @@ class GymDomain:
         """Environment steps (what an evaluation's time grows with)."""
         return {"steps": result.info["mean_length"] * self.config.episodes}
 
-    work_names = ("steps",)
+    work_names = GymConfig.work_names
 
     # ---------------------------------------------------------------------------------- rendering
 

@@ -8,7 +8,7 @@ file, or ``--param`` strings on the command line.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable, Literal
+from typing import Any, Callable, ClassVar, Literal
 
 from dsage_ray.domains.registry import AgentKinds, AuditSpec, DomainSpec, ReportField
 
@@ -19,6 +19,10 @@ GymObjective = Literal["failure_rate"]
 @dataclasses.dataclass
 class GymConfig:
     """The ``[gym]`` section of a run config."""
+
+    #: Work counts its domain reports per evaluation (``work_counts``: environment steps), which
+    #: ``selection.cost_measure`` may name.
+    work_names: ClassVar[tuple[str, ...]] = ("steps",)
 
     #: A shipped space's name (``cartpole``, ``lunarlander``), a space file (TOML), or "" (``params`` only).
     space: str = "cartpole"
