@@ -393,6 +393,9 @@ class RunConfig:
             raise ConfigError(f"domain: {exc}") from None
         for name, section in self.sections.items():
             _check_choices(section, f"{name}.")
+        # The name is a folder under tb_logs/ (or --out): it may not climb out of it.
+        need(bool(self.name) and not Path(self.name).is_absolute() and ".." not in Path(self.name).parts, "name",
+             "must be a relative folder name without '..' (runs are written under tb_logs/ or --out)")
         need(self.budget >= 1, "budget", "must be positive")
         need(self.time_budget >= 0, "time_budget", "must be >= 0 seconds (0: no limit)")
         need(self.n_rand >= 1, "n_rand", "must be positive")

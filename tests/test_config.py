@@ -140,3 +140,9 @@ def test_time_budget_is_a_validated_float_key_that_round_trips():
         RunConfig.build({"time_budget": -1})
     with pytest.raises(ConfigError, match="time_budget: expected a number, got '10m'"):
         RunConfig.build({"time_budget": "10m"})
+
+
+@pytest.mark.parametrize("name", ["/tmp/elsewhere", "../outside", "runs/../../outside", ""])
+def test_a_run_name_cannot_leave_the_runs_folder(name):
+    with pytest.raises(ConfigError, match="name: must be a relative folder name without '..'"):
+        RunConfig.build({"name": name})

@@ -141,8 +141,11 @@ def checkpoint_config(path: str | Path) -> "RunConfig":
     """
     from dsage_ray.config import ConfigError, RunConfig
 
+    stored = read_header(path).get("config") or load_checkpoint(path).get("config")
+    if not isinstance(stored, dict):
+        raise CheckpointError(f"{path}: holds no run config (not a checkpoint dsage_ray wrote, or a damaged one)")
     try:
-        return RunConfig.build(read_header(path).get("config") or load_checkpoint(path)["config"])
+        return RunConfig.build(stored)
     except ConfigError as exc:
         raise CheckpointError(f"{path}: the run's config does not load here ({exc})") from None
 

@@ -152,3 +152,12 @@ def test_a_tune_folder_of_the_old_format_says_so(tmp_path):
     with pytest.raises(CheckpointError, match=r"no such checkpoint \(it holds runner_state.pt, a checkpoint of an "
                                               r"earlier dsage_ray"):
         load_checkpoint(tmp_path / checkpoint.CHECKPOINT_NAME)
+
+
+def test_a_checkpoint_without_a_run_config_is_named_not_a_key_error(tmp_path, state):
+    from dsage_ray.core.checkpoint import checkpoint_config
+
+    path = save_checkpoint(state, tmp_path / "c.dsage")  # a valid checkpoint, but of no run
+    with pytest.raises(CheckpointError, match="holds no run config") as error:
+        checkpoint_config(path)
+    assert describe(error.value)[0] == 2 and "\n" not in str(error.value)
