@@ -71,12 +71,8 @@ class GymDomain:
         """The measures that are parameters, exact from the encoded levels (``surrogate.exact_level_values``)."""
         units = np.asarray(encoded, dtype=np.float64)[:, :, 0, 0]
         index = {p.name: i for i, p in enumerate(self.space.params)}
-        exact = {}
-        for name, signal in zip(self.measure_names, self._signals):
-            if signal.source == "param":
-                parameter = self.space.params[index[signal.key]]
-                exact[name] = np.array([float(parameter.value(u)) for u in units[:, index[signal.key]]], np.float32)
-        return exact
+        return {name: self.space.params[index[signal.key]].numbers(units[:, index[signal.key]]).astype(np.float32)
+                for name, signal in zip(self.measure_names, self._signals) if signal.source == "param"}
 
     def values(self, solution: Solution) -> dict[str, Any]:
         """``{parameter name: value}`` of a level."""

@@ -156,17 +156,15 @@ def step_limit(env, space: EnvSpace) -> int:
     return int(limit)
 
 
-def read_signal(signal: Signal, observation: Any, info: Mapping[str, Any], values: Mapping[str, Any]) -> float:
-    """One step's value of an ``info``, ``obs`` or ``param`` signal.
+def read_signal(signal: Signal, observation: Any, info: Mapping[str, Any]) -> float:
+    """One step's value of an ``info`` or ``obs`` signal.
 
     Raises:
-        KeyError: The ``info`` key is missing (:func:`run_episodes` names it).
+        KeyError, IndexError: The ``info`` key or observation entry is missing (:func:`run_episodes` names it).
     """
     if signal.source == "info":
         return float(np.asarray(info[signal.key], dtype=np.float64).ravel()[0])
-    if signal.source == "obs":
-        return float(np.asarray(observation, dtype=np.float64).ravel()[int(signal.key)])
-    return float(values[signal.key])
+    return float(np.asarray(observation, dtype=np.float64).ravel()[int(signal.key)])
 
 
 def run_episodes(space: EnvSpace, agent, values: Mapping[str, Any], *, seed: int, episodes: int,
@@ -214,7 +212,7 @@ def run_episodes(space: EnvSpace, agent, values: Mapping[str, Any], *, seed: int
                 for s in stepped:
                     key = signal_key(s)
                     try:
-                        last[key][i] = read_signal(s, observation, info, values)
+                        last[key][i] = read_signal(s, observation, info)
                     except (KeyError, IndexError):
                         raise SpaceError(f"environment {space.env_id!r}: {s.describe()} is not there "
                                          f"(info keys: {', '.join(sorted(info)) or 'none'}; observation size "
@@ -243,8 +241,9 @@ def run_episodes(space: EnvSpace, agent, values: Mapping[str, Any], *, seed: int
         key = signal_key(s)
         if s.source in ("info", "obs"):
             recorded[key] = last[key] if s.at == "end" else sums[key] / np.maximum(lengths, 1)
-        elif s.source == "param":
-            recorded[key] = np.full(episodes, float(values[s.key]))
+        elif s.source == "param":  # a choice counts as its index, as the measure's range does
+            parameter = next(p for p in space.params if p.name == s.key)
+            recorded[key] = np.full(episodes, float(parameter.numbers(parameter.unit(values[s.key]))))
         else:
             recorded[key] = {"return": returns, "length": lengths, "terminated": terminated,
                              "truncated": truncated}[s.source].astype(np.float64)
@@ -256,7 +255,7 @@ def _bin(space: EnvSpace, observation: Any, info: Mapping[str, Any]) -> tuple[in
     cells = []
     for coordinate, bins in zip(space.occupancy, space.bins):
         try:
-            value = read_signal(coordinate.signal, observation, info, {})
+            value = read_signal(coordinate.signal, observation, info)
         except (KeyError, IndexError):
             raise SpaceError(f"environment {space.env_id!r}: occupancy coordinate {coordinate.signal.describe()} "
                              f"is not there") from None

@@ -113,13 +113,20 @@ class Parameter:
         elif not (math.isfinite(self.low) and math.isfinite(self.high) and self.low < self.high):
             raise SpaceError(f"parameter {self.name!r}: range [{self.low:g}, {self.high:g}] needs low < high")
 
+    def numbers(self, units: np.ndarray) -> np.ndarray:
+        """The parameter as a number at each box coordinate (clipped to ``[-1, 1]``): its value, or a choice's index.
+
+        This is what a ``param.NAME`` measure reads, vectorised for the surrogate's exact values.
+        """
+        x = self.low + (self.high - self.low) * (np.clip(np.asarray(units, dtype=np.float64), -1.0, 1.0) + 1.0) / 2.0
+        return x if self.kind == "float" else np.round(x)
+
     def value(self, unit: float) -> Any:
         """The parameter's value at box coordinate ``unit`` (clipped to ``[-1, 1]``)."""
-        x = self.low + (self.high - self.low) * (float(np.clip(unit, -1.0, 1.0)) + 1.0) / 2.0
+        x = float(self.numbers(np.asarray(unit)))
         if self.kind == "float":
             return x
-        index = int(round(x))
-        return self.choices[index] if self.kind == "choice" else index
+        return self.choices[int(x)] if self.kind == "choice" else int(x)
 
     def unit(self, value: Any) -> float:
         """The box coordinate of ``value`` (the inverse of :meth:`value`).
@@ -428,7 +435,6 @@ def build_space(tables: Mapping[str, Any] | None = None, *, env_id: str = "", pa
     steps = env.get("max_episode_steps")
     if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int) or steps < 1):
         raise SpaceError(f"{source} [env] max_episode_steps: must be a positive integer, got {steps!r}")
-    names = {p.name for p in parameters}
     measures = {name: _measure(name, entry, source, parameters, steps)
                 for name, entry in _table(tables, "measures", source).items()}
     # Every parameter is also a measure (param.NAME), without declaring it.
@@ -456,7 +462,6 @@ def build_space(tables: Mapping[str, Any] | None = None, *, env_id: str = "", pa
     for p in parameters:
         if p.target == "attr" and p.key in derived:
             raise SpaceError(f"{source}: parameter {p.name!r} sets {p.key!r}, which [env.derived] also computes")
-    del names
     return EnvSpace(env_id=env_id, env_args=args, params=parameters, measures=measures, success=success,
                     occupancy=occupancy, bins=tuple(bins), derived=derived,
                     observation_attr=str(env.get("observation_attr", "")), max_episode_steps=steps,

@@ -149,3 +149,12 @@ def test_selection_may_weigh_picks_by_the_steps_an_evaluation_takes(policy_file)
     domain = build_domain(run)
     result = domain.evaluate(np.zeros(domain.solution_dim, dtype=np.float32), 0)
     assert domain.work_counts(result) == {"steps": result.info["mean_length"] * run.gym.episodes}
+
+
+def test_a_choice_parameter_measures_as_its_index_in_episodes_and_for_the_surrogate():
+    domain = build_domain(config(**{"gym.params": ("reset.mode=calm|gusty|storm",),
+                                    "gym.measures": ("param.mode", "length")}))
+    solution = domain.space.solution({"length": 0.5, "masspole": 0.1, "masscart": 1.0, "force_mag": 10.0,
+                                      "initial_angle": 0.0, "mode": "storm"})
+    assert domain.evaluate(solution, 0).measures[0] == 2.0
+    assert domain.level_values(domain.encode(solution[None]))["param.mode"].tolist() == [2.0]
