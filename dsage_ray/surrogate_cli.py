@@ -84,13 +84,19 @@ def pretrain_command(args: argparse.Namespace) -> int:
         sources, overrides = args.sources, overrides
     else:
         sources, overrides = [_search(args, overrides, out)], {}
-    with tqdm(desc="pretrain", unit="epoch") as bar:
-        def advance(epoch: int, total: int) -> None:
-            bar.total = total
-            bar.update(1)
+    bars: list[tqdm] = []  # opened at the first epoch: a source that does not load ends with its error alone
 
+    def advance(epoch: int, total: int) -> None:
+        if not bars:
+            bars.append(tqdm(desc="pretrain", unit="epoch", total=total))
+        bars[0].update(1)
+
+    try:
         result = pretrain_surrogate(sources, out=out, overrides=overrides, seed=args.seed, epochs=args.epochs,
                                     progress=advance)
+    finally:
+        for bar in bars:
+            bar.close()
     print(describe(result))
     agent = f"--agent {result.agent} " if result.agent else ""
     print(f"pretrained surrogate: {result.path}\nuse it: dsage-ray audit {agent}--surrogate-init {result.path}")

@@ -1,29 +1,36 @@
 """The one checkpoint format: a run's full state in one file, written atomically, checked on load.
 
-``--local`` runs, Tune trials (one file inside each of Tune's checkpoint folders) and the audit all
-read and write this format through :func:`save_checkpoint` / :func:`load_checkpoint`.
+``--local`` runs, Tune trials (one file inside each of Tune's checkpoint folders), the audit and pretrained
+surrogates all read and write this format through :func:`save_checkpoint` / :func:`load_checkpoint`.
 
 A file is three parts::
 
-    dsage_ray checkpoint\\n      magic line: a foreign file is recognised before anything is unpickled
-    {"format": 2, ...}\\n         JSON header: format version, library versions, payload size and sha256
-    <pickle>                     the state (pickle protocol 5)
+    dsage_ray checkpoint\\n      magic line: a foreign file is recognised before anything is read
+    {"format": 3, ...}\\n         JSON header: format version, library versions, payload size and sha256
+    <data pickle>                the state (:mod:`~dsage_ray.core.safe_pickle`)
 
-The payload is a pickle because the state holds pyribs archives and emitters with their internal
-``numpy.random.Generator`` states, which pickle exactly and nothing else stores. Pickles restore
-objects by their classes' private layout, so the header records the versions of the libraries
+**Opening a checkpoint runs no code.** The state holds pyribs archives and emitters with their internal
+``numpy.random.Generator`` states, which pickle exactly and nothing else stores, so the payload is a pickle, read
+by :mod:`~dsage_ray.core.safe_pickle`: only an allowlist of data classes is resolved, torch tensors are stored as
+raw bytes, and a pickle naming anything else is refused before it is called. A checkpoint can be shared like any
+data file. Format 2 (dsage_ray before this) was a plain pickle, which runs code when opened; it is refused, and
+``dsage-ray checkpoint convert PATH --trust`` rewrites it once for whoever trusts where it came from.
+:func:`save_checkpoint` reads back what it wrote, so a state this reader would refuse fails when it is saved, not
+when a run resumes.
+
+Pickles restore objects by their classes' private layout, so the header records the versions of the libraries
 whose objects the state holds and :func:`load_checkpoint` compares them with the running ones:
 
 * **pyribs**: its private attribute layout changes between minor releases, and an archive from
   another release would restore silently wrong; a different ``major.minor`` is an error
   (:class:`CheckpointVersionError`), a different patch release a warning.
 * **numpy**, **torch**, **dsage_ray**: their pickles load across versions (numpy 2 reads numpy 1
-  pickles; torch tensors and the runner's plain-dict state are stable), but a continued run may
+  pickles; tensors are raw bytes and the runner's plain-dict state is stable), but a continued run may
   not reproduce the interrupted one bit for bit, so a difference is a warning
   (:class:`CheckpointVersionWarning`). A load that fails outright still names the file.
 
-The sha256 in the header catches a damaged file (a flipped bit would otherwise unpickle to a
-subtly wrong state).
+The sha256 in the header catches a damaged file (a flipped bit would otherwise load as a subtly wrong state); it
+is no signature: anyone can recompute it, which is why the reader relies on the allowlist, not on it.
 """
 
 from __future__ import annotations
@@ -31,12 +38,13 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
-import pickle
+import pickle  # only to convert format-2 checkpoints their owner trusts
 import warnings
 from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping
 
+from dsage_ray.core import safe_pickle
 from dsage_ray.errors import InputError
 from dsage_ray.io import atomic_write_bytes
 
@@ -49,7 +57,9 @@ CHECKPOINT_NAME = "checkpoint.dsage"
 #: only recognised, so that a run folder holding one is neither overwritten nor reported as empty.
 LEGACY_CHECKPOINT_NAMES = ("checkpoint.pkl", "runner_state.pt")
 #: Version of the file layout above; a reader refuses other versions.
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
+#: The plain-pickle format before it; read only by :func:`convert_trusted_checkpoint`.
+_UNSAFE_FORMAT = 2
 _MAGIC = b"dsage_ray checkpoint\n"
 #: Distribution names of the libraries whose versions the header records (pyribs is ``ribs``).
 _LIBRARIES = ("dsage_ray", "ribs", "numpy", "torch")
@@ -98,7 +108,11 @@ def save_checkpoint(state: Mapping[str, Any], path: str | Path) -> Path:
     Returns:
         ``path``.
     """
-    payload = pickle.dumps(dict(state), protocol=pickle.HIGHEST_PROTOCOL)
+    payload = safe_pickle.dumps(dict(state))
+    try:
+        safe_pickle.loads(payload)
+    except safe_pickle.UnsafePickleError as exc:  # a bug of dsage_ray's, not of the user's: name what to allow
+        raise TypeError(f"cannot save a checkpoint to {path}: {exc}") from None
     header = {
         "format": FORMAT_VERSION,
         "libraries": library_versions(),
@@ -167,7 +181,9 @@ def load_checkpoint(path: str | Path) -> dict[str, Any]:
         raise CheckpointError(f"{path}: damaged checkpoint (its contents do not match the checksum in its header)")
     check_library_versions(header.get("libraries", {}), path=path)
     try:
-        state = pickle.loads(payload)
+        state = safe_pickle.loads(payload)
+    except safe_pickle.UnsafePickleError as exc:
+        raise CheckpointError(f"{path}: refused: {exc}") from None
     except Exception as exc:  # noqa: BLE001 - unpickling can raise almost anything; the versions are in the header.
         raise CheckpointError(f"{path}: the checkpoint's state does not load ({type(exc).__name__}: {exc}); it was "
                               f"written with {_format_versions(header.get('libraries', {}))}") from None
@@ -225,7 +241,7 @@ def legacy_hint(folder: str | Path) -> str:
             f"continue that run with the version that wrote it)") if legacy else ""
 
 
-def _split(path: Path, data: bytes) -> tuple[dict[str, Any], bytes]:
+def _split(path: Path, data: bytes, *, formats: tuple[int, ...] = (FORMAT_VERSION,)) -> tuple[dict[str, Any], bytes]:
     """``(header, payload)`` of a checkpoint's bytes (the payload may be cut short when only the header was read)."""
     if not data.startswith(_MAGIC):
         raise CheckpointError(f"{path}: not a dsage_ray checkpoint (it does not start with {_MAGIC.strip()!r})")
@@ -238,10 +254,15 @@ def _split(path: Path, data: bytes) -> tuple[dict[str, Any], bytes]:
         header = None
     if not isinstance(header, dict) or not isinstance(header.get("format"), int):
         raise CheckpointError(f"{path}: damaged checkpoint (its header is not the JSON object it should be)")
-    if header["format"] != FORMAT_VERSION:
-        raise CheckpointError(f"{path}: checkpoint format {header['format']}, this dsage_ray reads format "
-                              f"{FORMAT_VERSION} (written by dsage_ray {header.get('libraries', {}).get('dsage_ray')})")
-    return header, data[end + 1:]
+    if header["format"] in formats:
+        return header, data[end + 1:]
+    if header["format"] == _UNSAFE_FORMAT:
+        raise CheckpointError(
+            f"{path}: a checkpoint of dsage_ray {header.get('libraries', {}).get('dsage_ray')} (format 2), a plain "
+            f"pickle that runs code when opened, so it is not read. If you trust where it came from, convert it once: "
+            f"dsage-ray checkpoint convert {path} --trust")
+    raise CheckpointError(f"{path}: checkpoint format {header['format']}, this dsage_ray reads format "
+                          f"{FORMAT_VERSION} (written by dsage_ray {header.get('libraries', {}).get('dsage_ray')})")
 
 
 def _minor(version: str) -> tuple[str, ...]:
@@ -250,3 +271,40 @@ def _minor(version: str) -> tuple[str, ...]:
 
 def _format_versions(versions: Mapping[str, str]) -> str:
     return ", ".join(f"{name} {version}" for name, version in sorted(versions.items())) or "unknown versions"
+
+
+def convert_trusted_checkpoint(path: str | Path) -> Path:
+    """Rewrites a format-2 checkpoint (a plain pickle) in this format, in place.
+
+    **This runs any code the file holds**: call it only on a file you trust (``dsage-ray checkpoint convert PATH
+    --trust``). The converted file then opens without running code, like any other checkpoint.
+
+    Raises:
+        CheckpointError: Not a dsage_ray checkpoint, a damaged one, not of format 2, or a state that does not
+            convert (the message says why).
+    """
+    path = Path(path)
+    header, payload = _split(path, _read(path), formats=(FORMAT_VERSION, _UNSAFE_FORMAT))
+    if header["format"] == FORMAT_VERSION:
+        raise CheckpointError(f"{path}: already a format-{FORMAT_VERSION} checkpoint (it opens without running code); "
+                              f"nothing to convert")
+    if hashlib.sha256(payload).hexdigest() != header.get("payload_sha256"):
+        raise CheckpointError(f"{path}: damaged checkpoint (its contents do not match the checksum in its header)")
+    state = pickle.loads(payload)  # noqa: S301 - the caller said it trusts this file
+    if not isinstance(state, dict):
+        raise CheckpointError(f"{path}: the checkpoint holds a {type(state).__name__}, not a run state")
+    from dsage_ray.qd.emitters import RandomEmitter
+
+    _drop_samplers(state, RandomEmitter)
+    try:
+        return save_checkpoint(state, path)
+    except TypeError as exc:
+        raise CheckpointError(f"{path}: does not convert ({exc})") from None
+
+
+def _drop_samplers(state: Mapping[str, Any], emitter_class: type) -> None:
+    """Format-2 states held a random emitter's sampler (a bound method of the domain: code); the run rebinds it."""
+    scheduler = state.get("scheduler")
+    for emitter in getattr(scheduler, "emitters", ()):
+        if isinstance(emitter, emitter_class):
+            emitter.attach(None)

@@ -26,6 +26,7 @@ from dsage_ray.core.holdout import HeldOutLevels, head_label
 from dsage_ray.qd.archives import make_archive
 from dsage_ray.qd.gain import EvaluationCost, PickErrors, best_per_block, expected_outcomes
 from dsage_ray.qd.mutants import elite_mutants
+from dsage_ray.qd.emitters import RandomEmitter
 from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
 from dsage_ray.qd.screen import Screen, keep_screened, screen_picks
 from dsage_ray.qd.selection import gather_elites, select_solutions, skip_filled
@@ -175,6 +176,7 @@ class DirectQD:
         self.config = config
         self.archive = archive
         self.seeds = seeds
+        self.random_solutions = domain.random_solutions
         #: The domain's optional ``solution_bounds``: the box its solutions live in (``None``: unbounded).
         self.solution_bounds = getattr(domain, "solution_bounds", None)
         self.scheduler = make_scheduler(archive, config=config.qd, solution_dim=domain.solution_dim,
@@ -235,6 +237,9 @@ class DirectQD:
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.scheduler = state["scheduler"]
+        for emitter in self.scheduler.emitters:
+            if isinstance(emitter, RandomEmitter):  # its sampler is the domain's code, not in the checkpoint
+                emitter.attach(self.random_solutions)
         self.archive = state["archive"]
         self.screen_errors = _load_screen_errors(self.config, state)
 

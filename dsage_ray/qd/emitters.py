@@ -159,8 +159,8 @@ class RandomEmitter(EmitterBase):
     Args:
         archive: Archive the scheduler inserts into; only its solution shape and dtype are used.
         sampler: ``sampler(n, rng)`` returns ``(n, solution_dim)`` random solutions, e.g.
-            ``domain.random_solutions``. Must be picklable for :mod:`~dsage_ray.core.checkpoint`
-            (a bound method or module-level function, not a lambda).
+            ``domain.random_solutions``. It is code, so a pickle (a checkpoint) leaves it out: whoever restores the
+            emitter :meth:`attach`-es the sampler again.
         batch_size: Solutions per :meth:`ask`.
         seed: Seed of the generator passed to ``sampler``.
     """
@@ -192,12 +192,22 @@ class RandomEmitter(EmitterBase):
         """Solutions per :meth:`ask`."""
         return self._batch_size
 
+    def attach(self, sampler: Sampler | None) -> None:
+        """Sets the sampler (after a checkpoint restored the emitter without one)."""
+        self._sampler = sampler
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {**self.__dict__, "_sampler": None}
+
     def ask(self) -> np.ndarray:
         """Returns ``sampler(batch_size, rng)`` in the archive's solution dtype.
 
         Raises:
             ValueError: The sampler returned the wrong shape.
+            RuntimeError: No sampler attached (a restored emitter nobody attached one to).
         """
+        if self._sampler is None:
+            raise RuntimeError("RandomEmitter restored from a checkpoint without its sampler: call attach() first")
         solutions = np.asarray(self._sampler(self._batch_size, self._rng), dtype=self.archive.dtypes["solution"])
         expected = (self._batch_size, self.solution_dim)
         if solutions.shape != expected:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
 import pickle
 import re
 import warnings
@@ -133,18 +135,101 @@ def test_other_versions_that_load_are_a_warning(tmp_path, state, monkeypatch, li
     assert loaded["evals"] == 10
 
 
-class Vanishing:
-    """Pickled by reference to this module; deleted before loading, so unpickling cannot find it."""
+def forged(path, payload: bytes, *, file_format: int = checkpoint.FORMAT_VERSION):
+    """A checkpoint file around ``payload`` with a correct header: what anyone can write (the checksum is no seal)."""
+    header = {"format": file_format, "libraries": checkpoint.library_versions(), "payload_bytes": len(payload),
+              "payload_sha256": hashlib.sha256(payload).hexdigest()}
+    path.write_bytes(checkpoint._MAGIC + json.dumps(header).encode() + b"\n" + payload)
+    return path
 
 
-def test_a_state_that_does_not_unpickle_names_the_file_and_its_versions(tmp_path, monkeypatch):
-    import sys
+class RunsCode:
+    """Unpickles by calling ``function(*arguments)``: the way a forged pickle runs code."""
 
-    path = save_checkpoint({"thing": Vanishing()}, tmp_path / "c.dsage")
-    monkeypatch.delattr(sys.modules[__name__], "Vanishing")
-    with pytest.raises(CheckpointError, match=r"does not load \(AttributeError.*written with dsage_ray") as info:
+    def __init__(self, function, *arguments):
+        self.function, self.arguments = function, arguments
+
+    def __reduce__(self):
+        return self.function, self.arguments
+
+
+def code_payloads(marker):
+    """Pickles that, read by a plain ``pickle.loads``, would create ``marker``."""
+    import os
+
+    write = f"open({str(marker)!r}, 'w').write('ran')"
+    return {"os.system": pickle.dumps({"archive": RunsCode(os.system, f"touch {marker}")}),
+            "eval": pickle.dumps({"archive": RunsCode(eval, write)}),
+            "exec in a nested list": pickle.dumps({"history": [1, [RunsCode(exec, write)]]}),
+            "getattr": pickle.dumps({"archive": RunsCode(getattr, np.random.default_rng(), "bit_generator")})}
+
+
+@pytest.mark.parametrize("kind", ["os.system", "eval", "exec in a nested list", "getattr"])
+def test_a_forged_checkpoint_runs_no_code_and_names_what_it_refused(tmp_path, kind):
+    marker = tmp_path / "ran"
+    payload = code_payloads(marker)[kind]
+    pickle.loads(payload) if kind == "getattr" else None  # noqa: S301 - getattr is harmless here; the rest is not run
+    path = forged(tmp_path / "c.dsage", payload)
+    with pytest.raises(CheckpointError, match="refused: it names .*which a checkpoint may not hold") as error:
+        load_checkpoint(path)
+    assert not marker.exists() and str(path) in str(error.value) and describe(error.value)[0] == 2
+
+
+def test_a_state_that_does_not_load_names_the_file_and_its_versions(tmp_path):
+    # Allowed classes called with wrong arguments: a forger gets an error, not a state.
+    path = forged(tmp_path / "c.dsage", pickle.dumps({"dtype": RunsCode(np.dtype, "no-such-dtype")}))
+    with pytest.raises(CheckpointError, match=r"does not load \(TypeError.*written with dsage_ray") as info:
         load_checkpoint(path)
     assert str(path) in str(info.value)
+
+
+@pytest.mark.parametrize("record", [("torch.tensor", "float32", (3,), b"\0" * 8),
+                                    ("torch.tensor", "complex64", (1,), b"\0" * 8),
+                                    ("torch.tensor", "float32", (-1,), b""), ("os.system", "ls")])
+def test_a_malformed_tensor_record_is_refused(tmp_path, record):
+    import io
+
+    class Pickler(pickle.Pickler):
+        def persistent_id(self, obj):
+            return record if obj == "tensor here" else None
+
+    buffer = io.BytesIO()
+    Pickler(buffer, protocol=5).dump({"weights": "tensor here"})
+    with pytest.raises(CheckpointError, match="refused: .*tensor record"):
+        load_checkpoint(forged(tmp_path / "c.dsage", buffer.getvalue()))
+
+
+def test_tensors_round_trip_as_data_whatever_their_dtype_and_layout(tmp_path):
+    tensors = {"bf16": torch.randn(3, 4).to(torch.bfloat16), "scalar": torch.tensor(2.5),
+               "transposed": torch.arange(12.0).reshape(3, 4).T, "empty": torch.zeros(0, 5),
+               "bool": torch.tensor([True, False]), "parameter": torch.nn.Parameter(torch.ones(2)),
+               "long": torch.arange(5)}
+    loaded = load_checkpoint(save_checkpoint({"tensors": tensors}, tmp_path / "c.dsage"))["tensors"]
+    for name, tensor in tensors.items():
+        assert loaded[name].dtype == tensor.dtype and torch.equal(loaded[name], tensor.detach()), name
+
+
+def test_a_state_the_reader_would_refuse_fails_when_saved_not_when_resumed(tmp_path):
+    with pytest.raises(TypeError, match="cannot save a checkpoint .*names builtins.print"):
+        save_checkpoint({"thing": RunsCode(print)}, tmp_path / "c.dsage")
+    assert not (tmp_path / "c.dsage").exists()
+
+
+def test_a_format_2_checkpoint_is_refused_with_the_conversion_command_and_converts_when_trusted(tmp_path, state,
+                                                                                                capsys):
+    from dsage_ray.cli import main
+
+    path = forged(tmp_path / "old.dsage", pickle.dumps(state), file_format=2)
+    with pytest.raises(CheckpointError, match=re.escape(f"dsage-ray checkpoint convert {path} --trust")):
+        load_checkpoint(path)
+    assert main(["checkpoint", "convert", str(tmp_path)]) == 2  # a folder, and no --trust
+    assert "add --trust" in capsys.readouterr().err
+    assert main(["checkpoint", "convert", str(path), "--trust"]) == 0
+    assert f"converted: {path}" in capsys.readouterr().out
+    loaded = load_checkpoint(path)
+    np.testing.assert_array_equal(loaded["archive"].data("objective"), state["archive"].data("objective"))
+    assert main(["checkpoint", "convert", str(path), "--trust"]) == 2
+    assert "nothing to convert" in capsys.readouterr().err
 
 
 def test_a_tune_folder_of_the_old_format_says_so(tmp_path):

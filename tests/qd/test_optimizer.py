@@ -117,6 +117,11 @@ def test_state_round_trip_gives_identical_subsequent_asks(kind, tmp_path):
     # archive's RNG) to happen.
     run_inner_loop(scheduler, predict, iterations=30)
     restored = checkpoint_round_trip(scheduler, tmp_path)
+    if kind == "random":  # the sampler is code: a checkpoint leaves it out and the run attaches it again
+        with pytest.raises(RuntimeError, match="without its sampler"):
+            restored.emitters[0].ask()
+        for emitter in restored.emitters:
+            emitter.attach(KINDS[kind][3])
     # The restored emitters share the restored archive, not a copy each.
     assert all(e.archive is restored.archive for e in restored.emitters)
     assert restored.archive is not scheduler.archive
