@@ -100,9 +100,10 @@ def main() -> int:
     options = parser.parse_args()
     iterations = options.iterations or 2 * options.audit_every
 
-    os.environ.setdefault("RAY_AUTH_MODE", "disabled")
     import ray
     import torch
+
+    from dsage_ray.ray.session import start_ray
 
     script = load_training_script()
     argv = ["--seed", str(options.seed)]
@@ -112,7 +113,7 @@ def main() -> int:
         argv += ["--num-cpus", str(options.num_cpus)]
     args = script.parse_args(argv)
     torch.set_num_threads(args.torch_threads)
-    ray.init(num_cpus=args.num_cpus, include_dashboard=False, log_to_driver=False)
+    start_ray(num_cpus=args.num_cpus, log_to_driver=False)
     out = Path(options.out) if options.out else Path(tempfile.mkdtemp(prefix="bench_audit_callback."))
     audit = dict(audit_every=options.audit_every, audit_budget=options.audit_budget)
     load_before = os.getloadavg()[0]

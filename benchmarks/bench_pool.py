@@ -43,7 +43,6 @@ def main() -> None:
     parser.add_argument("--chunk-size", type=int, default=0, help="0: the pool's automatic chunking")
     args = parser.parse_args()
 
-    os.environ.setdefault("RAY_AUTH_MODE", "disabled")
     import ray
     import torch
 
@@ -51,6 +50,7 @@ def main() -> None:
     from dsage_ray.core.evaluation import InProcessEvaluator
     from dsage_ray.domains import build_domain
     from dsage_ray.ray.pool import SimulatorPool
+    from dsage_ray.ray.session import start_ray
 
     torch.set_num_threads(1)  # like one actor: a fair in-process baseline
     config = RunConfig.build({"domain": "maze", "preset": args.preset})
@@ -64,7 +64,7 @@ def main() -> None:
     in_process(solutions[:2], seeds[:2])  # warm-up (lazy imports, caches)
     # 3 logical CPUs: both pools exist at once (1 + 2 actors, 1 CPU each) but only one works at a
     # time, so the 2-core machine is never asked for more than 2 busy processes.
-    ray.init(num_cpus=3, include_dashboard=False, log_to_driver=False)
+    start_ray(num_cpus=3, log_to_driver=False)
     one = SimulatorPool(config=config, num_workers=1, cpus_per_worker=1.0, chunk_size=args.chunk_size)
     two = SimulatorPool(config=config, num_workers=2, cpus_per_worker=1.0, chunk_size=args.chunk_size)
     for pool in (one, two):

@@ -56,7 +56,6 @@ def parse_args() -> argparse.Namespace:
 
 def main() -> int:
     args = parse_args()
-    os.environ.setdefault("RAY_AUTH_MODE", "disabled")
     import dsage_ray
     from dsage_ray.config import parse_override
     from dsage_ray.errors import DsageError, Interrupted

@@ -56,7 +56,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -262,7 +261,6 @@ def greedy_action(module):
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    os.environ.setdefault("RAY_AUTH_MODE", "disabled")
     from dsage_ray.errors import InputError
 
     try:
@@ -277,6 +275,8 @@ def main(argv: list[str] | None = None) -> int:
     from ray.rllib.core.rl_module.rl_module import RLModule
     from tensorboardX import SummaryWriter
 
+    from dsage_ray.ray.session import start_ray
+
     torch.set_num_threads(args.torch_threads)
     run_dir = (Path("tb_logs") / args.run_name).resolve()  # RLlib reads paths as URIs: they must be absolute
     if (run_dir / "checkpoint").exists():
@@ -285,7 +285,7 @@ def main(argv: list[str] | None = None) -> int:
     run_dir.mkdir(parents=True, exist_ok=True)
     (run_dir / "args.json").write_text(json.dumps(dataclasses.asdict(args), indent=2))
 
-    ray.init(num_cpus=args.num_cpus, include_dashboard=False, log_to_driver=False)
+    start_ray(num_cpus=args.num_cpus, log_to_driver=False)
     writer = SummaryWriter(str(run_dir))
     config = build_config(args, env_config)
     if args.audit_every:

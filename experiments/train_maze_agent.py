@@ -49,7 +49,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import shutil
 import sys
 import time
@@ -308,7 +307,6 @@ def evaluate_module(module_dir: Path, args: Args) -> dict[str, float]:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    os.environ.setdefault("RAY_AUTH_MODE", "disabled")
     from dsage_ray.errors import InputError
 
     levels = None
@@ -326,6 +324,8 @@ def main(argv: list[str] | None = None) -> int:
     import torch
     from tensorboardX import SummaryWriter
 
+    from dsage_ray.ray.session import start_ray
+
     torch.set_num_threads(args.torch_threads)
     run_dir = (Path("tb_logs") / args.run_name).resolve()  # RLlib reads paths as URIs: they must be absolute
     if run_dir.exists() and not args.resume and (run_dir / "checkpoint").exists():
@@ -340,7 +340,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"training on {len(levels)} levels of {args.train_on_collection} in a share {args.collection_share} "
               f"of the episodes", flush=True)
 
-    ray.init(num_cpus=args.num_cpus, include_dashboard=False, log_to_driver=False)
+    start_ray(num_cpus=args.num_cpus, log_to_driver=False)
     writer = SummaryWriter(str(run_dir))
     config = build_config(args, levels)
     if args.audit_every:

@@ -33,12 +33,13 @@ def ray_session():
     import ray
     import torch
 
+    from dsage_ray.ray.session import start_ray
+
     # The reference runs happen in this process; with torch's default of one thread per core
     # they crawl when the cores are shared (measured: 4.5 min instead of 24 s).
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
-    if not ray.is_initialized():
-        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    start_ray(num_cpus=2, log_to_driver=False)  # as the CLI starts it: on 127.0.0.1 (tests/ray/test_session.py)
     yield ray
     ray.shutdown()
     torch.set_num_threads(threads)

@@ -54,6 +54,13 @@ _BUILTIN_KINDS: dict[str, str] = {
     "rllib": "dsage_ray.agents.rllib:load_rllib_agent",
     "torchscript": "dsage_ray.agents.torchscript:load_torchscript_agent",
 }
+#: Kinds whose loading runs code the file brings: RLlib checkpoints (pickles), TorchScript programs, Stable-Baselines3
+#: zips (pickles) and ``python:`` modules. The others load data (``dcd:`` weights with ``weights_only``) or nothing
+#: (``builtin:``, ``random``, Mario's ``astar``). A plug-in kind is code the user installed.
+KINDS_RUNNING_CODE: tuple[str, ...] = ("rllib", "torchscript", "sb3", "python")
+#: One line for help texts and the docs.
+RUNS_CODE_NOTE = ("loading rllib, torchscript, sb3 and python agents runs their code: use only files you trust "
+                  "(docs/TRUST.md)")
 #: Kinds added by :func:`register_agent_kind`, in this process only; they take precedence.
 _REGISTERED: dict[str, Union[str, AgentFactory]] = {}
 #: Agents shipped inside the package, one folder each (module docstring).

@@ -126,9 +126,10 @@ def gym_overrides(args: argparse.Namespace) -> dict:
 
 def agent_help() -> str:
     """The agent spec forms of each domain, for help texts: ``maze: builtin:NAME, ...; mario: astar[:ITERATIONS]``."""
+    from dsage_ray.agents.loader import RUNS_CODE_NOTE
     from dsage_ray.domains import agent_forms
 
-    return "; ".join(f"{domain}: {', '.join(forms)}" for domain, forms in agent_forms().items())
+    return "; ".join(f"{domain}: {', '.join(forms)}" for domain, forms in agent_forms().items()) + ". " + RUNS_CODE_NOTE
 
 
 def run_audit_command(args: argparse.Namespace) -> int:

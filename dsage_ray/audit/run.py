@@ -185,10 +185,10 @@ def search_and_collect(
                          search_dir=search.path)
         return Collection.load(collection_dir)
 
-    from dsage_ray.ray.experiment import connect
     from dsage_ray.ray.pool import SimulatorPool
+    from dsage_ray.ray.session import start_ray
 
-    connect(address)  # already connected unless collect_only
+    start_ray(address)  # already connected unless collect_only
     pool = SimulatorPool(config=collection_config)
     try:
         build_collection(search.archive, config=collection_config, out_dir=collection_dir, evaluator=pool,

@@ -426,10 +426,10 @@ class AuditSeries:
         if self.local or config.ray.num_workers == 0:
             return reevaluate(InProcessEvaluator(domain=domain, threads=config.torch_threads), solutions, seeds,
                               desc=desc)
-        from dsage_ray.ray.experiment import connect
+        from dsage_ray.ray.session import start_ray
         from dsage_ray.ray.pool import SimulatorPool
 
-        connect(self.address)
+        start_ray(self.address)
         pool = SimulatorPool(config=config)
         try:
             return reevaluate(pool, solutions, seeds, desc=desc)

@@ -43,22 +43,6 @@ class ExperimentInterrupted(Interrupted):
     """Tune returned before every trial spent its budget (Ctrl+C, a stopped driver)."""
 
 
-def connect(address: str | None = None, *, num_cpus: int | None = None) -> None:
-    """Joins the cluster at ``address`` (or ``RAY_ADDRESS``), else starts a local one.
-
-    Args:
-        address: ``"auto"``, ``"host:6379"`` or ``None``.
-        num_cpus: Logical CPUs of a *local* cluster (ignored when joining one).
-    """
-    if ray.is_initialized():
-        return
-    address = address or os.environ.get("RAY_ADDRESS")
-    if address:
-        ray.init(address=address)
-    else:
-        ray.init(num_cpus=num_cpus, include_dashboard=False)
-
-
 #: A key that cannot be a grid axis, and why.
 _NOT_AXES = {"domain": "one experiment searches one domain (the grid's explicit keys are relative to its defaults)"}
 

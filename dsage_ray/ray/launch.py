@@ -11,8 +11,9 @@ from typing import Collection, Sequence
 
 from dsage_ray.config import RunConfig
 from dsage_ray.preflight import preflight
-from dsage_ray.ray.experiment import (TuneApi, ablation_axes, check_resources, connect, grid_configs,
+from dsage_ray.ray.experiment import (TuneApi, ablation_axes, check_resources, grid_configs,
                                       grid_param_space, run_experiment)
+from dsage_ray.ray.session import start_ray
 from dsage_ray.results import ExperimentResult, RunResult
 
 
@@ -42,7 +43,7 @@ def run_with_tune(
         The trial's folder and latest checkpoint, as Tune's result reports them.
     """
     check_resources(config, address=address)  # before a local cluster starts
-    connect(address)
+    start_ray(address)
     check_resources(config)
     experiment = run_experiment(config.to_flat(), name=config.name, storage_path=out_dir, api="tuner",
                                 resume=resume, max_failures=max_failures, checkpoint_every=config.checkpoint_every)
@@ -84,7 +85,7 @@ def ablate(
     configs = grid_configs(config, axes)[1]
     preflight(*configs)
     check_resources(*configs, address=address)  # before a local cluster starts
-    connect(address)
+    start_ray(address)
     check_resources(*configs)
     shape = " × ".join(f"{key} ({len(values)})" for key, values in axes.items())
     print(f"{config.name}: {shape} via {api}, storage {out_dir}", flush=True)

@@ -35,6 +35,7 @@ from ray.exceptions import RayActorError
 from dsage_ray.config import RunConfig
 from dsage_ray.domains import build_domain, get_domain
 from dsage_ray.errors import ResourceError
+from dsage_ray.ray.session import start_ray
 from dsage_ray.types import Domain, EvaluationResult, Solutions
 
 logger = logging.getLogger(__name__)
@@ -150,8 +151,7 @@ class SimulatorPool:
         self.stats = PoolStats()
         self._closed = False
 
-        if not ray.is_initialized():
-            ray.init()  # honours RAY_ADDRESS; a no-op inside a Tune trial (already connected)
+        start_ray()  # honours RAY_ADDRESS; a no-op inside a Tune trial (already connected)
         self._in_placement_group = ray.util.get_current_placement_group() is not None
         if not self._in_placement_group:
             check_cluster_fits(bundles=[{"CPU": self.cpus_per_worker}] * self.num_workers,

@@ -83,21 +83,21 @@ def test_param_space_has_a_grid_search_per_varying_axis_and_each_point_is_the_co
     (["surrogate.epochs=2,x"], "grid point surrogate.epochs='x', seed=0: surrogate.epochs: expected an integer"),
 ])
 def test_a_bad_key_or_value_is_one_line_naming_it_before_ray_starts(grid, message, monkeypatch, capsys):
-    monkeypatch.setattr(ray_launch, "connect", _no_ray)
+    monkeypatch.setattr(ray_launch, "start_ray", _no_ray)
     assert main(["ablate", CONFIG, "--preset", "tiny", *(f"--grid={g}" for g in grid)]) == 2
     err = capsys.readouterr().err
     assert err.startswith(f"dsage-ray ablate: error: {message}") and err.count("\n") == 1, err
 
 
 def test_an_unknown_variant_in_variants_is_reported_before_ray_starts(monkeypatch, capsys):
-    monkeypatch.setattr(ray_launch, "connect", _no_ray)
+    monkeypatch.setattr(ray_launch, "start_ray", _no_ray)
     assert main(["ablate", CONFIG, "--variants", "dsage,dsage_fast", "--seeds", "1"]) == 2
     assert "variant: unknown variant 'dsage_fast' for domain 'maze' (known: [" in capsys.readouterr().err
 
 
 def test_ablate_hands_tune_the_grid_and_checks_every_distinct_placement(monkeypatch, tmp_path):
     calls = {}
-    monkeypatch.setattr(ray_launch, "connect", lambda address: calls.setdefault("connect", address))
+    monkeypatch.setattr(ray_launch, "start_ray", lambda address: calls.setdefault("connect", address))
     monkeypatch.setattr(ray_launch, "check_resources", lambda *configs, **_: calls.setdefault("checked", configs))
     monkeypatch.setattr(ray_launch, "run_experiment",
                         lambda space, **kwargs: calls.setdefault("run", (space, kwargs)) and ExperimentResult(path=tmp_path, trials=()))

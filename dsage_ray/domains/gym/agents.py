@@ -45,7 +45,7 @@ import numpy as np
 from gymnasium import spaces
 
 from dsage_ray.agents.base import Agent, AgentError, AgentState, _tree_map
-from dsage_ray.agents.loader import SpecOptions, describe_exception, parse_spec, require_file
+from dsage_ray.agents.loader import KINDS_RUNNING_CODE, SpecOptions, describe_exception, parse_spec, require_file
 
 #: The kinds and their spec forms (for the domain registration and error messages).
 GYM_AGENT_FORMS: dict[str, str] = {
@@ -56,8 +56,7 @@ GYM_AGENT_FORMS: dict[str, str] = {
     "python": "python:MODULE:FUNCTION | python:FILE.py:FUNCTION",
 }
 #: Whether loading a kind runs code the file or module brings (pickles, TorchScript, Python).
-LOADING_RUNS_CODE: dict[str, bool] = {"random": False, "rllib": True, "sb3": True, "torchscript": True,
-                                      "python": True}
+LOADING_RUNS_CODE: dict[str, bool] = {kind: kind in KINDS_RUNNING_CODE for kind in GYM_AGENT_FORMS}
 
 #: Action spaces some kind can act in; rllib and torchscript act in the first two only.
 _ACTION_SPACES = (spaces.Discrete, spaces.Box, spaces.MultiDiscrete, spaces.MultiBinary)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from dsage_ray.agents.loader import RUNS_CODE_NOTE
 from dsage_ray.errors import InputError
 
 
@@ -16,8 +17,7 @@ def add_subparser(subparsers) -> None:
                              description="Plays an agent for N episodes of the level (a JSON file an audit wrote: "
                                          "the space and the parameter values) and prints what it did.")
     ev.add_argument("--agent", required=True, metavar="SPEC",
-                    help="rllib:PATH, sb3:PATH.zip, torchscript:PATH, python:MODULE:FUNCTION, random "
-                         "(rllib, sb3, torchscript and python agents run code when loaded)")
+                    help=f"rllib:PATH, sb3:PATH.zip, torchscript:PATH, python:MODULE:FUNCTION, random ({RUNS_CODE_NOTE})")
     ev.add_argument("--level", required=True, metavar="FILE", help="a level file of a gym collection")
     ev.add_argument("--episodes", type=int, default=10, help="episodes (default 10)")
     ev.add_argument("--seed", type=int, default=0, help="the evaluation seed (default 0)")
