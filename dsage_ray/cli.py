@@ -5,12 +5,13 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import shlex
 import sys
 
 from dsage_ray import __version__, checkpoint_cli, surrogate_cli
 from dsage_ray.audit import cli as audit_cli
 from dsage_ray.cli_args import add_config_arguments, add_ray_arguments, config_overrides, load_run_config
-from dsage_ray.errors import DsageError, describe
+from dsage_ray.errors import DsageError, Interrupted, describe
 
 #: Help layout of every command: the description and the examples epilog keep their line breaks.
 HELP_FORMAT = argparse.RawDescriptionHelpFormatter
@@ -175,8 +176,25 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     except (DsageError, ValueError, OSError, RuntimeError, KeyboardInterrupt) as exc:
         code, message = describe(exc)
+        if isinstance(exc, (KeyboardInterrupt, Interrupted)):
+            message += resume_hint(args, sys.argv[1:] if argv is None else argv)
         print(f"{command_name(args)}: error: {message}", file=sys.stderr)
         return code
+
+
+def resume_hint(args: argparse.Namespace, argv: list[str]) -> str:
+    """``"; continue with: dsage-ray … --out FOLDER --resume"`` for a command that can continue, else ``""``.
+
+    The folder is named even when the user did not give one (a default with a time stamp cannot be retyped).
+    """
+    if not hasattr(args, "resume") or getattr(args, "collect_only", False):
+        return ""
+    words = list(argv)
+    if getattr(args, "out", None) is not None and not any(w == "--out" or w.startswith("--out=") for w in words):
+        words += ["--out", str(args.out)]
+    if "--resume" not in words:
+        words.append("--resume")
+    return f"; continue with: {shlex.join(['dsage-ray', *words])}"
 
 
 def command_name(args: argparse.Namespace) -> str:

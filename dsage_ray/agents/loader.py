@@ -35,6 +35,7 @@ from __future__ import annotations
 import hashlib
 import importlib
 import pathlib
+import re
 from importlib import metadata
 from typing import Callable, Union
 
@@ -288,7 +289,15 @@ def verified_files(folder: pathlib.Path, *, what: str) -> list[pathlib.Path]:
 
 
 def describe_exception(exc: BaseException, *, limit: int = 160) -> str:
-    """``"Type: first line of the message"``, shortened: enough to say what went wrong in one line."""
+    """``"Type: first line of the message"``, shortened: enough to say what went wrong in one line.
+
+    A ``torch.load(weights_only=True)`` refusal is named by what it refused, without torch's advice to retry with
+    ``weights_only=False`` (which would run the file's code: the point of refusing).
+    """
+    refused = re.search(r"unsupported (GLOBAL [\w.]+|[\w ]+ \w+)", str(exc))
+    if str(exc).startswith("Weights only load failed") and refused:
+        return (f"it holds more than tensors ({refused.group(1)}), and such a file is read as data only; "
+                f"nothing in it ran")
     lines = str(exc).strip().splitlines()
     line = lines[0] if lines else ""
     line = line if len(line) <= limit else line[: limit - 3] + "..."

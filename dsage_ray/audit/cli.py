@@ -137,11 +137,14 @@ def run_audit_command(args: argparse.Namespace) -> int:
 
     Errors end the command through :func:`dsage_ray.cli.main` (one line, the exit code of their kind).
     """
-    from dsage_ray.audit.run import run_audit
+    from dsage_ray.audit.run import default_audit_folder, run_audit
     from dsage_ray.cli_args import config_overrides
 
     if args.agent is None:
         print(_demo_notice(args), flush=True)
+    if args.out is None:  # named now: the first line says where it goes, and a Ctrl+C names it for --resume
+        args.out = str(default_audit_folder(args.agent, domain=args.domain))
+        print(f"audit folder: {args.out}", flush=True)
     measures = tuple(m.strip() for m in args.measures.split(",") if m.strip()) if args.measures else None
     collection = run_audit(
         agent=args.agent, domain=args.domain, reference=args.reference, preset=args.preset, variant=args.variant,

@@ -15,6 +15,7 @@ from dsage_ray.audit.collection import agent_slug, audit_config, audit_spec, bui
 from dsage_ray.audit.results import Collection
 from dsage_ray.config import RunConfig, presets
 from dsage_ray.errors import InputError
+from dsage_ray.io import folder_lock, recover_replaced_dir
 from dsage_ray.results import RunResult
 
 #: Sub-folders of an audit folder.
@@ -107,9 +108,16 @@ def run_audit(
                           objective=objective, measures=measures, budget=budget, seed=seed,
                           overrides=dict(overrides or {}), started=started)
     if out is None:
-        out = Path("tb_logs") / f"audit-{agent_slug(agent or spec.audit.default_agent)}-{time.strftime('%Y%m%d-%H%M%S')}"
+        out = default_audit_folder(agent, domain=domain)
     return search_and_collect(config, out_dir=out, local=local, workers=workers, address=address, resume=resume,
                               episodes=episodes, max_levels=max_levels, collect_only=collect_only)
+
+
+def default_audit_folder(agent: str | None, *, domain: str = "maze") -> Path:
+    """``tb_logs/audit-<agent>-<time>``: where an audit without ``out`` writes (the domain's demo agent without
+    ``agent``)."""
+    slug = agent_slug(agent or audit_spec(domain).audit.default_agent)
+    return Path("tb_logs") / f"audit-{slug}-{time.strftime('%Y%m%d-%H%M%S')}"
 
 
 def _started(out: str | Path | None) -> RunConfig | None:
@@ -163,19 +171,28 @@ def search_and_collect(
     Raises:
         As :func:`run_audit`.
     """
+    out_dir = Path(out_dir)
+    check_audit_folder(out_dir, resume=resume, collect_only=collect_only)
+    with folder_lock(out_dir, what="audit"):  # also: an --out that cannot be written fails before the search
+        recover_replaced_dir(out_dir / COLLECTION_DIR)  # what an audit killed while writing its collection left
+        return _search_and_collect(config, out_dir=out_dir, local=local, workers=workers, address=address,
+                                   resume=resume, episodes=episodes, max_levels=max_levels, collect_only=collect_only)
+
+
+def _search_and_collect(config: RunConfig, *, out_dir: Path, local: bool, workers: int | None, address: str | None,
+                        resume: bool, episodes: int | None, max_levels: int | None, collect_only: bool) -> Collection:
     from dsage_ray.domains import get_domain
     from dsage_ray.preflight import preflight
     from dsage_ray.runs import run
 
-    out_dir = Path(out_dir)
     search_dir = out_dir / SEARCH_DIR
-    check_audit_folder(out_dir, resume=resume, collect_only=collect_only)
     if workers is not None:
         config = config.replace(**{"ray.num_workers": workers})
     collection_config = (config if episodes is None
                          else config.replace(**{get_domain(config.domain).audit.episodes_key: int(episodes)}))
-    if collect_only:
+    if collect_only or episodes is not None:  # the collection's own episodes are checked before the search
         preflight(collection_config)
+    if collect_only:
         search = search_on_disk(search_dir, config=config)
     else:
         search = run(config, local=local, out=search_dir, address=address, resume=resume)

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Protocol, Sequence
 from dsage_ray.core.checkpoint import (CHECKPOINT_NAME, legacy_checkpoint, legacy_hint, load_checkpoint,
                                        save_checkpoint)
 from dsage_ray.errors import InputError
+from dsage_ray.io import folder_lock
 
 if TYPE_CHECKING:
     from dsage_ray.config import RunConfig
@@ -141,23 +142,25 @@ def run_locally(
         raise InputError(f"{out_dir} already holds a run: pass --resume to continue it, or another --out")
     if resume and not checkpoint.exists():
         raise InputError(f"{out_dir} holds no run to resume ({CHECKPOINT_NAME} is missing){legacy_hint(out_dir)}")
-    progress = ConsoleProgress(budget=config.budget, time_budget=config.time_budget) if console else None
-    runner = DSAGE(config=config, domain=domain, evaluator=evaluator,
-                   progress=progress.phase if progress is not None else None)
-    callbacks: list[Any] = [RunTensorBoard(logdir=out_dir, image_every=config.image_every,
-                                           image_levels=config.image_levels)]
-    if progress is not None:
-        callbacks.append(progress)
-    loop = RunLoop(runner=runner, out_dir=out_dir, callbacks=callbacks)
-    try:
-        if resume:
-            loop.restore(checkpoint)
-            if console:
-                print(f"resumed at {runner.evals} evaluations, outer iteration {runner.outer_iteration}")
-        loop.run(checkpoint=checkpoint, checkpoint_every=config.checkpoint_every)
-        if console and runner.out_of_time and runner.evals < config.budget:
-            print(f"time budget reached: {runner.wall_time:.0f} s of {config.time_budget:g} s after "
-                  f"{runner.evals} of {config.budget} evaluations; a larger --time-budget with --resume continues")
-    finally:
-        loop.close()
+    with folder_lock(out_dir, what="run"):  # before the runner: an unwritable folder fails before any work
+        progress = ConsoleProgress(budget=config.budget, time_budget=config.time_budget) if console else None
+        runner = DSAGE(config=config, domain=domain, evaluator=evaluator,
+                       progress=progress.phase if progress is not None else None)
+        callbacks: list[Any] = [RunTensorBoard(logdir=out_dir, image_every=config.image_every,
+                                               image_levels=config.image_levels)]
+        if progress is not None:
+            callbacks.append(progress)
+        loop = RunLoop(runner=runner, out_dir=out_dir, callbacks=callbacks)
+        try:
+            if resume:
+                loop.restore(checkpoint)
+                if console:
+                    print(f"resumed at {runner.evals} evaluations, outer iteration {runner.outer_iteration}")
+            loop.run(checkpoint=checkpoint, checkpoint_every=config.checkpoint_every)
+            if console and runner.out_of_time and runner.evals < config.budget:
+                print(f"time budget reached: {runner.wall_time:.0f} s of {config.time_budget:g} s after "
+                      f"{runner.evals} of {config.budget} evaluations; a larger --time-budget with --resume "
+                      f"continues")
+        finally:
+            loop.close()
     return out_dir

@@ -30,6 +30,7 @@ from dsage_ray.config import ConfigError, RunConfig, key_hint, paper_comparison,
 from dsage_ray.core.checkpoint import CHECKPOINT_NAME
 from dsage_ray.domains import build_domain
 from dsage_ray.errors import InputError, Interrupted, TrialFailed
+from dsage_ray.io import folder_lock
 from dsage_ray.results import ExperimentResult, RunResult
 from dsage_ray.ray.pool import DomainFactory, check_cluster_fits
 from dsage_ray.ray.progress import ProgressLines, quiet_tune_output
@@ -247,6 +248,16 @@ def run_experiment(
     experiment_path = Path(storage_path) / name
     if resume:
         refuse_changed_config(experiment_path, param_space, given=given)
+    with folder_lock(experiment_path, what="experiment"):  # one writer per experiment folder
+        return _run_tune(param_space, name=name, storage_path=storage_path, api=api, resume=resume,
+                         max_failures=max_failures, checkpoint_every=checkpoint_every, verbose=verbose,
+                         domain_factory=domain_factory)
+
+
+def _run_tune(param_space: Mapping[str, Any], *, name: str, storage_path: str, api: TuneApi, resume: bool,
+              max_failures: int, checkpoint_every: int, verbose: int,
+              domain_factory: DomainFactory | None) -> ExperimentResult:
+    experiment_path = Path(storage_path) / name
     trainable = tune.with_parameters(DSAGETrainable, domain_factory=domain_factory)
     # Tune checkpoints at the end too, so a finished trial's last state is always on disk.
     checkpoint_config = tune.CheckpointConfig(checkpoint_frequency=checkpoint_every, checkpoint_at_end=True,

@@ -120,6 +120,21 @@ def test_dcd_pickle_with_foreign_objects_is_rejected_not_executed(tmp_path):
     assert "not a readable PyTorch checkpoint" in str(load_error(f"dcd:{path}"))
 
 
+class _RunsShell:
+    def __reduce__(self):
+        import os
+
+        return os.system, ("true",)
+
+
+def test_a_dcd_file_holding_code_is_refused_without_torchs_advice_to_run_it(tmp_path):
+    path = tmp_path / "evil.tar"
+    torch.save({"image_conv.0.weight": _RunsShell()}, path)
+    message = str(load_error(f"dcd:{path}"))
+    assert "GLOBAL posix.system" in message and "read as data only; nothing in it ran" in message
+    assert "weights_only" not in message and "\n" not in message
+
+
 def test_dcd_not_a_state_dict(tmp_path):
     path = tmp_path / "tensor.tar"
     torch.save(torch.zeros(3), path)

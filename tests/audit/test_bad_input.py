@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import io
+import os
 
 import pytest
 
@@ -104,6 +105,21 @@ def test_out_folder_rules(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["old"]
 
 
+def test_an_out_folder_another_audit_writes_or_that_cannot_be_written_stops_before_the_search(tmp_path):
+    from dsage_ray.io import folder_lock
+
+    with folder_lock(tmp_path / "busy", what="audit"):  # as a running audit holds it (flock: per open file)
+        message = audit_error(["--agent", "builtin:random", "--preset", "tiny", "--local", "--out",
+                               str(tmp_path / "busy")])
+        assert sorted(p.name for p in (tmp_path / "busy").iterdir()) == [".dsage_ray.lock"]  # nothing more
+    assert f"another audit is writing this folder (process {os.getpid()})" in message
+    assert not (tmp_path / "busy").exists()  # its holder wrote nothing: it leaves no folder
+    (tmp_path / "a_file").write_text("")
+    message = audit_error(["--agent", "builtin:random", "--preset", "tiny", "--local", "--out",
+                           str(tmp_path / "a_file" / "audit")])
+    assert "a_file/audit: cannot write the audit's output there (Not a directory)" in message
+
+
 def test_mario_audit_config_uses_the_paper_measures_and_the_agent_spec():
     config = audit_config(domain="mario", agent="astar:250", preset="tiny")
     assert config.mario.objective == "incompletion" and config.mario.astar_iterations == 250
@@ -116,3 +132,18 @@ def test_unknown_variant(tmp_path):
     message = audit_error(["--agent", "builtin:random", "--variant", "map_elite", "--local", "--out", str(tmp_path / "a")])
     assert "unknown variant 'map_elite'" in message and message.endswith("did you mean 'map_elites'?")
     assert not (tmp_path / "a").exists()
+
+
+def test_ctrl_c_names_the_command_that_continues_the_audit_with_its_folder(monkeypatch, capsys):
+    import dsage_ray.audit.run
+
+    def interrupted(**kwargs):
+        assert kwargs["out"].startswith("tb_logs/audit-builtin_random-")  # named before the search starts
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(dsage_ray.audit.run, "run_audit", interrupted)
+    assert main(["audit", "--agent", "builtin:random", "--preset", "tiny"]) == 130
+    out, err = capsys.readouterr()
+    folder = out.split("audit folder: ", 1)[1].split()[0]
+    assert err == (f"dsage-ray audit: error: interrupted; continue with: dsage-ray audit --agent builtin:random "
+                   f"--preset tiny --out {folder} --resume\n")

@@ -10,7 +10,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from dsage_ray.domains.gym.plugin import DOMAIN, GymConfig
-from dsage_ray.domains.gym.simulator import make_env, reset_env, run_episodes, signal_key, step_limit
+from dsage_ray.domains.gym.simulator import (check_episode_memory, make_env, reset_env, run_episodes, signal_key,
+                                             step_limit)
 from dsage_ray.domains.gym.space import EnvSpace, SpaceError, build_space, load_space
 from dsage_ray.types import EncodedLevels, EvaluationResult, Solution, Solutions
 
@@ -157,7 +158,9 @@ class GymDomain:
 
         Raises:
             SpaceError, AgentError: What is wrong, in one line.
+            ResourceError: ``episodes`` side by side would not fit in memory.
         """
+        check_episode_memory(self.config.episodes)
         for corner in (-1.0, 0.0, 1.0):
             values = self.space.values(np.full(self.solution_dim, corner))
             env = make_env(self.space, values)

@@ -17,6 +17,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from dsage_ray.domains.gym.space import EnvSpace, Signal, SpaceError, evaluate_expression
+from dsage_ray.memory import require_memory
 
 _INDEXED = re.compile(r"^([A-Za-z_]\w*)\[(\d+)\]$")
 
@@ -167,6 +168,17 @@ def read_signal(signal: Signal, observation: Any, info: Mapping[str, Any]) -> fl
     return float(np.asarray(observation, dtype=np.float64).ravel()[int(signal.key)])
 
 
+#: A floor on the memory one running episode takes (its environment, observation and record); a Box2D or MuJoCo
+#: environment takes more, so this only turns an absurd ``episodes`` into one line instead of an out-of-memory kill.
+EPISODE_BYTES = 64_000
+
+
+def check_episode_memory(episodes: int) -> None:
+    """Raises ResourceError when ``episodes`` side by side would clearly not fit in memory."""
+    require_memory(episodes * EPISODE_BYTES, what=f"{episodes:,} episodes side by side",
+                   key="gym.episodes (--episodes)")
+
+
 def run_episodes(space: EnvSpace, agent, values: Mapping[str, Any], *, seed: int, episodes: int,
                  signals: Sequence[Signal] = ()) -> Episodes:
     """Plays ``agent`` for ``episodes`` episodes of the level ``values``; deterministic for ``seed``.
@@ -184,6 +196,7 @@ def run_episodes(space: EnvSpace, agent, values: Mapping[str, Any], *, seed: int
     """
     from dsage_ray.domains.gym.agents import stack_observations
 
+    check_episode_memory(episodes)
     seeds = np.random.SeedSequence(seed).spawn(2)
     reset_seeds = seeds[0].generate_state(episodes).tolist()
     rng = np.random.default_rng(seeds[1])

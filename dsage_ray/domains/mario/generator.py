@@ -15,6 +15,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from dsage_ray.agents.loader import describe_exception
 from dsage_ray.domains.mario.tiles import LEVEL_HEIGHT, LEVEL_WIDTH, NUM_TILES
 from dsage_ray.errors import InputError
 
@@ -92,7 +93,7 @@ def load_generator(spec: str | Path = "builtin", *, device: str | torch.device =
     try:
         blob = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises several unrelated types for corrupt files
-        raise GeneratorError(f"{path}: not a readable generator file ({type(exc).__name__}: {exc})") from None
+        raise GeneratorError(f"{path}: not a readable generator file ({describe_exception(exc)})") from None
     if not isinstance(blob, dict) or blob.get("format") != "dsage_ray.mario.generator/1":
         raise GeneratorError(f"{path}: not a dsage_ray Mario generator file (missing format tag)")
     try:

@@ -9,7 +9,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from dsage_ray.domains.maze.encoding import CHANNELS, GOAL, PATH_CHANNELS, SPARE, START, WALL, encode_levels
-from dsage_ray.domains.maze.evaluate import MazeEvaluation, evaluate, evaluate_levels
+from dsage_ray.domains.maze.evaluate import MazeEvaluation, check_episode_memory, evaluate, evaluate_levels
 from dsage_ray.domains.maze.layout import format_layout, load_layout
 from dsage_ray.domains.maze.level import MazeLevel, max_steps_for
 from dsage_ray.domains.maze.measures import NEEDS_REFERENCE, get_measure, get_objective
@@ -282,7 +282,9 @@ class MazeDomain:
 
         Raises:
             ValueError: An agent that cannot be loaded (:class:`~dsage_ray.agents.AgentError` or a file error).
+            ResourceError: ``episodes`` side by side would not fit in memory.
         """
+        check_episode_memory(self.config.episodes, (self.height, self.width))
         roles = [("agent", self.config.agent, "agent")]
         if self.config.reference:
             roles.append(("reference agent", self.config.reference, "reference_agent"))
