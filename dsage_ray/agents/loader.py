@@ -62,6 +62,8 @@ KINDS_RUNNING_CODE: tuple[str, ...] = ("rllib", "torchscript", "sb3", "python")
 #: One line for help texts and the docs.
 RUNS_CODE_NOTE = ("loading rllib, torchscript, sb3 and python agents runs their code: use only files you trust "
                   "(docs/TRUST.md)")
+#: ``{path as a spec names it: the copy of it this process reads}``, filled by :mod:`dsage_ray.agents.shipping`.
+LOCAL_COPIES: dict[str, str] = {}
 #: Kinds added by :func:`register_agent_kind`, in this process only; they take precedence.
 _REGISTERED: dict[str, Union[str, AgentFactory]] = {}
 #: Agents shipped inside the package, one folder each (module docstring).
@@ -221,9 +223,16 @@ def _resolve(factory: Union[str, AgentFactory]) -> AgentFactory:
     return getattr(importlib.import_module(module_name), attr)
 
 
+def local_path(target: str) -> str:
+    """Where this process reads the path ``target`` names: the copy :mod:`dsage_ray.agents.shipping` unpacked here
+    (a Ray actor on another node), else ``target`` itself."""
+    return LOCAL_COPIES.get(target, target)
+
+
 def require_file(path: str, *, what: str) -> pathlib.Path:
-    """Returns ``path`` as a :class:`pathlib.Path` if it is a readable file, else raises :class:`AgentError`."""
-    p = pathlib.Path(path).expanduser()
+    """Returns ``path`` (or its :func:`local_path` copy) as a :class:`pathlib.Path` if it is a readable file, else
+    raises :class:`AgentError`."""
+    p = pathlib.Path(local_path(path)).expanduser()
     if not p.exists():
         raise AgentError(f"{what} {str(p)!r}: file not found")
     if not p.is_file():
@@ -237,7 +246,7 @@ def shipped_agent_dir(target: str) -> pathlib.Path | None:
     Only a bare name (no ``/``) that is not also a file or folder in the working directory names a shipped
     agent: a local path always wins, so shipping an agent never changes what an existing spec loads.
     """
-    if "/" in target or pathlib.Path(target).expanduser().exists():
+    if "/" in target or target in LOCAL_COPIES or pathlib.Path(target).expanduser().exists():
         return None
     folder = ASSETS_DIR / target
     return folder if folder.is_dir() else None

@@ -36,7 +36,8 @@ import torch
 
 from dsage_ray.agents.base import Agent, AgentError, AgentState, Observation
 from dsage_ray.agents.constants import NUM_ACTIONS, OBSERVATION_SPACE
-from dsage_ray.agents.loader import SpecOptions, describe_exception, shipped_agent_dir, shipped_agent_names
+from dsage_ray.agents.loader import (SpecOptions, describe_exception, local_path, shipped_agent_dir,
+                                     shipped_agent_names)
 from dsage_ray.agents.sampling import sample_from_logits
 
 #: Where an algorithm checkpoint keeps its modules (``<ckpt>/<this>/<module id>``).
@@ -95,7 +96,7 @@ class RLlibAgent(Agent):
 
 def resolve_module_dir(target: str, *, policy: str = "default_policy") -> Path:
     """The RLModule folder that ``target`` names (module docstring); AgentError when there is none."""
-    path = shipped_agent_dir(target) or Path(target).expanduser()
+    path = shipped_agent_dir(target) or Path(local_path(target)).expanduser()
     if not path.exists():
         shipped = shipped_agent_names(holding=_CTOR_FILE)
         raise AgentError(f"rllib checkpoint {str(path)!r}: not found"
