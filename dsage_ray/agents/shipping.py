@@ -58,9 +58,16 @@ def spec_paths(spec: str) -> list[str]:
     return [] if shipped_agent_dir(target) is not None else [target]
 
 
-def config_agent_specs(section: Mapping[str, Any]) -> list[str]:
-    """The agent specs among a domain section's values (``maze.agent``, ``maze.reference``, ``gym.agent``)."""
-    return [value for value in section.values() if isinstance(value, str) and spec_paths(value)]
+def config_agent_specs(values: Mapping[str, Any]) -> list[str]:
+    """The agent specs among a config's values that name files (``maze.agent``, ``maze.reference``, ``gym.agent``),
+    in a nested section, a flat Tune config, or the value lists of its ``tune.grid_search`` axes."""
+    found: list[str] = []
+    for value in values.values():
+        if isinstance(value, Mapping):
+            found += config_agent_specs(value if "grid_search" not in value else dict(enumerate(value["grid_search"])))
+        elif isinstance(value, str) and spec_paths(value):
+            found.append(value)
+    return found
 
 
 def pack_agent_files(specs: Iterable[str]) -> tuple[AgentFiles, ...]:

@@ -26,6 +26,7 @@ from ray import tune
 from ray.air.constants import EXPR_ERROR_FILE
 from ray.tune.logger import CSVLoggerCallback, JsonLoggerCallback
 
+from dsage_ray.agents.shipping import config_agent_specs, pack_agent_files
 from dsage_ray.config import ConfigError, RunConfig, key_hint, paper_comparison, parse_override, shown_value
 from dsage_ray.core.checkpoint import CHECKPOINT_NAME
 from dsage_ray.domains import build_domain
@@ -258,7 +259,9 @@ def _run_tune(param_space: Mapping[str, Any], *, name: str, storage_path: str, a
               max_failures: int, checkpoint_every: int, verbose: int,
               domain_factory: DomainFactory | None) -> ExperimentResult:
     experiment_path = Path(storage_path) / name
-    trainable = tune.with_parameters(DSAGETrainable, domain_factory=domain_factory)
+    # The agents travel as bytes (Tune puts these arguments in the object store): no trial needs the driver's paths.
+    trainable = tune.with_parameters(DSAGETrainable, domain_factory=domain_factory,
+                                     agent_files=pack_agent_files(config_agent_specs(param_space)))
     # Tune checkpoints at the end too, so a finished trial's last state is always on disk.
     checkpoint_config = tune.CheckpointConfig(checkpoint_frequency=checkpoint_every, checkpoint_at_end=True,
                                               num_to_keep=2)

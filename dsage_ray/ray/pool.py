@@ -32,6 +32,7 @@ import numpy as np
 import ray
 from ray.exceptions import RayActorError
 
+from dsage_ray.agents.shipping import AgentFiles, config_agent_specs, install_agent_files, pack_agent_files
 from dsage_ray.config import RunConfig
 from dsage_ray.domains import build_domain, get_domain
 from dsage_ray.errors import ResourceError
@@ -59,9 +60,13 @@ class SimulatorActor:
         config: The run config the domain is built from.
         domain_factory: Builds the domain (``build_domain`` unless a test injects one).
         num_threads: Torch intra-op threads for this process.
+        agent_files: The bytes of the files the config's agent specs name (:mod:`dsage_ray.agents.shipping`):
+            unpacked here before the domain loads its agent, so no node needs the driver's paths.
     """
 
-    def __init__(self, config: RunConfig, domain_factory: DomainFactory, num_threads: int) -> None:
+    def __init__(self, config: RunConfig, domain_factory: DomainFactory, num_threads: int,
+                 agent_files: Sequence[AgentFiles] = ()) -> None:
+        install_agent_files(agent_files)
         # OMP_NUM_THREADS & co. are already in the process environment (runtime_env) so that
         # OpenBLAS/MKL read them at import time; torch keeps its own pool size.
         try:
@@ -114,6 +119,8 @@ class SimulatorPool:
         placement_timeout_s: How long to wait for all actors to start before failing.
         max_deaths_per_chunk: A chunk whose actor died this many times is returned as failed
             (e.g. a level that crashes the simulator) instead of killing actors forever.
+        agent_files: The bytes of the files the config's agent specs name (default: read from their paths here);
+            every actor installs them, so none opens those paths (:mod:`dsage_ray.agents.shipping`).
 
     Raises:
         PoolResourceError: The cluster (or the enclosing placement group) cannot hold the actors.
@@ -134,6 +141,7 @@ class SimulatorPool:
         domain_factory: DomainFactory = build_domain,
         placement_timeout_s: float | None = None,
         max_deaths_per_chunk: int = 3,
+        agent_files: Sequence[AgentFiles] | None = None,
     ) -> None:
         self.config = config
         self.num_workers = config.ray.num_workers if num_workers is None else num_workers
@@ -152,6 +160,10 @@ class SimulatorPool:
         self._closed = False
 
         start_ray()  # honours RAY_ADDRESS; a no-op inside a Tune trial (already connected)
+        # Read once here (the driver, or the trial that received them), then sent with every actor that starts,
+        # a replacement after a node loss included.
+        self._agent_files = ray.put(tuple(agent_files) if agent_files is not None
+                                    else pack_agent_files(config_agent_specs(config.to_dict())))
         self._in_placement_group = ray.util.get_current_placement_group() is not None
         if not self._in_placement_group:
             check_cluster_fits(bundles=[{"CPU": self.cpus_per_worker}] * self.num_workers,
@@ -174,7 +186,7 @@ class SimulatorPool:
         return SimulatorActor.options(
             num_cpus=self.cpus_per_worker,
             runtime_env={"env_vars": env},
-        ).remote(self.config, self.domain_factory, self._threads)
+        ).remote(self.config, self.domain_factory, self._threads, self._agent_files)
 
     def _wait_until_ready(self) -> list[dict[str, Any]]:
         """Blocks until every actor has built its domain; fails clearly instead of hanging."""

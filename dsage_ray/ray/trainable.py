@@ -17,11 +17,12 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import ray
 from ray import tune
 
+from dsage_ray.agents.shipping import AgentFiles, install_agent_files
 from dsage_ray.config import RunConfig
 from dsage_ray.core.checkpoint import CHECKPOINT_NAME
 from dsage_ray.core.loop import RunLoop
@@ -50,9 +51,12 @@ class DSAGETrainable(tune.Trainable):
     its folder; see :class:`~dsage_ray.core.tensorboard_log.RunTensorBoard`.
     """
 
-    def setup(self, config: dict[str, Any], domain_factory: DomainFactory = build_domain) -> None:
+    def setup(self, config: dict[str, Any], domain_factory: DomainFactory = build_domain,
+              agent_files: Sequence[AgentFiles] = ()) -> None:
         from dsage_ray.core.runner import DSAGE
 
+        # The agents' files, from the driver through Ray's object store: this trial may run on a node without them.
+        install_agent_files(agent_files)
         self.run_config = RunConfig.build(config)
         # Tune logs every checkpoint at INFO from this process ("Checkpoint successfully created at");
         # one per outer iteration buries the driver's progress lines. Warnings still show.

@@ -21,6 +21,42 @@ from dsage_ray.ray.pool import SimulatorPool  # noqa: E402
 from tests.ray.helpers import SlowBitmapDomain, slow_bitmap_domain, small_config  # noqa: E402
 
 
+def check_agent_travels_as_data(cluster: Cluster, workers: list) -> None:
+    """A Maze pool whose agent file is deleted once the driver has read it: every actor, a replacement on another
+    node included, plays the driver's agent from the bytes Ray moved, and none opens the path."""
+    import shutil
+    import tempfile
+    from pathlib import Path
+
+    from dsage_ray.agents.loader import ASSETS_DIR, load_agent
+    from dsage_ray.agents.shipping import config_agent_specs, pack_agent_files
+    from dsage_ray.config import RunConfig
+    from dsage_ray.domains import build_domain
+
+    folder = Path(tempfile.mkdtemp(prefix="dsage_ray_agent_test_"))
+    shutil.copy(ASSETS_DIR / "accel" / "model_20000.tar", folder / "mine.tar")
+    config = RunConfig.build({"domain": "maze", "maze.agent": f"dcd:{folder / 'mine.tar'}", "maze.episodes": 4,
+                              "ray.chunk_size": 1})
+    load_agent(config.domain_config.agent)  # the driver loads it once (preflight)...
+    files = pack_agent_files(config_agent_specs(config.to_dict()))  # ... and reads its bytes
+    shutil.rmtree(folder)  # gone from the only disk that had it
+    workers = [node for node in workers if node in cluster.worker_nodes] + [cluster.add_node(num_cpus=1)
+                                                                             for _ in range(2)]
+    cluster.wait_for_nodes()
+    domain = build_domain(config)
+    solutions = domain.random_solutions(12, np.random.default_rng(3))
+    seeds = list(range(12))
+    with SimulatorPool(config=config, num_workers=2, cpus_per_worker=1.0, agent_files=files) as pool:
+        assert len({info["node_id"] for info in pool.actor_info}) == 2
+        first = pool(solutions, seeds)
+        assert not any(result.failed for result in first), [r.error for r in first if r.failed]
+        victim = next(node for node in workers if node.node_id in {i["node_id"] for i in pool.actor_info})
+        cluster.remove_node(victim, allow_graceful=False)  # before the batch: its chunks find the actor dead
+        again = pool(solutions, seeds)
+        assert pool.stats.actor_deaths >= 1, pool.stats  # a replacement started without the file
+        assert [r.objective for r in again] == [r.objective for r in first]
+
+
 def main() -> int:
     cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False})
     workers = [cluster.add_node(num_cpus=1) for _ in range(2)]
@@ -50,6 +86,8 @@ def main() -> int:
                        for a, b in zip(results, expected))
             assert pool.stats.evaluations == 2 * len(solutions)
         print("multinode ok:", pool.stats)
+        check_agent_travels_as_data(cluster, workers)
+        print("agent as data ok")
         return 0
     finally:
         ray.shutdown()

@@ -10,9 +10,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def test_pool_spreads_over_nodes_and_survives_losing_one():
+def test_pool_spreads_over_nodes_survives_losing_one_and_needs_no_agent_path_on_any_node():
     env = {**os.environ, "PYTHONPATH": str(ROOT), "RAY_AUTH_MODE": "disabled"}
     proc = subprocess.run([sys.executable, "-m", "tests.ray.multinode_check"], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=420)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     assert "multinode ok" in proc.stdout
+    assert "agent as data ok" in proc.stdout  # the agent's file deleted after the driver read it
