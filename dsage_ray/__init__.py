@@ -21,6 +21,11 @@ if TYPE_CHECKING:
     from dsage_ray.audit.series import AuditSeries
     from dsage_ray.core.warm_start import pretrain_surrogate
 
+from dsage_ray.kernels import pin_portable_kernels
+
+# Before torch runs a kernel in this process (DSAGE_RAY_KERNELS=portable: the same run on any x86-64 CPU).
+pin_portable_kernels()
+
 try:
     __version__ = metadata.version("dsage_ray")
 except metadata.PackageNotFoundError:  # a source checkout that was never installed

@@ -19,6 +19,8 @@ from typing import Any, Iterator
 
 import ray
 
+from dsage_ray.kernels import pin_portable_kernels
+
 #: Ray's switch between "this machine only" (loopback, as on macOS and Windows) and "reachable by other nodes".
 _CLUSTER_SWITCH = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
 
@@ -37,6 +39,9 @@ def start_ray(address: str | None = None, *, num_cpus: int | None = None, **init
         return
     address = address or os.environ.get("RAY_ADDRESS")
     if address:
+        carried = pin_portable_kernels()  # a local cluster's workers inherit this process's environment instead
+        if carried:
+            init_kwargs = {**init_kwargs, "runtime_env": {"env_vars": carried}}
         ray.init(address=address, **init_kwargs)
         return
     with _loopback_only():

@@ -25,6 +25,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from dsage_ray import kernels
 from dsage_ray.config import SurrogateConfig
 from dsage_ray.surrogate.dataset import SurrogateDataset, Targets
 from dsage_ray.surrogate.models import (LevelStatistics, ModelOutput, OneStageModel, TwoStageModel, VectorTwoStageModel,
@@ -110,7 +111,7 @@ def resolve_precision(name: str, device: torch.device) -> str:
     """The prediction precision ``"fp32"`` or ``"bf16"`` that ``name`` means on ``device``.
 
     ``"auto"`` is bf16 on a CUDA device that computes bf16 natively and on a CPU with
-    :func:`native_cpu_bf16`, else fp32. ``"fp32"`` and ``"bf16"`` are taken as given (bf16 on a CPU without
+    :func:`native_cpu_bf16` (unless :mod:`dsage_ray.kernels` are portable), else fp32. ``"fp32"`` and ``"bf16"`` are taken as given (bf16 on a CPU without
     native support works, just slowly).
     """
     if name not in PRECISIONS:
@@ -120,7 +121,7 @@ def resolve_precision(name: str, device: torch.device) -> str:
     if device.type == "cuda":
         return "bf16" if torch.cuda.is_bf16_supported(including_emulation=False) else "fp32"
     if device.type == "cpu":
-        return "bf16" if native_cpu_bf16() else "fp32"
+        return "bf16" if native_cpu_bf16() and not kernels.portable() else "fp32"
     return "fp32"
 
 

@@ -9,7 +9,9 @@ A surrogate variant's run depends on how torch's CPU kernels round (AVX-512 or A
 bf16 or not): on another CPU it finds other elites a few iterations in. Its fingerprints are therefore kept
 per **kernel probe** (:func:`kernel_probe`, a digest of one small training step), and a machine whose probe
 has none skips them with a message saying how to record them. The variants without a surrogate (MAP-Elites,
-DR) compute nothing in torch and are checked on every machine.
+DR) compute nothing in torch and are checked on every machine. With portable kernels (:mod:`dsage_ray.kernels`,
+``DSAGE_RAY_KERNELS=portable``) the probe is meant to be one for every x86-64 machine with AVX2, so its
+fingerprints are checked everywhere, in a subprocess (the mode is set when a process starts).
 """
 
 from __future__ import annotations
@@ -107,13 +109,36 @@ def record(fingerprints: dict[str, dict[str, object]], fixture: dict, probe: str
 
     from dsage_ray.surrogate.surrogate import native_cpu_bf16
 
-    machine = f"{cpu_model()}, native bf16 {'yes' if native_cpu_bf16() else 'no'}, torch {torch.__version__}"
+    from dsage_ray import kernels
+
+    machine = (f"{cpu_model()}, native bf16 {'yes' if native_cpu_bf16() else 'no'}, torch {torch.__version__}"
+               + (", portable kernels (DSAGE_RAY_KERNELS=portable)" if kernels.portable() else ""))
     return {"portable": portable,
             "by_kernel_probe": {**fixture.get("by_kernel_probe", {}), probe: {"machine": machine,
                                                                               "fingerprints": per_probe}}}
 
 
+def check_recorded() -> list[str]:
+    """This machine's fingerprints against the recorded ones of its kernel probe: the keys that differ (all of them,
+    with a note, when the probe has none)."""
+    recorded = json.loads(FIXTURE.read_text())["by_kernel_probe"].get(kernel_probe())
+    if recorded is None:
+        return [f"no fingerprints recorded for kernel probe {kernel_probe()}"]
+    differing = []
+    for key, expected in sorted(recorded["fingerprints"].items()):
+        variant, seed = key.split("/seed")
+        if fingerprint(variant, int(seed)) != expected:
+            differing.append(key)
+    return differing
+
+
 if __name__ == "__main__":
+    import sys
+
+    if sys.argv[1:] == ["--check"]:  # exit 1 naming what differs (tests/core/test_golden.py, portable kernels)
+        differing = check_recorded()
+        print("golden:", "all equal" if not differing else "differ: " + ", ".join(differing))
+        sys.exit(1 if differing else 0)
     existing = json.loads(FIXTURE.read_text()) if FIXTURE.is_file() else {}
     probe = kernel_probe()
     FIXTURE.write_text(json.dumps(record(all_fingerprints(), existing, probe), indent=1, sort_keys=True) + "\n")

@@ -37,3 +37,18 @@ def test_a_surrogate_run_finds_the_same_archive_and_metrics_as_before(key):
 
 def test_the_kernel_probe_is_stable_within_a_machine():
     assert kernel_probe() == PROBE
+
+
+def test_with_portable_kernels_every_surrogate_run_matches_on_this_machine_too():
+    """The one probe of portable kernels has fingerprints recorded; a machine that computes another probe (or other
+    runs) under them shows that the kernels are not portable to it, so this fails rather than skips."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "DSAGE_RAY_KERNELS": "portable", "PYTHONPATH": str(root)}
+    done = subprocess.run([sys.executable, "-m", "tests.core.golden", "--check"], cwd=root, env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0 and "golden: all equal" in done.stdout, done.stdout + done.stderr[-2000:]
