@@ -14,6 +14,7 @@ A cluster given by ``--address`` / ``RAY_ADDRESS`` is the user's: joined as it i
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 from typing import Any, Iterator
 
@@ -44,6 +45,8 @@ def start_ray(address: str | None = None, *, num_cpus: int | None = None, **init
             init_kwargs = {**init_kwargs, "runtime_env": {"env_vars": carried}}
         ray.init(address=address, **init_kwargs)
         return
+    # Ray announces the token it enabled with a suggestion to opt out; the token is wanted here (docs/TRUST.md).
+    logging.getLogger("ray._private.authentication.authentication_token_setup").setLevel(logging.ERROR)
     with _loopback_only():
         ray.init(num_cpus=num_cpus, include_dashboard=False, **init_kwargs)
 
