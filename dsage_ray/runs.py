@@ -89,12 +89,16 @@ def _stored_config(config: RunConfig, *, local: bool, out: str | os.PathLike[str
     """The config of the run a resume of ``config`` continues: its local checkpoint's, or the latest checkpoint's
     of its Tune trial; None when there is none (the resume then fails as it would have)."""
     from dsage_ray.core.checkpoint import CHECKPOINT_NAME, checkpoint_config, latest_tune_checkpoint
+    from dsage_ray.ray.storage import local_folder
 
     if local:
         found: Path | None = (Path(out) if out is not None else Path("tb_logs") / config.name) / CHECKPOINT_NAME
         found = found if found.is_file() else None
     else:
-        found = latest_tune_checkpoint(Path(out if out is not None else "tb_logs") / config.name, "*")
+        storage = local_folder(out if out is not None else "tb_logs")
+        if storage is None:  # a remote storage URI: Tune restores the trials with the configs they began with
+            return None
+        found = latest_tune_checkpoint(storage / config.name, "*")
     return checkpoint_config(found) if found is not None else None
 
 
@@ -122,7 +126,8 @@ def run(
         overrides: Dotted config keys applied last (``{"budget": 300}``), like ``--set``.
         local: Run in this process without Ray (same archive for the same seed as through Tune).
         out: ``local``: the run folder (default ``tb_logs/<name>``). Through Tune: the storage folder
-            (default ``tb_logs``); the run folder is then ``out/<name>/<trial>``.
+            (default ``tb_logs``), or a storage URI (``file://``, ``s3://``: :mod:`dsage_ray.ray.storage`); the
+            run folder is then ``out/<name>/<trial>``.
         workers: Simulator actors (sets ``ray.num_workers``; ignored by ``local`` runs).
         address: A Ray cluster to join (default: ``RAY_ADDRESS``, else a new local cluster).
         resume: Continue the run in ``out`` from its last checkpoint, with the config it began with: a key given
@@ -156,7 +161,7 @@ def run(
         return RunResult(config=config, path=run_dir, checkpoint=run_dir / CHECKPOINT_NAME)
     from dsage_ray.ray.launch import run_with_tune
 
-    return run_with_tune(config, address=address, resume=resume, out_dir=Path(out if out is not None else "tb_logs"),
+    return run_with_tune(config, address=address, resume=resume, out_dir=out if out is not None else "tb_logs",
                          max_failures=max_failures)
 
 
@@ -203,4 +208,4 @@ def ablate(
     from dsage_ray.ray.launch import ablate as ablate_with_tune
 
     return ablate_with_tune(config, grid=grid, seeds=seeds, variants=variants, address=address, resume=resume,
-                            out_dir=Path(out), api=api, max_failures=max_failures, given=given)
+                            out_dir=out, api=api, max_failures=max_failures, given=given)

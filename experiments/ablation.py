@@ -42,7 +42,8 @@ def parse_args() -> argparse.Namespace:
                                            "the domain's baselines)")
     parser.add_argument("--seeds", type=int, default=None, help="seeds 0..K-1 (default: 2 for tiny, 5 otherwise)")
     parser.add_argument("--api", default="tuner", choices=["tuner", "run"], help="tune.Tuner or tune.run")
-    parser.add_argument("--storage", default="tb_logs", help="storage folder")
+    parser.add_argument("--storage", default="tb_logs",
+                        help="storage folder, or a URI (s3://bucket/runs, file:///shared/runs)")
     parser.add_argument("--name", help="experiment name (default: ablation_<domain>_<preset>)")
     parser.add_argument("--resume", action="store_true", help="continue the experiment of the same name")
     parser.add_argument("--max-failures", type=int, default=2, help="crash restores per trial")

@@ -35,6 +35,7 @@ from dsage_ray.io import folder_lock
 from dsage_ray.results import ExperimentResult, RunResult
 from dsage_ray.ray.pool import DomainFactory, check_cluster_fits
 from dsage_ray.ray.progress import ProgressLines, quiet_tune_output
+from dsage_ray.ray.storage import local_copy, local_folder, storage_location
 from dsage_ray.ray.trainable import DSAGETrainable, resource_request
 
 #: Which Tune entry point runs the trials.
@@ -245,11 +246,12 @@ def run_experiment(
         TrialFailed: A trial failed more than ``max_failures`` times (its error and ``error.txt``).
         ExperimentInterrupted: Tune returned before every trial finished.
     """
-    storage_path = str(Path(storage_path).expanduser().resolve())
-    experiment_path = Path(storage_path) / name
-    if resume:
-        refuse_changed_config(experiment_path, param_space, given=given)
-    with folder_lock(experiment_path, what="experiment"):  # one writer per experiment folder
+    storage_path = storage_location(storage_path)
+    local = local_folder(storage_path)  # None: a remote filesystem (s3://, gs://), written and read through pyarrow
+    if resume and local is not None:
+        refuse_changed_config(local / name, param_space, given=given)
+    # One writer per experiment folder (where it is a folder of this machine; a bucket cannot be locked).
+    with folder_lock(local / name, what="experiment") if local is not None else contextlib.nullcontext():
         return _run_tune(param_space, name=name, storage_path=storage_path, api=api, resume=resume,
                          max_failures=max_failures, checkpoint_every=checkpoint_every, verbose=verbose,
                          domain_factory=domain_factory)
@@ -258,7 +260,7 @@ def run_experiment(
 def _run_tune(param_space: Mapping[str, Any], *, name: str, storage_path: str, api: TuneApi, resume: bool,
               max_failures: int, checkpoint_every: int, verbose: int,
               domain_factory: DomainFactory | None) -> ExperimentResult:
-    experiment_path = Path(storage_path) / name
+    experiment_path = f"{storage_path.rstrip('/')}/{name}"
     # The agents travel as bytes (Tune puts these arguments in the object store): no trial needs the driver's paths.
     trainable = tune.with_parameters(DSAGETrainable, domain_factory=domain_factory,
                                      agent_files=pack_agent_files(config_agent_specs(param_space)))
@@ -285,7 +287,7 @@ def _run_tune(param_space: Mapping[str, Any], *, name: str, storage_path: str, a
             _run_result(trial.config, trial.path, trial.checkpoint) for trial in analysis.trials))
 
     if resume and tune.Tuner.can_restore(experiment_path):
-        tuner = tune.Tuner.restore(str(experiment_path), trainable=trainable, resume_errored=True)
+        tuner = tune.Tuner.restore(experiment_path, trainable=trainable, resume_errored=True)
     else:
         tuner = tune.Tuner(
             trainable,
@@ -352,10 +354,14 @@ def refuse_changed_config(experiment_path: Path, param_space: Mapping[str, Any],
 
 
 def _run_result(config: dict[str, Any], path: str, checkpoint: tune.Checkpoint | None) -> RunResult:
-    """A finished trial as Tune reports it: its flat config, its folder and its latest checkpoint."""
+    """A finished trial as Tune reports it: its flat config, its folder and its latest checkpoint, read through the
+    storage filesystem Tune wrote them with (copied here first from a remote one)."""
     if checkpoint is None:  # checkpoint_at_end: a finished trial always has one
         raise TrialFailed(f"the trial in {path} finished without a checkpoint")
-    return RunResult(config=RunConfig.build(config), path=Path(path), checkpoint=Path(checkpoint.path) / CHECKPOINT_NAME)
+    folder = local_copy(path, checkpoint.filesystem)
+    within = Path(checkpoint.path).relative_to(path) if Path(checkpoint.path).is_relative_to(path) else None
+    saved = folder / within if within is not None else local_copy(checkpoint.path, checkpoint.filesystem)
+    return RunResult(config=RunConfig.build(config), path=folder, checkpoint=saved / CHECKPOINT_NAME)
 
 
 def _check_finished(name: str, last_results: list[dict[str, Any] | None]) -> None:
