@@ -53,7 +53,7 @@ def domain_command_modules() -> list[str]:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="dsage-ray", description="DSAGE on Ray: search for diverse levels where an agent fails.",
-        epilog="start with: dsage-ray audit --help  (Python: import dsage_ray; see docs/API.md)")
+        epilog="start with: dsage-ray audit --help  (Python: import dsage_ray; help(dsage_ray.run_audit))")
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True)
     _add_run(subparsers)

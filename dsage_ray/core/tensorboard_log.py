@@ -3,7 +3,7 @@
 Scalars go under ``dsage/`` with the number of real evaluations as the step, so runs with
 different batch sizes (DSAGE, MAP-Elites, a resumed run) line up on the same axis; images
 (``archive/heatmap``, ``levels/elite_K``, ``surrogate/predicted_vs_true_measures``) use the same
-step. Under Tune these events sit next to Tune's own ``ray/tune/*`` scalars in the trial folder.
+step. Under Tune these events are the trial folder's only TensorBoard files (Tune's own logger is off).
 
 One scalar has another axis: ``dsage/qd_score_vs_wall_time`` is the QD-score with the run's wall time
 in whole seconds as the step (``wall_time``, cumulative across resumes), to compare searches at equal
