@@ -202,7 +202,7 @@ def pretrain(*, sources: Sequence[WarmStart], config: RunConfig, out: str | Path
         SurrogateInitError: No sources, or sources of another encoding or network than ``config``.
     """
     from dsage_ray.core.checkpoint import save_checkpoint
-    from dsage_ray.core.runner import torch_threads
+    from dsage_ray.core.threads import torch_threads
     from dsage_ray.domains import build_domain
     from dsage_ray.surrogate.models import encode_solutions
     from dsage_ray.surrogate.surrogate import Surrogate
