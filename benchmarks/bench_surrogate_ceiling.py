@@ -49,7 +49,7 @@ Benchmark-only keys of a setting (other keys are the run config's; ``surrogate.`
   invariant under them; ACCEL is not (it reads its absolute heading), and for it the turned copies did not help
   (``docs/results/surrogate_accuracy``). ``bench.rotations=tta`` also predicts each level as the mean over its
   four rotations.
-* ``bench.chain=MODES`` replaces the network with ``dsage_ray.domains.maze.chain.PolicyChain``: a learned
+* ``bench.chain=MODES`` replaces the network with ``PolicyChain`` (``benchmarks/policy_chain.py``): a learned
   stochastic controller with ``MODES`` memory modes that reads the agent's egocentric view, whose expected
   occupancy is propagated exactly over the step limit. It trains on the agent's occupancy and path length with
   the setting's ``epochs``, ``batch_size`` and ``lr`` (``lr=0.003`` in ``docs/results/surrogate_accuracy``), and
@@ -209,7 +209,7 @@ class Setting:
     def describe(self) -> str:
         s = self.config.surrogate
         if self.chain:
-            return (f"policy chain (dsage_ray.domains.maze.chain), {self.chain} memory mode(s), {s.epochs} epochs, "
+            return (f"policy chain (benchmarks/policy_chain.py), {self.chain} memory mode(s), {s.epochs} epochs, "
                     f"batch {s.batch_size}, lr {s.lr:g}; predicts {PATH_LENGTH} only")
         parts = [s.kind, f"{s.epochs} epochs", f"batch {s.batch_size}", f"channels {s.channels}",
                  f"dilations {list(s.dilations)}", f"path channels {self.config.maze.path_channels}"]
@@ -256,7 +256,7 @@ class ChainModel:
     def __init__(self, setting: Setting, data: MazeData, *, train_size: int, seed: int) -> None:
         import torch
 
-        from dsage_ray.domains.maze.chain import PolicyChain
+        from policy_chain import PolicyChain
         from dsage_ray.domains.maze.level import max_steps_for
 
         if data.occupancy is None:
@@ -272,7 +272,7 @@ class ChainModel:
         return np.asarray(walls, dtype=bool)  # the chain builds its inputs per batch: they are large
 
     def train(self, rows: np.ndarray, encoded: np.ndarray) -> float:
-        from dsage_ray.domains.maze.chain import train_chain
+        from policy_chain import train_chain
 
         s = self.setting.config.surrogate
         start = time.perf_counter()
@@ -287,12 +287,12 @@ class ChainModel:
         return self.predict_batch(encoded)
 
     def predict_batch(self, encoded: np.ndarray) -> np.ndarray:
-        from dsage_ray.domains.maze.chain import predict_path_length
+        from policy_chain import predict_path_length
 
         return predict_path_length(self.chain, encoded)
 
     def flops(self, sample: np.ndarray) -> float:
-        from dsage_ray.domains.maze.chain import flops_per_level
+        from policy_chain import flops_per_level
 
         return flops_per_level(self.chain, *self.data.shape)
 

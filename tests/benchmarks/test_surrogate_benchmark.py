@@ -361,7 +361,7 @@ def test_a_policy_chain_setting_is_scored_and_blended_with_the_first_setting(tmp
                                            "--inits", "1", "--epochs", "1", "--batch", "4", "--no-future",
                                            "--setting", "net:channels=8", "--setting", "chain:bench.chain=2"])
     out = capsys.readouterr().out
-    assert "setting chain: policy chain (dsage_ray.domains.maze.chain), 2 memory mode(s)" in out
+    assert "setting chain: policy chain (benchmarks/policy_chain.py), 2 memory mode(s)" in out
     assert "net + chain ranks" in out
     assert len(result["rho"]["chain"][8]) == 2 and all(-1.0 <= r <= 1.0 for r in result["rho"]["chain"][8])
     assert len(result["pairs"]["chain"][8]) == 2

@@ -14,7 +14,8 @@ With 4 modes it ranks ACCEL's path length on a search's own levels as well as th
 lower error; without memory it is the worst model measured (``docs/results/surrogate_accuracy``, "A learned
 policy chain"). Per level it costs hundreds of times the network (the propagation is ``max_steps`` small steps
 over ``modes² × 4 × H × W`` state pairs), so it is a benchmark model family
-(``bench_surrogate_ceiling.py --setting NAME:bench.chain=MODES``), not a run's surrogate.
+(``bench_surrogate_ceiling.py --setting NAME:bench.chain=MODES``), not a run's surrogate, and lives beside the
+benchmarks rather than in the package.
 """
 
 from __future__ import annotations

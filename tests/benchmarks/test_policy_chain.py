@@ -1,14 +1,20 @@
 """The policy chain's propagation must be MiniGrid's dynamics, exactly, for any controller."""
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
 
-from dsage_ray.domains.maze.chain import (
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+
+from dsage_ray.domains.maze.level import MazeLevel  # noqa: E402
+from dsage_ray.domains.maze.simulator import (FORWARD, LEFT, RIGHT, BatchedMazeSimulator, cell_kinds,  # noqa: E402
+                                              view_tables)
+from policy_chain import (  # noqa: E402
     ACTIONS, PolicyChain, chain_inputs, chain_loss, flops_per_level, predict_path_length, train_chain,
 )
-from dsage_ray.domains.maze.level import MazeLevel
-from dsage_ray.domains.maze.simulator import FORWARD, LEFT, RIGHT, BatchedMazeSimulator, cell_kinds, view_tables
 
 WALLS = np.array([
     [0, 0, 0, 1, 0],
