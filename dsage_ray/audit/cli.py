@@ -4,6 +4,7 @@ print."""
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from dsage_ray.errors import InputError
 
@@ -89,6 +90,12 @@ def add_subparser(subparsers) -> None:
                          help="evaluate on N Ray simulator actors (default: in this process)")
     compare.add_argument("--html", help="HTML page to write (default DIR/compare-<A>-vs-<B>.html)")
     compare.set_defaults(handler=run_compare_command)
+    report = subparsers.add_parser(
+        "report", help="write a collection's report.html again (after an upgrade, or for a collection received)",
+        description="Renders report.html from a collection's own files (collection.json, the level pictures, the "
+                    "heatmap): reading them runs no code and evaluates nothing.")
+    report.add_argument("collection", metavar="DIR", help="a collection folder, or the audit folder holding one")
+    report.set_defaults(handler=run_report_command)
     add_series_subparser(subparsers)
 
 
@@ -182,6 +189,17 @@ def _demo_notice(args: argparse.Namespace) -> str:
     budget = args.budget or preset_budgets(args.domain).get(preset)  # an unknown preset is reported next
     length = f" ({budget:,} evaluations)" if budget else ""
     return f"no --agent: auditing the shipped demo agent {agent} with --preset {preset}{length}; name yours with --agent SPEC"
+
+
+def run_report_command(args: argparse.Namespace) -> int:
+    """Handler of ``dsage-ray report``: :func:`~dsage_ray.audit.report.write_report` of a collection folder."""
+    from dsage_ray.audit.report import write_report
+
+    folder = Path(args.collection)
+    if (folder / "collection").is_dir() and not (folder / "collection.json").is_file():
+        folder = folder / "collection"  # an audit folder
+    print(f"report: {write_report(folder)}")
+    return 0
 
 
 def run_compare_command(args: argparse.Namespace) -> int:

@@ -373,3 +373,16 @@ def test_reproduce_commands_run_from_any_directory(tmp_path, monkeypatch, capsys
         capsys.readouterr()
         assert main(command[1:] + ["--json"]) == 0
         assert json.loads(capsys.readouterr().out)["success_rate"] == lv["success_rate"]
+
+
+def test_the_report_command_renders_a_collection_again_from_its_folder_or_its_audit_folder(tmp_path, capsys):
+    from dsage_ray.cli import main
+
+    folder = make_collection(tmp_path / "audit" / "collection", levels=5)
+    assert not (folder / "report.html").exists()
+    assert main(["report", str(tmp_path / "audit")]) == 0
+    assert capsys.readouterr().out == f"report: {folder / 'report.html'}\n"
+    assert "<h1>" in (folder / "report.html").read_text()
+    assert main(["report", str(tmp_path / "nowhere")]) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("dsage-ray report: error: ") and "not a readable collection" in error
