@@ -24,7 +24,7 @@ import io
 import os
 import shlex
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Collection, Sequence
 
 import numpy as np
 
@@ -98,7 +98,9 @@ _SCRIPT = """
       var button = event.target.closest('button.sort');
       if (!button) return;
       var th = button.closest('th'), col = th.cellIndex, numeric = th.classList.contains('num');
-      var dir = th.getAttribute('aria-sort') === 'ascending' ? -1 : 1;
+      // The first click sorts worst first: largest first where a larger value is worse (data-first).
+      var first = th.dataset.first === 'descending' ? -1 : 1;
+      var dir = th.getAttribute('aria-sort') === (first === 1 ? 'ascending' : 'descending') ? -first : first;
       table.tHead.querySelectorAll('th').forEach(function (h) { h.removeAttribute('aria-sort'); });
       th.setAttribute('aria-sort', dir === 1 ? 'ascending' : 'descending');
       var keyed = Array.from(body.rows, function (row) {
@@ -128,6 +130,15 @@ _SCRIPT = """
   var table = document.getElementById('levels');
   if (!table) return;
   var rows = Array.from(table.tBodies[0].rows), query = document.getElementById('query');
+  // The text filter reads what a row shows and its files' names, not its reproduce command (which names the
+  // domain and the folder, so it would match every row).
+  var texts = rows.map(function (row) {
+    return Array.from(row.cells).filter(function (cell) { return !cell.querySelector('code.cmd'); })
+      .map(function (cell) {
+        return cell.textContent + ' ' + Array.from(cell.querySelectorAll('a'), function (a) {
+          return a.getAttribute('href'); }).join(' ');
+      }).join(' ').toLowerCase();
+  });
   var never = document.getElementById('never'), regressed = document.getElementById('regressed');
   var lows = Array.from(document.querySelectorAll('input.lo'));
   var highs = Array.from(document.querySelectorAll('input.hi'));
@@ -135,9 +146,9 @@ _SCRIPT = """
   function values(inputs) { return inputs.map(function (i) { return parseFloat(i.value); }); }
   function apply() {
     var q = query.value.trim().toLowerCase(), count = 0, lo = values(lows), hi = values(highs);
-    rows.forEach(function (row) {
+    rows.forEach(function (row, r) {
       var m = row.dataset.m.split(' ').map(Number);
-      var ok = (!q || row.textContent.toLowerCase().indexOf(q) >= 0) &&
+      var ok = (!q || texts[r].indexOf(q) >= 0) &&
                (!never.checked || Number(row.dataset.s) === 0) &&
                (!regressed || !regressed.checked || Number(row.dataset.r) > 0) &&
                m.every(function (v, j) { return !(v < lo[j]) && !(v > hi[j]); });
@@ -206,7 +217,8 @@ def _formatter(values: Sequence[Any]) -> Callable[[Any], str]:
 
 def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]], *, left: int = 0, numeric: Sequence[bool] = (),
            row_attrs: Sequence[str] | None = None, table_attrs: str = "class='sortable'",
-           sorted_by: tuple[int, str] | None = None, titles: dict[str, str] | None = None) -> str:
+           sorted_by: tuple[int, str] | None = None, titles: dict[str, str] | None = None,
+           descending_first: Collection[str] = ()) -> str:
     """A table with a ``thead``; cells are HTML, headers plain text.
 
     Args:
@@ -219,6 +231,7 @@ def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]], *, left: int =
         sorted_by: ``(column, "ascending" | "descending")``: the order ``rows`` come in, shown by the header's
             arrow (``aria-sort``).
         titles: Tooltips of the headers, by header.
+        descending_first: Headers whose first click sorts largest first (where a larger value is worse).
     """
     sortable = "sortable" in table_attrs
 
@@ -228,6 +241,8 @@ def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]], *, left: int =
 
     def th(i: int, header: str) -> str:
         attrs = cls(i, True)
+        if header in descending_first:
+            attrs += " data-first='descending'"
         if sorted_by and sorted_by[0] == i:
             attrs += f" aria-sort='{sorted_by[1]}'"
         if titles and header in titles:
@@ -519,13 +534,14 @@ def _levels_table(c: dict[str, Any], columns_shown: Sequence[ReportField], forma
     return ("<div class='scroll'>"
             + _table(headers, rows, left=0, numeric=numeric, row_attrs=attrs,
                      table_attrs="class='sortable' id='levels'", sorted_by=(0, "ascending"),
-                     titles={f.name: notes[f.key] for f in columns_shown if f.key in notes})
+                     titles={f.name: notes[f.key] for f in columns_shown if f.key in notes},
+                     descending_first={c["objective"], "regression", "search objective"})
             + "</div>")
 
 
 def _filters(c: dict[str, Any]) -> str:
     parts = ["<div class='filters'>",
-             "<input type='search' id='query' placeholder='filter: any text in a row' aria-label='filter'>",
+             "<input type='search' id='query' placeholder='filter: id, file name or number' aria-label='filter'>",
              "<label><input type='checkbox' id='never'> never solved only</label>"]
     if c.get("reference"):
         parts.append("<label><input type='checkbox' id='regressed'> regressed only</label>")

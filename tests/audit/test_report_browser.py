@@ -75,6 +75,19 @@ def test_report_sorts_filters_and_logs_no_error(browser, tmp_path):
     # Numbers sort as numbers: 10 after 9, not after 1.
     _header(browser, "id").click()
     assert _visible_ids(browser) == list(range(15))
+    # The objective's first click puts the worst (largest failure rate) first; success rate's the lowest first.
+    objective = _header(browser, "failure_rate")
+    objective.click()
+    assert objective.get_attribute("aria-sort") == "descending"
+    failures = [1 - [0, 0.25, 0.5, 0.75, 1][i % 5] for i in _visible_ids(browser)]
+    assert failures == sorted(failures, reverse=True)
+    _header(browser, "success rate").click()
+    assert [[0, 0.25, 0.5, 0.75, 1][i % 5] for i in _visible_ids(browser)][:3] == [0, 0, 0]
+    _header(browser, "id").click()
+    # The text filter reads what the rows show, not their reproduce commands (every one names "maze").
+    browser.find_element(By.ID, "query").send_keys("maze")
+    assert _visible_ids(browser) == []
+    browser.find_element(By.ID, "reset").click()
 
     # Success rates cycle 0, 0.25, 0.5, 0.75, 1: never solved = ids 0, 5, 10.
     browser.find_element(By.ID, "never").click()
