@@ -23,7 +23,7 @@ if TYPE_CHECKING:
 
 from dsage_ray.kernels import pin_portable_kernels
 
-# Before torch runs a kernel in this process (DSAGE_RAY_KERNELS=portable: the same run on any x86-64 CPU).
+# Before torch runs a kernel in this process (DSAGE_RAY_KERNELS=portable: one run for a seed on any AVX2 CPU).
 pin_portable_kernels()
 
 try:

@@ -1,4 +1,4 @@
-"""Portable CPU kernels: the same seed gives the same surrogate run on any x86-64 machine with AVX2, at a cost.
+"""Portable CPU kernels: meant to give the same surrogate run for a seed on any x86-64 CPU with AVX2, at a cost.
 
 torch picks its CPU kernels by the machine: ATen's vectorised loops by the widest instruction set (AVX-512 or AVX2),
 MKL's matrix products and oneDNN's convolutions by the processor, and ``surrogate.precision = "auto"`` takes bf16
@@ -12,7 +12,8 @@ to fp32. It is read when :mod:`dsage_ray` is imported and set for the whole proc
 runs, and Ray's workers inherit it (a cluster joined with ``--address`` gets it through the job's runtime
 environment). Measured on the 2-core development machine (AVX-512 with native bf16, maze ``demo`` preset, 150
 evaluations, ``--local``): 42.1 s against 25.0 s, so it is an option, not the default
-(``docs/results/portable_kernels/README.md``).
+(``docs/results/portable_kernels/README.md``). Seen on one CPU so far; ``tests/core/test_golden.py`` checks it on
+every machine the suite runs on.
 """
 
 from __future__ import annotations

@@ -293,18 +293,9 @@ def convert_trusted_checkpoint(path: str | Path) -> Path:
     state = pickle.loads(payload)  # noqa: S301 - the caller said it trusts this file
     if not isinstance(state, dict):
         raise CheckpointError(f"{path}: the checkpoint holds a {type(state).__name__}, not a run state")
-    from dsage_ray.qd.emitters import RandomEmitter
+    try:  # a random emitter's sampler (code, pickled by format 2) is left out by the emitter's own __getstate__
 
-    _drop_samplers(state, RandomEmitter)
-    try:
         return save_checkpoint(state, path)
     except TypeError as exc:
         raise CheckpointError(f"{path}: does not convert ({exc})") from None
 
-
-def _drop_samplers(state: Mapping[str, Any], emitter_class: type) -> None:
-    """Format-2 states held a random emitter's sampler (a bound method of the domain: code); the run rebinds it."""
-    scheduler = state.get("scheduler")
-    for emitter in getattr(scheduler, "emitters", ()):
-        if isinstance(emitter, emitter_class):
-            emitter.attach(None)

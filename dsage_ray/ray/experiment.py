@@ -358,10 +358,9 @@ def _run_result(config: dict[str, Any], path: str, checkpoint: tune.Checkpoint |
     storage filesystem Tune wrote them with (copied here first from a remote one)."""
     if checkpoint is None:  # checkpoint_at_end: a finished trial always has one
         raise TrialFailed(f"the trial in {path} finished without a checkpoint")
-    folder = local_copy(path, checkpoint.filesystem)
-    within = Path(checkpoint.path).relative_to(path) if Path(checkpoint.path).is_relative_to(path) else None
-    saved = folder / within if within is not None else local_copy(checkpoint.path, checkpoint.filesystem)
-    return RunResult(config=RunConfig.build(config), path=folder, checkpoint=saved / CHECKPOINT_NAME)
+    folder = local_copy(path, checkpoint.filesystem)  # Tune keeps a trial's checkpoints inside its folder
+    within = Path(checkpoint.path).relative_to(path)
+    return RunResult(config=RunConfig.build(config), path=folder, checkpoint=folder / within / CHECKPOINT_NAME)
 
 
 def _check_finished(name: str, last_results: list[dict[str, Any] | None]) -> None:

@@ -52,18 +52,18 @@ class DSAGETrainable(tune.Trainable):
     """
 
     def setup(self, config: dict[str, Any], domain_factory: DomainFactory = build_domain,
-              agent_files: Sequence[AgentFiles] = ()) -> None:
+              agent_files: Sequence[AgentFiles] | None = None) -> None:
         from dsage_ray.core.runner import DSAGE
 
         # The agents' files, from the driver through Ray's object store: this trial may run on a node without them.
-        install_agent_files(agent_files)
+        install_agent_files(agent_files or ())
         self.run_config = RunConfig.build(config)
         # Tune logs every checkpoint at INFO from this process ("Checkpoint successfully created at");
         # one per outer iteration buries the driver's progress lines. Warnings still show.
         logging.getLogger("ray.train._internal.storage").setLevel(logging.WARNING)
         domain = domain_factory(self.run_config)
         # num_workers = 0 keeps evaluation in the trial process (useful on a 1-CPU machine).
-        self.pool = (SimulatorPool(config=self.run_config, domain_factory=domain_factory)
+        self.pool = (SimulatorPool(config=self.run_config, domain_factory=domain_factory, agent_files=agent_files)
                      if self.run_config.ray.num_workers > 0 else None)
         self.runner = DSAGE(config=self.run_config, evaluator=self.pool, domain=domain)
         tensorboard = RunTensorBoard(logdir=self.output_dir, image_every=self.run_config.image_every,

@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import sys
 import threading
+import time
 
 os.environ.setdefault("RAY_AUTH_MODE", "disabled")
 
@@ -51,9 +52,15 @@ def check_agent_travels_as_data(cluster: Cluster, workers: list) -> None:
         first = pool(solutions, seeds)
         assert not any(result.failed for result in first), [r.error for r in first if r.failed]
         victim = next(node for node in workers if node.node_id in {i["node_id"] for i in pool.actor_info})
-        cluster.remove_node(victim, allow_graceful=False)  # before the batch: its chunks find the actor dead
-        again = pool(solutions, seeds)
-        assert pool.stats.actor_deaths >= 1, pool.stats  # a replacement started without the file
+        cluster.remove_node(victim, allow_graceful=False)
+        # The node's processes die a moment after it is removed: evaluate until the pool has seen its actor die and
+        # replaced it (a replacement that, like every actor, has never had the file).
+        deadline = time.monotonic() + 120
+        while pool.stats.actor_deaths == 0 and time.monotonic() < deadline:
+            again = pool(solutions, seeds)
+            assert [r.objective for r in again] == [r.objective for r in first]
+        assert pool.stats.actor_deaths >= 1, pool.stats
+        again = pool(solutions, seeds)  # on the replacement
         assert [r.objective for r in again] == [r.objective for r in first]
 
 
