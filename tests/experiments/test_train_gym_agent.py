@@ -50,6 +50,7 @@ def test_rllib_script_trains_one_iteration_and_exports_a_loadable_module(tmp_pat
     assert module.action_space == env.action_space
 
 
+@pytest.mark.slow  # a whole training script with audits; the callback and the gym audit are covered by the default suite
 def test_rllib_script_audits_each_iteration_in_the_shipped_space_of_its_env(tmp_path):
     done = run_script(GYM_SCRIPT, ["--run-name", "audited", "--total-env-steps", "257", "--train-batch-size", "256",
                                    "--minibatch-size", "128", "--num-epochs", "1", "--num-envs", "2",

@@ -41,8 +41,8 @@ def check_agent_travels_as_data(cluster: Cluster, workers: list) -> None:
     load_agent(config.domain_config.agent)  # the driver loads it once (preflight)...
     files = pack_agent_files(config_agent_specs(config.to_dict()))  # ... and reads its bytes
     shutil.rmtree(folder)  # gone from the only disk that had it
-    workers = [node for node in workers if node in cluster.worker_nodes] + [cluster.add_node(num_cpus=1)
-                                                                             for _ in range(2)]
+    # The head and the worker left by the first check hold the two actors; one more node takes the replacement.
+    workers = [node for node in workers if node in cluster.worker_nodes] + [cluster.add_node(num_cpus=1)]
     cluster.wait_for_nodes()
     domain = build_domain(config)
     solutions = domain.random_solutions(12, np.random.default_rng(3))
