@@ -6,7 +6,7 @@ Reads the ground-truth archive of a finished run or audit search folder (its ``c
 with the run's agent in this process, and prints one line per pool:
 
 - ``best``: the elites tied at the archive's best objective (an audit's never-solved levels);
-- ``top share``: the run's ``selection.elite_share`` of the elites by objective, the parents of ``elite_mutants``;
+- ``top share``: the run's ``experimental.elite_share`` of the elites by objective, the parents of ``elite_mutants``;
 - ``uniform``: every elite (MAP-Elites' parents).
 
 Each line gives the mutants' mean objective, the share that reach the archive's best objective, the share at or
@@ -55,13 +55,13 @@ def main(argv: list[str] | None = None) -> int:
     held = set(np.asarray(data["index"]).tolist())
     best, middle = objective.max(), (objective.min() + objective.max()) / 2
     pools = {"best": np.flatnonzero(objective >= best),
-             "top share": best_elites(archive, share=config.selection.elite_share),
+             "top share": best_elites(archive, share=config.experimental.elite_share),
              "uniform": np.arange(len(objective))}
     domain = build_domain(config)
     evaluator = InProcessEvaluator(domain=domain, threads=config.torch_threads)
     rng = np.random.default_rng(args.seed)
     print(f"{args.run}: {len(objective)} elites, best objective {best:g} ({len(pools['best'])} elites), "
-          f"top share {config.selection.elite_share:g} ({len(pools['top share'])} elites); "
+          f"top share {config.experimental.elite_share:g} ({len(pools['top share'])} elites); "
           f"{args.levels} mutants per pool, {config.qd.emitter} mutation")
     for offset, (name, pool) in enumerate(pools.items()):
         try:

@@ -1,9 +1,9 @@
-"""What a real evaluation costs, as a function of one of its measures: the fit behind ``selection.cost_offset``.
+"""What a real evaluation costs, as a function of one of its measures: the fit behind a domain's ``evaluation_cost``.
 
 Evaluates ``--levels`` elites of a finished run's archive in this process, one at a time, and fits the CPU
 seconds each took as ``a + b · measure`` (least squares); ``--measure`` may also name one of the domain's
-work counts (Maze ``steps``, Mario ``search_iterations``). ``selection.cost_measure`` / ``selection.cost_offset``
-model an evaluation's cost as ``offset + measure``, so the offset to set is ``a / b``: the cost of the fixed
+work counts (Maze ``steps``, Mario ``search_iterations``). A domain's ``evaluation_cost`` (measure, offset)
+models an evaluation's cost as ``offset + measure``, so the offset to set is ``a / b``: the cost of the fixed
 part of an evaluation (building the level, resetting the environment) in the measure's units. Elites are drawn
 uniformly over the archive, so the whole range of the measure is covered.
 
@@ -68,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  {args.measure} {lo:7.1f} – {hi:7.1f}: {seconds[band].mean():.3f} s ({band.sum()} levels)")
     print(f"correlation {np.corrcoef(measure, seconds)[0, 1]:.3f}; fit seconds = {intercept:.4f} + {slope:.6f} · "
           f"{args.measure}; residual s.d. {residual.std():.3f} s")
-    print(f"cost_offset = {intercept / slope:.1f} (selection.cost_measure={args.measure})")
+    print(f"evaluation_cost offset = {intercept / slope:.1f} (measure {args.measure})")
     print("correlation of the CPU seconds with each measure and work count: " + ", ".join(
         f"{name} {np.corrcoef(values, seconds)[0, 1]:.3f}" if np.std(values) > 0 else f"{name} (constant)"
         for name, values in candidates.items()))

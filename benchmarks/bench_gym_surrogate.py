@@ -371,8 +371,7 @@ def describe(result: SearchResult, seed: int) -> str:
             f"{', '.join(data.measure_names)}, occupancy {data.occupancy.shape[1]}x{data.occupancy.shape[2]}; "
             f"{len(result.per_split['two_stage'])} splits (seed {seed}), {result.train_size} train / "
             f"{result.test_size} test levels; surrogate {config.epochs} epochs, batch {config.batch_size}, "
-            f"lr {config.lr:g}, width {config.channels}, occupancy weight {config.occupancy_weight:g}, "
-            f"target scaling {config.target_scaling}")
+            f"lr {config.lr:g}, width {config.channels}, occupancy weight {config.occupancy_weight:g}")
 
 
 def main(argv: list[str] | None = None) -> list[SearchResult]:
@@ -386,7 +385,7 @@ def main(argv: list[str] | None = None) -> list[SearchResult]:
     parser.add_argument("--predict-levels", type=int, default=4096,
                         help="random levels per timed prediction (0: no prediction timing)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                        help="change a surrogate setting of every search (e.g. epochs=200, target_scaling=range; "
+                        help="change a surrogate setting of every search (e.g. epochs=200, lr=0.003; "
                              "the surrogate. prefix may be left out); kind cannot be set")
     args = parser.parse_args(argv)
     overrides = {}

@@ -8,7 +8,7 @@ levels of a dataset (``benchmarks/maze_dataset.py``), and its mean path length i
 Spearman ρ, MAE in steps and milliseconds per level. Beside them, on the same levels: the optimal path length's ρ,
 and a full evaluation's milliseconds per level (``--full`` levels evaluated one at a time, as a run does), so that
 the last lines print what a screened level costs as a share of an evaluation. With ``--precision fp32,bf16`` each
-episode count is screened in both (``selection.screen_precision``: bf16 plays the agent's reduced-precision copy,
+episode count is screened in both (``experimental.screen_precision``: bf16 plays the agent's reduced-precision copy,
 where it has one). The dataset must hold the same agent's measurements (``maze_dataset.py from-run`` of a run of
 that agent).
 """
@@ -41,7 +41,7 @@ def main(argv: list[str] | None = None) -> dict[str, dict[str, float]]:
     parser.add_argument("--full", type=int, default=100, help="levels given a full evaluation, for its cost")
     parser.add_argument("--full-episodes", type=int, default=50, help="episodes of a full evaluation")
     parser.add_argument("--precision", default="fp32",
-                        help="comma-separated screen precisions, fp32 and/or bf16 (selection.screen_precision)")
+                        help="comma-separated screen precisions, fp32 and/or bf16 (experimental.screen_precision)")
     parser.add_argument("--seed", type=int, default=1000)
     args = parser.parse_args(argv)
 

@@ -52,6 +52,7 @@ from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.domains.maze.plugin import MazeConfig
 from dsage_ray.qd.archives import make_archive
 from dsage_ray.surrogate import Surrogate
+from dsage_ray.surrogate import surrogate as surrogate_module
 from dsage_ray.surrogate.surrogate import native_cpu_bf16
 from dsage_ray.surrogate.models import pad_to_power_of_two
 from dsage_ray.types import EvaluationResult
@@ -108,7 +109,8 @@ def conv_stack(layers: int) -> Callable[[torch.Tensor], torch.Tensor]:
 
 
 def bench_inference(*, batch: int, repeats: int, calls: int) -> None:
-    config = SurrogateConfig(device="cpu", predict_batch_size=max(batch, 1), precision="fp32")
+    surrogate_module.PREDICT_BATCH_SIZE = max(batch, 1)  # one chunk per timed call
+    config = SurrogateConfig(device="cpu", precision="fp32")
     surrogate = Surrogate(kind="two_stage", input_channels=CHANNELS, input_shape=(SIZE, SIZE),
                           occupancy_shape=(SIZE, SIZE), num_measures=NUM_MEASURES, config=config, seed=0)
     levels = maze_levels(batch)
@@ -154,8 +156,8 @@ def bench_precision(*, batch: int, repeats: int, calls: int, threads: list[int],
     start = time.perf_counter()
     results = [domain.evaluate(solution, seed=i) for i, solution in enumerate(solutions[:fit_levels + heldout_levels])]
     evaluate_s = time.perf_counter() - start
-    config = SurrogateConfig(device="cpu", epochs=fit_epochs, batch_size=32, predict_batch_size=max(batch, 1),
-                             precision="fp32")
+    surrogate_module.PREDICT_BATCH_SIZE = max(batch, 1)  # one chunk per timed call
+    config = SurrogateConfig(device="cpu", epochs=fit_epochs, batch_size=32, precision="fp32")
     surrogate = Surrogate(kind="two_stage", input_channels=domain.encoding_channels, input_shape=encoded.shape[2:],
                           occupancy_shape=domain.occupancy_shape, num_measures=len(domain.measure_names),
                           config=config, seed=0)
@@ -220,7 +222,7 @@ def bench_run_precision(run, *, levels: int) -> None:
     state = load_checkpoint(Path(run) / CHECKPOINT_NAME)
     config = RunConfig.build(state["config"])
     if state.get("surrogate") is None or not state.get("holdout"):
-        raise SystemExit(f"{run}: needs a surrogate run with held-out levels (surrogate.holdout_levels > 0)")
+        raise SystemExit(f"{run}: needs a surrogate run with held-out levels (experimental.holdout_levels > 0)")
     domain = build_domain(config)
 
     def encode(solutions):
@@ -293,8 +295,7 @@ def setting_table(settings: list[str], *, threads: int, batch: int, repeats: int
         domain = MazeDomain(config=config.maze)
         encoded = pad_to_power_of_two(domain.encode(walls), domain.encoding_pad_channel)
         # One epoch per train() call; the epoch count and window are the replay's business.
-        train_config = dataclasses.replace(config.surrogate, device="cpu", epochs=1, incremental_epochs=0,
-                                           train_window=train_samples)
+        train_config = dataclasses.replace(config.surrogate, device="cpu", epochs=1, train_window=train_samples)
         surrogate = Surrogate.for_domain(domain, config=train_config, seed=0)
         dataset = surrogate.make_dataset()
         dataset.append(encoded=encoded[:train_samples], results=[

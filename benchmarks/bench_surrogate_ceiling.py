@@ -32,7 +32,7 @@ Usage:
     python benchmarks/bench_surrogate_ceiling.py --data FILE.npz [--sizes 200,400,800,1600] [--splits 3] [--inits 3]
     python benchmarks/bench_surrogate_ceiling.py RUN_FOLDER [--retest 300]
     python benchmarks/bench_surrogate_ceiling.py --data FILE.npz --setting cpu: \\
-        --setting dist:bench.distance_fields=true --setting dil:dilations=[1,2,4]
+        --setting dist:bench.distance_fields=true
 
 Benchmark-only keys of a setting (other keys are the run config's; ``surrogate.`` may be left out):
 
@@ -212,7 +212,7 @@ class Setting:
             return (f"policy chain (benchmarks/policy_chain.py), {self.chain} memory mode(s), {s.epochs} epochs, "
                     f"batch {s.batch_size}, lr {s.lr:g}; predicts {PATH_LENGTH} only")
         parts = [s.kind, f"{s.epochs} epochs", f"batch {s.batch_size}", f"channels {s.channels}",
-                 f"dilations {list(s.dilations)}", f"path channels {self.config.maze.path_channels}"]
+                 f"path channels {self.config.maze.path_channels}"]
         if s.occupancy_sum_measure:
             parts.append(f"{s.occupancy_sum_measure} = occupancy sum")
         if self.distance_fields:
@@ -330,7 +330,6 @@ class Model:
         if setting.rotations and not (height == width and sample.shape[2:] == (height, width)):
             raise SystemExit(f"bench.rotations needs square levels that the encoding does not pad; these are "
                              f"{height}x{width}, encoded as {sample.shape[2]}x{sample.shape[3]}")
-        ranges = [(float(lo), float(hi)) for lo, hi in zip(data.measures.min(axis=0), data.measures.max(axis=0) + 1)]
         fields = DistanceFields(free_channels=(EMPTY, START, GOAL), start_channel=START, goal_channel=GOAL,
                                 norm=height * width / 2)
         statistics = LevelStatistics(fields=fields, norm=height * width / 2) if setting.level_statistics else None
@@ -341,7 +340,7 @@ class Model:
         extra = sum(module.fields for module in inputs)
         self.surrogate = Surrogate(kind=kind, input_channels=channels + extra, input_shape=tuple(sample.shape[2:]),
                                    occupancy_shape=(height, width), num_measures=len(data.measure_names),
-                                   config=config, seed=seed, measure_ranges=ranges, measure_names=data.measure_names,
+                                   config=config, seed=seed, measure_names=data.measure_names,
                                    statistics=statistics, sum_residual=setting.sum_residual,
                                    prior=walker_prior(config.prior_measure) if config.prior_measure else None)
         self.input_channels = channels
@@ -350,8 +349,7 @@ class Model:
 
             self.surrogate.model = WithInputFields(inputs, self.surrogate.model)
             self.surrogate.input_channels = channels  # what predict() and the dataset see: the one-hot level
-            self.surrogate.optimizer = torch.optim.Adam(self.surrogate.model.parameters(), lr=config.lr,
-                                                        betas=tuple(config.betas))
+            self.surrogate.optimizer = torch.optim.Adam(self.surrogate.model.parameters(), lr=config.lr)
         self.pad_channel = SPARE
 
     def encode(self, walls: np.ndarray) -> np.ndarray:

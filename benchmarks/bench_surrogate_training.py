@@ -15,7 +15,7 @@ another model chose: a fair, not identical, stand-in for the error a run with th
     python benchmarks/bench_surrogate_training.py RUN_FOLDER \
         [--setting NAME:key=value,key=value ...] [--threads 1] [--json out.json]
 
-Keys are ``surrogate.*`` keys without the prefix (``epochs=30,batch_size=64,dilations=[1,2,4]``), any
+Keys are ``surrogate.*`` keys without the prefix (``epochs=30,batch_size=64,channels=16``), any
 dotted config key (``maze.path_channels=true``: Maze levels are re-encoded from their wall channel) or
 ``seed`` (the surrogate's initialisation and minibatch order; default the run's); without ``--setting``
 the run's own settings are replayed.
@@ -67,7 +67,7 @@ def main(argv: list[str] | None = None) -> dict:
     state = load_checkpoint(args.run / CHECKPOINT_NAME)
     config = RunConfig.build(state["config"])
     if state.get("dataset") is None or not state.get("holdout"):
-        raise SystemExit(f"{args.run}: needs a surrogate run with held-out levels (surrogate.holdout_levels > 0)")
+        raise SystemExit(f"{args.run}: needs a surrogate run with held-out levels (experimental.holdout_levels > 0)")
     domain = build_domain(config)
     num_measures = len(domain.measure_names)
     stored = SurrogateDataset(level_shape=tuple(state["dataset"]["level_shape"]), num_measures=num_measures,

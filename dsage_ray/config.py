@@ -48,78 +48,71 @@ SelectionMethod = Literal["downsample", "random", "full"]
 SurrogateKind = Literal["two_stage", "one_stage", "none"]
 #: Surrogate prediction arithmetic.
 Precision = Literal["auto", "fp32", "bf16"]
-#: How the surrogate scales measure targets (:class:`SurrogateConfig`).
-TargetScaling = Literal["none", "range"]
+
+
+def key(default: Any, *, status: str, values: str = "", note: str = "") -> Any:
+    """A config field with what ``dsage-ray config`` and docs/CONFIG.md say about it.
+
+    Args:
+        default: The default value (a tuple stays immutable; no factory needed).
+        status: ``paper`` (the paper's algorithm or value), ``tool`` (how the tool runs, not the search),
+            ``default-on`` (beyond the paper, on in the presets or audits that ``note`` names) or
+            ``experimental`` (beyond the paper and off; ``note`` gives its measured effect).
+        values: The values it takes, where its type does not say (``>= 1``, ``(0, 1]``).
+        note: One line: what it does, and where measured, what it did.
+    """
+    return dataclasses.field(default=default, metadata={"status": status, "values": values, "note": note})
 
 
 @dataclasses.dataclass
 class SurrogateConfig:
     """The deep surrogate model (SPEC §4)."""
 
-    #: ``two_stage`` (ancillary occupancy), ``one_stage`` (no ancillary data) or ``none`` (plain QD).
-    kind: SurrogateKind = "two_stage"
-    epochs: int = 200
-    batch_size: int = 64
-    lr: float = 1e-3
-    betas: tuple[float, float] = (0.9, 0.999)
-    occupancy_weight: float = 10.0
-    train_window: int = 20_000
-    predict_batch_size: int = 4096
-    device: str = "auto"
+    kind: SurrogateKind = key("two_stage", status="paper",
+                              note="two_stage predicts the agent's occupancy first (ancillary data); none: plain QD")
+    epochs: int = key(200, status="paper", values=">= 1", note="epochs of each training on the recent window")
+    batch_size: int = key(64, status="paper", values=">= 1")
+    lr: float = key(1e-3, status="paper", values="> 0", note="Adam's learning rate")
+    occupancy_weight: float = key(10.0, status="paper", values=">= 0",
+                                  note="weight of the occupancy loss in the two-stage model's loss")
+    train_window: int = key(20_000, status="paper", values=">= 1", note="the most recent evaluations trained on")
+    #: Width of the networks (the first convolution of both predictors); 64 is the paper's. The residual
+    #: blocks' cost grows as its square (benchmarks/bench_surrogate.py prints FLOPs and predictions/s).
+    channels: int = key(64, status="paper", values=">= 1",
+                        note="network width; 16 costs a quarter of 64's time for 5% QD-score (equal_compute §1)")
     #: Prediction arithmetic: ``fp32``, ``bf16`` (the two-stage model's residual blocks, most of its work,
     #: under bf16 autocast) or ``auto`` (bf16 on CUDA and on CPUs with native bf16, else fp32). Training is
     #: always fp32. ``auto`` resolves per machine, as ``device`` does.
-    precision: Precision = "auto"
-    #: Random valid levels evaluated once, outside the budget, to score the surrogate on levels it
-    #: never trains on (``holdout_*`` metrics each outer iteration); 0 turns it off.
-    holdout_levels: int = 0
-    #: ``none`` (the paper: raw targets) or ``range``: each measure head learns its value mapped from the
-    #: domain's measure range onto [0, 1], so every head weighs alike in the loss (raw, a 0-648 path
-    #: length outweighs everything else by orders of magnitude). Predictions come back in raw units.
-    target_scaling: TargetScaling = "none"
-    #: Share of the training window held out each outer iteration for early stopping; 0 (the paper)
-    #: trains every ``epochs`` on the whole window.
-    validation_fraction: float = 0.0
-    #: Early stopping: stop after this many epochs without a lower validation loss and keep the
-    #: best epoch's weights (needs ``validation_fraction > 0``).
-    patience: int = 5
-    #: Name of a measure that equals the sum of the occupancy grid (Maze: ``mean_path_length``, since
-    #: the grid counts the agent's steps); a two-stage surrogate then predicts it as the sum of its
-    #: predicted occupancy instead of with its own head. Empty (the paper): every measure has a head.
-    occupancy_sum_measure: str = ""
-    #: Name of a measure the domain has a parameter-free prior for (Maze: ``mean_path_length``, the expected
-    #: steps of a uniform random walker from the start to the goal). Its prediction is then the mean of the
-    #: network's and the prior's, the prior mapped to the measure by a least-squares line on
-    #: ``log(1 + prior)`` fitted to the training window after each training. Empty (the paper): the network alone.
-    prior_measure: str = ""
-    #: Take the measures (and objective) that are functions of the level alone from the level itself, not from
-    #: the network (Maze: ``num_walls``, ``optimal_path_length`` and the ``validity`` objective; Mario: ``sky_tiles``),
-    #: through the domain's ``level_values``. The network still trains on them. Off (the paper): everything is
-    #: predicted, so a pick can land a few wall counts away from the cell the inner loop chose it for. Maze audits
-    #: turn it on (their default measures are both properties of the level).
-    exact_level_values: bool = False
-    #: Width of the networks (the first convolution of both predictors); 64 is the paper's. The residual
-    #: blocks' cost grows as its square (benchmarks/bench_surrogate.py prints FLOPs and predictions/s).
-    channels: int = 64
-    #: The occupancy predictor's residual blocks, one per entry, each entry its convolutions' dilation.
-    #: ``(1, 1)`` is the paper's (an 11×11 receptive field); ``(1, 2, 4)`` sees 31×31 cells.
-    dilations: tuple[int, ...] = (1, 1)
-    #: Epochs of every training after the first, which trains ``epochs`` (the weights and Adam state
-    #: persist, so later trainings start from a fitted model); 0 (the paper): always ``epochs``.
-    incremental_epochs: int = 0
+    precision: Precision = key("auto", status="default-on",
+                               note="prediction arithmetic; auto: bf16 where the CPU or GPU has it, else fp32")
+    device: str = key("auto", status="tool", values="auto, cpu, cuda, cuda:N",
+                      note="where the surrogate trains and predicts; auto: CUDA when available")
     #: Warm start (beyond the paper): a file of ``dsage-ray surrogate pretrain``, or an earlier surrogate
     #: run, audit or trial folder (or its ``checkpoint.dsage``). Its weights start this run's surrogate and
     #: the first outer iteration exploits them instead of evaluating ``n_rand`` random levels
     #: (:mod:`dsage_ray.core.warm_start`). Empty: a cold start (the paper). Made absolute when the
     #: config is built (Tune trials run in their own folder).
-    init: str = ""
-    #: With ``init``: its dataset becomes the oldest part of this run's dataset, so it weighs in the first
-    #: trainings and leaves the ``train_window`` as this run's evaluations arrive. Off: weights only.
-    init_prior: bool = True
-    #: With ``init``: the first outer iteration evaluates at most this many of its picks (a random subset,
-    #: drawn from the run's rng), so the surrogate retrains on this run's agent after a small batch instead
-    #: of spending a large share of the budget on the source's model. 0: every pick.
-    init_first_picks: int = 0
+    init: str = key("", status="default-on", values="PATH or empty",
+                    note="warm start from a pretrained surrogate or an earlier run (audit-series uses it)")
+    #: Take the measures (and objective) that are functions of the level alone from the level itself, not from
+    #: the network (Maze: ``num_walls``, ``optimal_path_length`` and the ``validity`` objective; Mario: ``sky_tiles``),
+    #: through the domain's ``level_values``. The network still trains on them. Off (the paper): everything is
+    #: predicted, so a pick can land a few wall counts away from the cell the inner loop chose it for.
+    exact_level_values: bool = key(False, status="default-on",
+                                   note="take measures a level fixes by itself from the level (audits; equal_compute §11)")
+    #: Name of a measure that equals the sum of the occupancy grid (Maze: ``mean_path_length``, since
+    #: the grid counts the agent's steps); a two-stage surrogate then predicts it as the sum of its
+    #: predicted occupancy instead of with its own head. Empty (the paper): every measure has a head.
+    occupancy_sum_measure: str = key("", status="default-on", values="a measure name or empty",
+                                     note="predict this measure as the predicted occupancy's sum (Maze cpu preset: "
+                                          "QD-score 1,597 ± 17.5 against 1,423.7 ± 24.7)")
+    #: Name of a measure the domain has a parameter-free prior for (Maze: ``mean_path_length``, the expected
+    #: steps of a uniform random walker from the start to the goal). Its prediction is then the mean of the
+    #: network's and the prior's, the prior mapped to the measure by a least-squares line on
+    #: ``log(1 + prior)`` fitted to the training window after each training. Empty (the paper): the network alone.
+    prior_measure: str = key("", status="default-on", values="a measure name or empty",
+                             note="blend this measure's prediction with the domain's prior (Maze cpu preset: "
+                                  "30% lower error on the picks)")
 
 
 @dataclasses.dataclass
@@ -129,147 +122,152 @@ class QDConfig:
     #: ``map_elites`` (discrete bitmaps), ``cma_me`` (continuous latents), ``random`` (DR), or for continuous
     #: vectors in a box (the domain's ``solution_bounds``, else [-1, 1]): ``gaussian`` (MAP-Elites with Gaussian
     #: mutation of ``sigma0``), ``halton`` (quasi-random samples) or ``cross_entropy`` (a cross-entropy falsifier).
-    emitter: EmitterName = "map_elites"
-    num_emitters: int = 5
-    batch_size: int = 30
-    #: MAP-Elites: cells mutated per offspring; batches of uniform random solutions before mutating.
-    mutation_cells: int = 10
-    initial_random_batches: int = 4
+    emitter: EmitterName = key("map_elites", status="paper", note="the QD search, in the inner loop or alone")
+    num_emitters: int = key(5, status="paper", values=">= 1")
+    batch_size: int = key(30, status="paper", values=">= 1", note="solutions each emitter asks for per step")
+    #: MAP-Elites: cells mutated per offspring.
+    mutation_cells: int = key(10, status="paper", values=">= 1", note="MAP-Elites: tiles changed per mutation")
     #: CMA-ME's initial step size; ``gaussian``'s mutation std.
-    sigma0: float = 0.2
-    ranker: str = "2imp"
+    sigma0: float = key(0.2, status="paper", values="> 0", note="CMA-ME's initial step; the Gaussian mutation's std")
     #: Inner-loop iterations (N_exploit) per outer iteration.
-    exploit_iterations: int = 10_000
+    exploit_iterations: int = key(10_000, status="paper", values=">= 1", note="inner-loop steps per outer iteration")
 
 
 @dataclasses.dataclass
 class SelectionConfig:
     """Which surrogate elites get a real evaluation."""
 
-    #: ``downsample``, ``random`` or ``full``.
-    method: SelectionMethod = "downsample"
+    method: SelectionMethod = key("downsample", status="paper", note="how picks are taken from the surrogate archive")
     #: Downsampling block in archive cells per measure.
-    block: tuple[int, ...] = (8, 6)
+    block: tuple[int, ...] = key((8, 6), status="paper", values="one size per measure",
+                                 note="downsampling block, in archive cells per measure")
     #: ``random``: how many elites to pick.
-    count: int = 432
-    #: Drop picks predicted to land in a ground-truth cell that already holds an objective at least
-    #: as high (the ``dsage_novel`` variant; see :func:`dsage_ray.qd.selection.skip_filled`).
-    skip_filled: bool = False
-    #: In each downsampling block, pick uniformly among the elites predicted to land in a cell the
-    #: ground-truth archive does not hold yet, where the block has any (not in the paper). Where the
-    #: measures are exact (``surrogate.exact_level_values``, e.g. the default Maze audit), "predicted" is
-    #: exact too, and a pick is never spent on a cell the search has already filled while the block has
-    #: an empty one.
-    prefer_new_cells: bool = False
-    #: In each downsampling block, pick the elite expected to add most QD-score, judged by the
-    #: surrogate's errors on recent picks, instead of a uniform one (the ``dsage_gain`` variant; see
-    #: :mod:`dsage_ray.qd.gain`). The first selection goes by the surrogate's errors on the random first levels.
-    expected_gain: bool = False
-    #: ``expected_gain``: drop a block's pick expected to add less QD-score than this.
-    min_gain: float = 0.0
-    #: ``expected_gain`` and ``screen_gain``: how many of the latest evaluated picks' errors are kept.
-    gain_window: int = 1000
-    #: ``expected_gain`` and ``screen_gain``: how many of them, nearest in predicted (or screened) measures, lend a
-    #: candidate their errors.
-    gain_neighbours: int = 64
-    #: ``expected_gain`` and ``screen_gain``: a measure an evaluation's cost grows with in proportion, one of the
-    #: domain's work counts (Maze ``steps``, Mario ``search_iterations``), or ``occupancy``: the occupancy sum (the
-    #: agent's time in the level; ``expected_gain`` takes each candidate's own as the two-stage surrogate predicts
-    #: it). The gain is then counted per evaluation of average cost ("": every evaluation costs the same).
-    cost_measure: str = ""
-    #: ``cost_measure``: an evaluation's cost at 0, in that measure's or count's units (must be > 0).
-    cost_offset: float = 1.0
+    count: int = key(432, status="paper", values=">= 1", note="random selection: how many elites")
     #: Each outer iteration after the first, also evaluate this many mutants of the ground-truth archive's best
-    #: elites (``elite_share``), beside the surrogate's picks (not in the paper; :mod:`dsage_ray.qd.mutants`).
-    #: The mutation is MAP-Elites' (``qd.mutation_cells``) for bitmaps, Gaussian (``qd.sigma0``, clipped to the
-    #: domain's ``solution_bounds``) for the continuous emitters' vectors. An audit's never-solved levels are the
-    #: best elites, and a mutant of one is often never solved too, which the surrogate cannot predict within a cell.
-    #: 0 (the paper): only the surrogate's picks.
-    elite_mutants: int = 0
-    #: ``elite_mutants``: the parents are drawn uniformly among this share of the ground-truth elites, the
-    #: best by objective (ties with the last one included).
-    elite_share: float = 0.05
+    #: elites (``experimental.elite_share``), beside the surrogate's picks (not in the paper;
+    #: :mod:`dsage_ray.qd.mutants`). The mutation is MAP-Elites' (``qd.mutation_cells``) for bitmaps, Gaussian
+    #: (``qd.sigma0``, clipped to the domain's ``solution_bounds``) for the continuous emitters' vectors. An audit's
+    #: never-solved levels are the best elites, and a mutant of one is often never solved too, which the surrogate
+    #: cannot predict within a cell. 0 (the paper): only the surrogate's picks.
+    elite_mutants: int = key(0, status="default-on", values=">= 0",
+                             note="mutants of the best elites beside the picks (audits; equal_compute §13)")
     #: Before the real evaluation, screen the picks and more candidates with this many episodes each (the domain's
     #: ``screen``: Maze only) and evaluate, up to the selection's size, those whose screened result adds to the
     #: ground truth (not in the paper; :mod:`dsage_ray.qd.screen`). MAP-Elites (``qd.emitter = "map_elites"``
     #: without a surrogate) screens mutants of its elites instead, once its random start-up is over. 0 (the
     #: paper): evaluate the picks as chosen.
-    screen_episodes: int = 0
-    #: ``screen_episodes``: candidates screened per pick (the picks, then other elites predicted to add), or per
-    #: level of a MAP-Elites batch.
-    screen_pool: float = 4.0
-    #: ``screen_episodes``: the agent's arithmetic in the screen. ``fp32``: the agent as it is evaluated; ``bf16``:
-    #: its matrix products in bf16, where the agent has such a copy (``Agent.reduced_precision``: the ``dcd``
-    #: agents; others screen as they are); ``auto``: bf16 on a CPU with native bf16 arithmetic, else fp32. A
-    #: screen is an estimate, so its actions may differ from the agent's now and then; evaluations always run
-    #: the agent as it is.
-    screen_precision: Precision = "auto"
-    #: ``screen_episodes``: keep the screened candidates expected to add most to the ground truth, judged by the
-    #: screen's errors on recently evaluated levels (``gain_window`` of them; each candidate takes the errors of
-    #: the ``gain_neighbours`` nearest in screened measures), instead of those whose screened cell alone would add,
-    #: in the order screened (not in the paper; :func:`dsage_ray.qd.screen.keep_screened`). With a
-    #: ``cost_measure``, by expected gain per expected cost.
-    screen_gain: bool = False
+    screen_episodes: int = key(0, status="default-on", values=">= 0",
+                               note="play candidates this many episodes before evaluating (Maze cpu preset; "
+                                    "equal_compute §15-17)")
+    #: With ``screen_episodes``: keep the screened candidates expected to add most to the ground truth per expected
+    #: cost, judged by the screen's errors on recently evaluated levels and the domain's cost model
+    #: (``evaluation_cost`` of its config section: Maze's grows with the mean path length), instead of those whose
+    #: screened cell alone would add, in the order screened (not in the paper; :func:`dsage_ray.qd.screen.keep_screened`).
+    screen_gain: bool = key(False, status="default-on",
+                            note="rank screened candidates by expected gain per cost (Maze cpu preset; "
+                                 "equal_compute §16: 1.31× MAP-Elites at equal CPU time)")
 
 
 @dataclasses.dataclass
 class RayConfig:
     """How a run uses Ray (ignored by the in-process runner): simulator actors and the trial's resources."""
 
-    #: Simulator actors in the pool (``0``: evaluate in the trial process itself).
-    num_workers: int = 2
-    #: Logical CPUs each simulator actor reserves (its placement-group bundle).
-    cpus_per_worker: float = 0.5
-    #: Logical CPUs the trial itself reserves (surrogate training and the inner loop).
-    trial_cpus: float = 1.0
-    #: Solutions per pool task; 0 (default) picks ~8 chunks per actor per batch, 1 spreads
-    #: uneven episodes best, larger amortises Ray's per-task round trip.
-    chunk_size: int = 0
-    #: Seconds to wait for the simulators' resources before failing instead of hanging.
-    placement_timeout_s: float = 120.0
+    num_workers: int = key(2, status="tool", values=">= 0",
+                           note="simulator actors in the pool (0: evaluate in the trial process)")
+    cpus_per_worker: float = key(0.5, status="tool", values="> 0", note="logical CPUs each simulator actor reserves")
+    trial_cpus: float = key(1.0, status="tool", values="> 0",
+                            note="logical CPUs the trial reserves (surrogate training and the inner loop)")
+
+
+@dataclasses.dataclass
+class ExperimentalConfig:
+    """Beyond the paper and off by default: each was measured, and none is a clear win where it was tried.
+
+    ``dsage-ray config --experimental`` lists them with what they did; docs/CONFIG.md links the measurements.
+    """
+
+    #: Random valid levels evaluated once, outside the budget, to score the surrogate on levels it
+    #: never trains on (``holdout_*`` metrics each outer iteration); 0 turns it off.
+    holdout_levels: int = key(0, status="experimental", values=">= 0",
+                              note="levels held out to score the surrogate each iteration; a diagnostic, "
+                                   "+5% evaluations at 100 (surrogate_accuracy)")
+    #: With ``surrogate.init``: its dataset becomes the oldest part of this run's dataset, so it weighs in the first
+    #: trainings and leaves the ``train_window`` as this run's evaluations arrive. Off: weights only.
+    init_prior: bool = key(True, status="experimental",
+                           note="with surrogate.init, also train on the source's levels; every measured warm start had it on")
+    #: ``selection.elite_mutants``: the parents are drawn uniformly among this share of the ground-truth elites,
+    #: the best by objective (ties with the last one included).
+    elite_share: float = key(0.05, status="experimental", values="(0, 1]",
+                             note="share of best elites the mutants' parents come from (tuned on one seed)")
+    #: ``selection.screen_episodes``: candidates screened per pick (the picks, then other elites predicted to add),
+    #: or per level of a MAP-Elites batch.
+    screen_pool: float = key(4.0, status="experimental", values=">= 1",
+                             note="candidates screened per pick; 3 and 6 level with 4 (equal_compute §17)")
+    #: ``selection.screen_episodes``: the agent's arithmetic in the screen. ``fp32``: the agent as it is
+    #: evaluated; ``bf16``: its matrix products in bf16, where the agent has such a copy
+    #: (``Agent.reduced_precision``: the ``dcd`` agents); ``auto``: bf16 on a CPU with native bf16 arithmetic,
+    #: else fp32. Evaluations always run the agent as it is.
+    screen_precision: Precision = key("auto", status="experimental",
+                                      note="the screen's agent arithmetic; bf16 cut the screen's share 6.7% → 4.8% "
+                                           "(equal_compute §17)")
+    #: ``selection.screen_gain``: how many of the latest evaluated levels' screen errors are kept.
+    gain_window: int = key(1000, status="experimental", values=">= 1",
+                           note="screen_gain: recent levels whose screen errors are kept (not tuned)")
+    #: ``selection.screen_gain``: how many of them, nearest in screened measures, lend a candidate their errors.
+    gain_neighbours: int = key(64, status="experimental", values=">= 1",
+                               note="screen_gain: nearest levels lending a candidate their errors (not tuned)")
+    #: Solutions per pool task; 0 picks ~8 chunks per actor per batch, 1 spreads uneven episodes best, larger
+    #: amortises Ray's per-task round trip.
+    chunk_size: int = key(0, status="experimental", values=">= 0 (0: automatic)",
+                          note="solutions per Ray pool task (performance)")
 
 
 @dataclasses.dataclass
 class RunConfig:
     """Everything one DSAGE run needs; serialisable to JSON/TOML and back."""
 
-    name: str = "dsage"
-    domain: str = "maze"
-    variant: str = "dsage"
-    preset: str = "paper"
-    seed: int = 0
+    name: str = key("dsage", status="tool", values="a relative folder name",
+                    note="the run's folder under tb_logs/ (or --out)")
+    domain: str = key("maze", status="tool", values="a registered domain", note="maze, mario, gym, or a plug-in's")
+    variant: str = key("dsage", status="paper", values="a variant of the domain",
+                       note="the search: dsage, its ablations, or a baseline (sets other keys)")
+    preset: str = key("paper", status="tool", values="a preset of the domain",
+                      note="the scale: paper, cpu, demo or tiny (sets other keys)")
+    seed: int = key(0, status="tool", note="the run's seed; the same seed and config give the same archive")
     #: Total real evaluations.
-    budget: int = 100_000
+    budget: int = key(100_000, status="paper", values=">= 1", note="real evaluations")
     #: Seconds of wall time the run may spend stepping, cumulative across resumes; 0: no limit. Whichever
     #: of ``budget`` and ``time_budget`` is reached first ends the run at a clean checkpoint; a time budget
-    #: that runs out during an evaluation stops the batch there (the levels under way finish). Where a time budget ends a run depends on the machine
-    #: and its load, so such a run is not reproducible; an evaluation-budget run is. Raising it and
-    #: resuming continues the run (the only key a resume may change).
-    time_budget: float = 0.0
+    #: that runs out during an evaluation stops the batch there (the levels under way finish). Where a time
+    #: budget ends a run depends on the machine and its load, so such a run is not reproducible; an
+    #: evaluation-budget run is. Raising it and resuming continues the run (the only key a resume may change).
+    time_budget: float = key(0.0, status="tool", values=">= 0 seconds (0: none)",
+                             note="also stop after this much stepping time (--time-budget 10m)")
     #: Random solutions evaluated in outer iteration 1.
-    n_rand: int = 100
-    #: Outer iterations between checkpoints / TensorBoard images.
-    checkpoint_every: int = 1
-    image_every: int = 5
-    #: Elite levels (spread along the first measure) rendered to TensorBoard with each heatmap.
-    image_levels: int = 4
+    n_rand: int = key(100, status="paper", values=">= 1", note="random levels evaluated first")
+    #: Outer iterations between TensorBoard images (heatmaps and elite levels); 0: none.
+    image_every: int = key(5, status="tool", values=">= 0 (0: none)",
+                           note="outer iterations between TensorBoard images")
     #: Torch threads of the process running the outer loop (surrogate training and predictions),
     #: pinned during every outer iteration in every mode (``--local``, a Tune trial, a resumed run).
     #: A float sum split over more threads rounds differently, so the count is part of the run's
     #: config, never taken from the machine. A lone Tune trial may use every CPU of its placement
     #: group: its surrogate phases never overlap its simulators' evaluations.
-    torch_threads: int = 1
+    torch_threads: int = key(1, status="tool", values=">= 1",
+                             note="torch threads of the surrogate (part of the config: it changes the rounding)")
     #: Pipelined outer loop (DSAGE only): while iteration k's picks are evaluated, the surrogate trains on
     #: the evaluations up to iteration k-1 and picks iteration k+1's levels. With simulators in other
     #: processes (the Ray pool) the two overlap, so the surrogate's time hides behind the simulators'; in
     #: one process they run one after the other. Either way a run computes the same thing, so a seed
     #: gives the same archive in-process and through Tune. The price: each selection is made by a
     #: surrogate one batch behind.
-    pipeline: bool = False
+    pipeline: bool = key(False, status="default-on",
+                         note="train and pick while the last picks are evaluated (equal_compute §7)")
     surrogate: SurrogateConfig = dataclasses.field(default_factory=SurrogateConfig)
     qd: QDConfig = dataclasses.field(default_factory=QDConfig)
     selection: SelectionConfig = dataclasses.field(default_factory=SelectionConfig)
     ray: RayConfig = dataclasses.field(default_factory=RayConfig)
+    experimental: ExperimentalConfig = dataclasses.field(default_factory=ExperimentalConfig)
     #: Domain sections by domain name (``config.maze`` reads ``sections["maze"]``): the run's own
     #: domain always, any other registered domain only when a key of its section was given. Each is
     #: the dataclass its registration names (:class:`dsage_ray.domains.registry.DomainSpec`).
@@ -302,8 +300,8 @@ class RunConfig:
     @classmethod
     def build(cls, values: Mapping[str, Any] | None = None, **kwargs: Any) -> "RunConfig":
         """Builds a validated config from flat (dotted) or nested values plus keyword overrides."""
-        explicit = flatten(dict(values or {}))
-        explicit.update(flatten(kwargs))
+        explicit = upgrade_keys(flatten(dict(values or {})))
+        explicit.update(upgrade_keys(flatten(kwargs)))
         # Built with its domain, so only that domain's section (and registration) is ever loaded.
         base = cls(**{key: _coerce(key, explicit[key], _field_types(cls)[key])
                       for key in ("domain", "preset", "variant") if key in explicit})
@@ -401,20 +399,13 @@ class RunConfig:
         need(self.n_rand >= 1, "n_rand", "must be positive")
         need(self.budget >= self.n_rand or not self.uses_surrogate, "budget",
              f"must be at least n_rand={self.n_rand} (the first outer iteration evaluates n_rand solutions)")
-        need(self.checkpoint_every >= 1, "checkpoint_every", "must be positive")
-        need(self.image_every >= 1, "image_every", "must be positive")
-        need(self.image_levels >= 0, "image_levels", "must be >= 0")
+        need(self.image_every >= 0, "image_every", "must be >= 0 (0: no images)")
         need(self.torch_threads >= 1, "torch_threads", "must be positive")
-        for key in ("epochs", "batch_size", "train_window", "predict_batch_size", "channels"):
+        for key in ("epochs", "batch_size", "train_window", "channels"):
             need(getattr(self.surrogate, key) >= 1, f"surrogate.{key}", "must be positive")
-        need(all(d >= 1 for d in self.surrogate.dilations), "surrogate.dilations", "each dilation must be >= 1")
-        need(self.surrogate.incremental_epochs >= 0, "surrogate.incremental_epochs", "must be >= 0 (0: epochs)")
         need(self.surrogate.lr > 0, "surrogate.lr", "must be positive")
-        need(self.surrogate.holdout_levels >= 0, "surrogate.holdout_levels", "must be >= 0 (0: off)")
-        need(self.surrogate.init_first_picks >= 0, "surrogate.init_first_picks", "must be >= 0 (0: every pick)")
-        need(0.0 <= self.surrogate.validation_fraction < 1.0, "surrogate.validation_fraction",
-             "must be in [0, 1) (0: no early stopping)")
-        need(self.surrogate.patience >= 1, "surrogate.patience", "must be positive")
+        need(self.surrogate.occupancy_weight >= 0, "surrogate.occupancy_weight", "must be >= 0")
+        need(self.experimental.holdout_levels >= 0, "experimental.holdout_levels", "must be >= 0 (0: off)")
         need(not self.surrogate.init or self.uses_surrogate, "surrogate.init",
              "a warm start needs a surrogate (this variant runs without one)")
         need(not self.surrogate.occupancy_sum_measure or self.surrogate.kind != "one_stage",
@@ -426,53 +417,33 @@ class RunConfig:
         need(not self.surrogate.prior_measure or measure_names is None
              or self.surrogate.prior_measure in measure_names, "surrogate.prior_measure",
              f"{self.surrogate.prior_measure!r} is not one of the measures {list(measure_names or [])}")
-        # Only expected_gain reads the cost model: a run without it may set one its measures lack.
-        work_names = [*getattr(self.sections[self.domain], "work_names", ()), OCCUPANCY_COST]
-        need(not self.selection.expected_gain or self.selection.cost_measure != OCCUPANCY_COST
-             or self.surrogate.kind == "two_stage", "selection.cost_measure",
-             "'occupancy' is the two-stage surrogate's predicted occupancy sum; this surrogate predicts none")
-        need(not self.selection.expected_gain or not self.selection.cost_measure or measure_names is None
-             or self.selection.cost_measure in [*measure_names, *work_names], "selection.cost_measure",
-             f"{self.selection.cost_measure!r} is neither one of the measures {list(measure_names or [])} nor one "
-             f"of the work counts {work_names}; set it to one an evaluation's cost grows with, or to '' (every "
-             "evaluation costs the same)")
         for key in ("num_emitters", "batch_size", "exploit_iterations", "mutation_cells"):
             need(getattr(self.qd, key) >= 1, f"qd.{key}", "must be positive")
         need(self.qd.sigma0 > 0, "qd.sigma0", "must be positive")
         need(self.selection.count >= 1, "selection.count", "must be positive")
         need(self.uses_surrogate or not self.pipeline, "pipeline",
              "pipelines the surrogate's phases with the evaluations; this variant has no surrogate")
-        for key in ("skip_filled", "expected_gain", "prefer_new_cells"):
-            need(self.uses_surrogate or not getattr(self.selection, key), f"selection.{key}",
-                 "needs a surrogate (surrogate.kind = 'none' selects nothing)")
-        for key in ("expected_gain", "prefer_new_cells"):
-            need(self.selection.method == "downsample" or not getattr(self.selection, key), f"selection.{key}",
-                 f"chooses within downsampling blocks; selection.method is {self.selection.method!r}")
-        need(not (self.selection.prefer_new_cells and self.selection.expected_gain), "selection.prefer_new_cells",
-             "and selection.expected_gain both choose within each block; set one of them")
         need(self.selection.elite_mutants >= 0, "selection.elite_mutants", "must be >= 0 (0: none)")
         need(self.uses_surrogate or not self.selection.elite_mutants, "selection.elite_mutants",
              "adds mutants to a surrogate's picks; this variant's QD search mutates its elites already")
         need(self.mutates_elites or not self.selection.elite_mutants, "selection.elite_mutants",
              f"mutates with qd.emitter's operator; {self.qd.emitter!r} has none (use "
              f"{' or '.join(typing.get_args(MutatingEmitter))})")
-        need(0.0 < self.selection.elite_share <= 1.0, "selection.elite_share", "must be in (0, 1]")
+        need(0.0 < self.experimental.elite_share <= 1.0, "experimental.elite_share", "must be in (0, 1]")
         need(self.selection.screen_episodes >= 0, "selection.screen_episodes", "must be >= 0 (0: no screen)")
         need(self.uses_surrogate or self.qd.emitter == "map_elites" or not self.selection.screen_episodes,
              "selection.screen_episodes", f"screens a surrogate's picks, or MAP-Elites' mutants; qd.emitter "
              f"{self.qd.emitter!r} without a surrogate adapts to every level it asked for")
-        need(self.selection.screen_pool >= 1, "selection.screen_pool", "must be >= 1 (candidates screened per pick)")
+        need(self.experimental.screen_pool >= 1, "experimental.screen_pool",
+             "must be >= 1 (candidates screened per pick)")
         need(self.selection.screen_episodes > 0 or not self.selection.screen_gain, "selection.screen_gain",
              "ranks screened candidates; set selection.screen_episodes > 0 to screen, or screen_gain = false")
-        need(self.selection.min_gain >= 0, "selection.min_gain", "must be >= 0 (0: keep every block's pick)")
-        need(self.selection.gain_window >= 1, "selection.gain_window", "must be positive")
-        need(self.selection.gain_neighbours >= 1, "selection.gain_neighbours", "must be positive")
-        need(self.selection.cost_offset > 0, "selection.cost_offset", "must be positive")
+        need(self.experimental.gain_window >= 1, "experimental.gain_window", "must be positive")
+        need(self.experimental.gain_neighbours >= 1, "experimental.gain_neighbours", "must be positive")
         need(self.ray.num_workers >= 0, "ray.num_workers", "must be >= 0")
         need(self.ray.cpus_per_worker > 0, "ray.cpus_per_worker", "must be positive")
         need(self.ray.trial_cpus > 0, "ray.trial_cpus", "must be positive")
-        need(self.ray.chunk_size >= 0, "ray.chunk_size", "must be >= 0 (0: automatic)")
-        need(self.ray.placement_timeout_s > 0, "ray.placement_timeout_s", "must be positive")
+        need(self.experimental.chunk_size >= 0, "experimental.chunk_size", "must be >= 0 (0: automatic)")
         dom = self.domain_config
         prefix = self.domain
         need(len(dom.measures) >= 1, f"{prefix}.measures", "needs at least one measure")
@@ -492,10 +463,79 @@ class RunConfig:
             check(lambda cond, key, why: need(cond, f"{prefix}.{key}", why))
 
 
-# -------------------------------------------------------------------------------------- variants
+# ------------------------------------------------------------------------------- renamed, removed
 
-#: ``selection.cost_measure`` for a cost read from the surrogate's predicted occupancy sum.
-OCCUPANCY_COST = "occupancy"
+#: Keys moved into the ``experimental`` section (old name → new name). A config file, ``--set`` or a stored
+#: run naming the old key still works.
+RENAMED_KEYS: dict[str, str] = {
+    "surrogate.holdout_levels": "experimental.holdout_levels",
+    "surrogate.init_prior": "experimental.init_prior",
+    "selection.elite_share": "experimental.elite_share",
+    "selection.screen_pool": "experimental.screen_pool",
+    "selection.screen_precision": "experimental.screen_precision",
+    "selection.gain_window": "experimental.gain_window",
+    "selection.gain_neighbours": "experimental.gain_neighbours",
+    "ray.chunk_size": "experimental.chunk_size",
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class RemovedKey:
+    """A key that is gone: the values it could hold that behave as today, and why it went."""
+
+    accepted: tuple[Any, ...]
+    why: str
+
+
+_NOT_HELPING = "measured not to help"
+#: Removed keys. A stored run (or a file) holding an accepted value loads as before; any other value is refused
+#: with the reason, since today's code would run something else.
+REMOVED_KEYS: dict[str, RemovedKey] = {
+    "selection.expected_gain": RemovedKey((False,), f"{_NOT_HELPING} (docs/results/equal_compute §9, §10, §12)"),
+    "selection.min_gain": RemovedKey((0.0,), f"{_NOT_HELPING}: expected_gain's threshold"),
+    "selection.prefer_new_cells": RemovedKey((False,), f"{_NOT_HELPING} (equal_compute §12)"),
+    "selection.skip_filled": RemovedKey((False,), f"{_NOT_HELPING}: the dsage_novel variant was level with dsage "
+                                                  "(docs/results/maze_cpu_accel)"),
+    "surrogate.init_first_picks": RemovedKey((0,), f"{_NOT_HELPING} (docs/results/audit_during_training)"),
+    "surrogate.target_scaling": RemovedKey(("none",), f"{_NOT_HELPING} (surrogate_accuracy, gym_audit)"),
+    "surrogate.validation_fraction": RemovedKey((0.0,), f"{_NOT_HELPING}: early stopping (surrogate_accuracy)"),
+    "surrogate.patience": RemovedKey((5,), f"{_NOT_HELPING}: early stopping (surrogate_accuracy)"),
+    "surrogate.dilations": RemovedKey(([1, 1], (1, 1)), f"{_NOT_HELPING} (surrogate_accuracy)"),
+    "surrogate.betas": RemovedKey(([0.9, 0.999], (0.9, 0.999)), "Adam's betas are the paper's, fixed"),
+    "qd.ranker": RemovedKey(("2imp",), "CMA-ME's ranker is the paper's two-stage improvement ranker, fixed"),
+    "qd.initial_random_batches": RemovedKey((4,), "MAP-Elites starts with the paper's 4 random batches, fixed: 1 and "
+                                                  "2 were no better (equal_compute §1)"),
+    "surrogate.incremental_epochs": RemovedKey((0,), "every training runs surrogate.epochs; shorter later trainings "
+                                                     "were never measured to help"),
+    # The screen's cost model is the domain's now (the Maze's: the mean path length plus 200).
+    "selection.cost_measure": RemovedKey(("", "mean_path_length"), "the screen's cost model is the domain's"),
+    "selection.cost_offset": RemovedKey((1.0, 200.0), "the screen's cost model is the domain's"),
+    # Settings of how a run is carried out, not of what it computes: any value loads.
+    "surrogate.predict_batch_size": RemovedKey((), "fixed (4,096 levels per prediction chunk)"),
+    "ray.placement_timeout_s": RemovedKey((), "fixed (120 s)"),
+    "image_levels": RemovedKey((), "fixed (4 elite levels per image)"),
+    "checkpoint_every": RemovedKey((), "a run checkpoints every outer iteration"),
+}
+
+
+def upgrade_keys(flat: Mapping[str, Any]) -> dict[str, Any]:
+    """Dotted keys with renamed keys under their new names and removed keys dropped.
+
+    Raises:
+        ConfigError: A removed key holds a value today's code cannot run as it was (the message says why it went).
+    """
+    upgraded: dict[str, Any] = {}
+    for key, value in flat.items():
+        removed = REMOVED_KEYS.get(key)
+        if removed is None:
+            upgraded[RENAMED_KEYS.get(key, key)] = value
+        elif removed.accepted and value not in removed.accepted:
+            raise ConfigError(f"{key}: this key was removed ({removed.why}); only {shown_value(removed.accepted[0])} "
+                              "is what runs now (docs/CONFIG.md)")
+    return upgraded
+
+
+# -------------------------------------------------------------------------------------- variants
 
 #: The DSAGE variants of every domain (its registration adds its QD baselines, e.g. ``map_elites``).
 #: Paper variants as data: each is a set of keys, never a code branch.
@@ -507,13 +547,6 @@ COMMON_VARIANTS: dict[str, dict[str, Any]] = {
                         "surrogate.occupancy_sum_measure": ""},
     "dsage_basic": {"surrogate.kind": "one_stage", "selection.method": "full", "surrogate.occupancy_sum_measure": ""},
     "dsage_rsample": {"surrogate.kind": "two_stage", "selection.method": "random"},
-    # Not in the paper: DSAGE that spends no evaluation on a pick the ground-truth archive already
-    # beats (predicted cell occupied with an objective >= the predicted one).
-    "dsage_novel": {"surrogate.kind": "two_stage", "selection.method": "downsample", "selection.skip_filled": True},
-    # Not in the paper: DSAGE that picks, per block, the elite expected to add most QD-score given the
-    # surrogate's errors on recent picks, and skips blocks expected to add little.
-    "dsage_gain": {"surrogate.kind": "two_stage", "selection.method": "downsample", "selection.expected_gain": True,
-                   "selection.min_gain": 0.3},
     # Domain randomisation: the random emitter draws every level from the domain's own generator.
     "dr": {"surrogate.kind": "none", "qd.emitter": "random", "qd.num_emitters": 5, "qd.batch_size": 30},
 }

@@ -125,8 +125,8 @@ def _search(args: argparse.Namespace, overrides: dict, out: Path) -> Path:
 def describe(source) -> str:
     """A few lines on what a warm start holds."""
     config = source.config.surrogate
-    lines = [f"{source.path}: a {source.config.domain} {config.kind} surrogate, channels {config.channels}, "
-             f"dilations {list(config.dilations)}; {source.levels} levels"
+    lines = [f"{source.path}: a {source.config.domain} {config.kind} surrogate, channels {config.channels}; "
+             f"{source.levels} levels"
              + (f" of {source.agent}" if source.agent else "")]
     info = dict(source.info)
     if info:

@@ -73,7 +73,11 @@ class Domain(Protocol):
 
     Optional: ``work_names`` and ``work_counts(result) -> {name: count}``, counts of the work an evaluation
     did that do not depend on the machine (Maze: ``steps``; Mario: ``search_iterations``, ``ticks``), read
-    from its ``info``; ``selection.cost_measure`` may name one (:mod:`dsage_ray.qd.gain`).
+    from its ``info`` (benchmarks read them).
+
+    Optional: ``evaluation_cost: tuple[str, float]``, a measure an evaluation's cost grows in proportion to, and the
+    cost of an evaluation at 0 in that measure's units (Maze: ``("mean_path_length", 200.0)``);
+    ``selection.screen_gain`` ranks screened levels by expected gain per cost with it (:mod:`dsage_ray.qd.gain`).
 
     Optional: ``solution_bounds: tuple[float, float]``, ``(low, high)`` in every dimension: the box a continuous
     domain's solutions live in (e.g. ``(-1.0, 1.0)``; the domain clips what lies beyond when it decodes). The QD
@@ -106,7 +110,7 @@ class Domain(Protocol):
         """Samples ``n`` solutions the way DR and the first outer iteration do."""
 
     def random_valid_solutions(self, n: int, rng: np.random.Generator) -> Solutions:
-        """Samples ``n`` valid levels: the surrogate's held-out set (``surrogate.holdout_levels``)."""
+        """Samples ``n`` valid levels: the surrogate's held-out set (``experimental.holdout_levels``)."""
 
     def encode(self, solutions: Solutions) -> EncodedLevels:
         """One-hot levels for the surrogate model."""

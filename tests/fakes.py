@@ -20,8 +20,6 @@ SMALL_RUN = {
     "maze.archive_dims": (16, 8),
     "selection.block": (4, 2),
     "selection.count": 25,
-    # The Maze's dsage_gain models an evaluation's cost by its path length; the bitmap domain has no such measure.
-    "selection.cost_measure": "num_walls",
 }
 
 

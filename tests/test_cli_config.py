@@ -120,7 +120,7 @@ def test_audit_hands_the_time_budget_to_its_search(monkeypatch):
     monkeypatch.setattr(audit_run, "run_audit", no_search)
     with pytest.raises(Stop):
         main(["audit", "--agent", "builtin:random", "--preset", "tiny", "--local", "--time-budget", "2m",
-              "--set", "checkpoint_every=2"])
+              "--set", "n_rand=7"])
     # The search gets either the built config or the keys it is built from.
     keys = seen["args"][0].to_flat() if seen["args"] else seen["overrides"]
-    assert keys["time_budget"] == 120.0 and keys["checkpoint_every"] == 2
+    assert keys["time_budget"] == 120.0 and keys["n_rand"] == 7

@@ -43,8 +43,8 @@ def test_surrogate_kinds_are_the_model_table_plus_none():
     ({"surrogate.kind": "twostage"}, "surrogate.kind: must be 'two_stage', 'one_stage' or 'none' (got 'twostage'; "
                                      "did you mean 'two_stage'?)"),
     ({"surrogate.epoch": 5}, "surrogate.epoch: unknown config key (did you mean surrogate.epochs"),
-    ({"surrogat.epochs": 5}, "surrogat: unknown config section (known: gym, mario, maze, surrogate, qd, selection, ray); "
-                             "did you mean 'surrogate'?"),
+    ({"surrogat.epochs": 5}, "surrogat: unknown config section (known: gym, mario, maze, surrogate, qd, selection, ray, "
+                             "experimental); did you mean 'surrogate'?"),
     ({"marioo.runs": 1}, "marioo: unknown config section (known: gym, mario, maze, "),
     ({"domain": "mazes"}, "domain: unknown domain 'mazes' (known: gym, mario, maze"),
     ({"domain": "mazes"}, "; did you mean 'maze'?"),
@@ -100,7 +100,7 @@ def test_a_config_holds_its_own_domain_section_and_round_trips():
     flat = both.to_flat()
     assert flat["maze.episodes"] == 3 and RunConfig.build(flat) == both
     # Domain sections sit where Maze and Mario did: after the scalars, before the core sections.
-    assert list(both.to_dict())[-6:] == ["maze", "mario", "surrogate", "qd", "selection", "ray"]
+    assert list(both.to_dict())[-7:] == ["maze", "mario", "surrogate", "qd", "selection", "ray", "experimental"]
 
 
 def test_a_domain_section_round_trips_through_toml_and_json(tmp_path):
@@ -146,3 +146,21 @@ def test_time_budget_is_a_validated_float_key_that_round_trips():
 def test_a_run_name_cannot_leave_the_runs_folder(name):
     with pytest.raises(ConfigError, match="name: must be a relative folder name without '..'"):
         RunConfig.build({"name": name})
+
+
+def test_a_renamed_key_still_reads_under_its_old_name():
+    """Keys moved into ``experimental`` (a stored run, an old config file or ``--set`` may name them as they were)."""
+    config = RunConfig.build({"surrogate.holdout_levels": 7, "selection.screen_pool": 2.0})
+    assert (config.experimental.holdout_levels, config.experimental.screen_pool) == (7, 2.0)
+    assert "surrogate.holdout_levels" not in config.to_flat()
+
+
+def test_a_removed_key_loads_at_the_value_that_runs_now_and_is_refused_with_its_reason_otherwise():
+    from dsage_ray.config import REMOVED_KEYS
+
+    stored = RunConfig.build({}).to_flat() | {"selection.expected_gain": False, "surrogate.dilations": [1, 1],
+                                              "checkpoint_every": 3}
+    assert RunConfig.build(stored) == RunConfig.build({})
+    with pytest.raises(ConfigError, match=r"surrogate.dilations: this key was removed \(measured not to help"):
+        RunConfig.build({"surrogate.dilations": [1, 2, 4]})
+    assert not REMOVED_KEYS.keys() & RunConfig.build({}).to_flat().keys()

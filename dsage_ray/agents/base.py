@@ -42,7 +42,7 @@ class Agent(abc.ABC):
         """
 
     def reduced_precision(self) -> "Agent | None":
-        """A faster, lower-precision copy of this policy for estimates (``selection.screen_precision``), whose
+        """A faster, lower-precision copy of this policy for estimates (``experimental.screen_precision``), whose
         actions may differ from this agent's now and then; None (the default): the agent has none."""
         return None
 

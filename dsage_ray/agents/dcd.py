@@ -164,7 +164,7 @@ class DCDAgent(Agent):
     def reduced_precision(self) -> "DCDAgent":
         """This policy with its matrix products in bf16: about 3-4x faster where the CPU computes bf16
         natively (AVX512-BF16, AMX), and close to, not equal to, the agent (its rounding can flip a sampled
-        action). For estimates only (``selection.screen_precision``), never for a level's evaluation."""
+        action). For estimates only (``experimental.screen_precision``), never for a level's evaluation."""
         other = copy.copy(self)
         other._step = self._step.to(torch.bfloat16)
         return other

@@ -2,7 +2,7 @@
 
 They are extra evaluations, counted as ``holdout_evals`` and never in ``evals``: they use their own
 seed streams and never enter the dataset, the archive or the budget, so a run's search is the same
-with or without them (``surrogate.holdout_levels``; 0 turns them off).
+with or without them (``experimental.holdout_levels``; 0 turns them off).
 """
 
 from __future__ import annotations

@@ -83,13 +83,9 @@ class RunLoop:
         """Continues from the checkpoint file ``path`` exactly where the saved run stood."""
         self.runner.load_state_dict(load_checkpoint(path))
 
-    def run(self, *, checkpoint: str | Path, checkpoint_every: int) -> None:
-        """Steps until the evaluation or time budget is spent, saving ``checkpoint`` every ``checkpoint_every``
-        outer iterations.
-
-        The state is also saved after the last iteration, so a finished run's checkpoint holds its
-        final archive.
-        """
+    def run(self, *, checkpoint: str | Path) -> None:
+        """Steps until the evaluation or time budget is spent, saving ``checkpoint`` after every outer iteration
+        (so a finished run's checkpoint holds its final archive)."""
         snapshot = self.runner.snapshot()
         for callback in self.callbacks:
             on_start = getattr(callback, "on_start", None)
@@ -97,8 +93,7 @@ class RunLoop:
                 on_start(snapshot)
         while not self.runner.done:
             self.step()
-            if self.runner.outer_iteration % checkpoint_every == 0 or self.runner.done:
-                self.save(checkpoint)
+            self.save(checkpoint)
 
     def close(self) -> None:
         for callback in self.callbacks:
@@ -117,7 +112,7 @@ def run_locally(
     """Runs DSAGE in this process into ``out_dir``: checkpoints, TensorBoard events, outputs, progress.
 
     Args:
-        config: The run's config (``checkpoint_every``, ``image_every`` and ``image_levels`` apply).
+        config: The run's config (``image_every`` applies).
         out_dir: The run folder; its checkpoint is ``out_dir/``:data:`~dsage_ray.core.checkpoint.CHECKPOINT_NAME`.
         resume: Continue the run in ``out_dir`` from its checkpoint.
         domain: The domain (default: built from ``config``).
@@ -146,8 +141,7 @@ def run_locally(
         progress = ConsoleProgress(budget=config.budget, time_budget=config.time_budget) if console else None
         runner = DSAGE(config=config, domain=domain, evaluator=evaluator,
                        progress=progress.phase if progress is not None else None)
-        callbacks: list[Any] = [RunTensorBoard(logdir=out_dir, image_every=config.image_every,
-                                               image_levels=config.image_levels)]
+        callbacks: list[Any] = [RunTensorBoard(logdir=out_dir, image_every=config.image_every)]
         if progress is not None:
             callbacks.append(progress)
         loop = RunLoop(runner=runner, out_dir=out_dir, callbacks=callbacks)
@@ -156,7 +150,7 @@ def run_locally(
                 loop.restore(checkpoint)
                 if console:
                     print(f"resumed at {runner.evals} evaluations, outer iteration {runner.outer_iteration}")
-            loop.run(checkpoint=checkpoint, checkpoint_every=config.checkpoint_every)
+            loop.run(checkpoint=checkpoint)
             if console and runner.out_of_time and runner.evals < config.budget:
                 print(f"time budget reached: {runner.wall_time:.0f} s of {config.time_budget:g} s after "
                       f"{runner.evals} of {config.budget} evaluations; a larger --time-budget with --resume "

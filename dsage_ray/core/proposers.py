@@ -21,15 +21,15 @@ from typing import TYPE_CHECKING, Any, Callable, Protocol
 import numpy as np
 import torch
 
-from dsage_ray.config import OCCUPANCY_COST, ConfigError, RunConfig
+from dsage_ray.config import ConfigError, RunConfig
 from dsage_ray.core.holdout import HeldOutLevels, head_label
 from dsage_ray.qd.archives import make_archive
-from dsage_ray.qd.gain import EvaluationCost, PickErrors, best_per_block, expected_outcomes
+from dsage_ray.qd.gain import EvaluationCost, PickErrors
 from dsage_ray.qd.mutants import elite_mutants
 from dsage_ray.qd.emitters import RandomEmitter
-from dsage_ray.qd.optimizer import make_scheduler, run_inner_loop
+from dsage_ray.qd.optimizer import MAP_ELITES_RANDOM_BATCHES, make_scheduler, run_inner_loop
 from dsage_ray.qd.screen import Screen, keep_screened, screen_picks
-from dsage_ray.qd.selection import gather_elites, select_solutions, skip_filled
+from dsage_ray.qd.selection import gather_elites, select_solutions
 from dsage_ray.surrogate.models import encode_solutions
 from dsage_ray.surrogate.surrogate import resolve_precision
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
@@ -128,16 +128,14 @@ class EvaluatedBatch:
             complete=len(ok) == len(proposal.solutions), outer_iteration=outer_iteration, predicted=predicted,
             screened=None if proposal.screened is None else proposal.screened[:n])
 
-    def add_screen_errors(self, errors: PickErrors, work: np.ndarray | None = None) -> None:
-        """Adds what the screen estimated for the successful, screened solutions, against their real results (and
-        ``work``: what each successful evaluation cost, as :meth:`_WorkCount.recorded` counts it)."""
+    def add_screen_errors(self, errors: PickErrors) -> None:
+        """Adds what the screen estimated for the successful, screened solutions, against their real results."""
         if self.screened is None or not self.ok:
             return
         estimates = self.screened[self.ok]
         screened = np.isfinite(estimates).all(axis=1)
         errors.add(predicted_objective=estimates[screened, 0], predicted_measures=estimates[screened, 1:],
-                   objective=self.objective[screened], measures=self.measures[screened],
-                   work=None if work is None else np.asarray(work)[screened])
+                   objective=self.objective[screened], measures=self.measures[screened])
 
 
 class Proposer(Protocol):
@@ -161,7 +159,7 @@ class DirectQD:
     and is told their real results.
 
     With ``selection.screen_episodes`` (MAP-Elites only), each batch after the random start-up is instead chosen
-    from ``selection.screen_pool`` times as many mutants of the archive's elites by the domain's screen
+    from ``experimental.screen_pool`` times as many mutants of the archive's elites by the domain's screen
     (:func:`~dsage_ray.qd.screen.keep_screened`), and added to the archive directly: MAP-Elites' emitters sample
     parents from the archive and keep no state that a ``tell`` would update.
 
@@ -185,23 +183,24 @@ class DirectQD:
         self.screen = domain_screen(config, domain, seeds)
         #: The screen's errors on evaluated levels (``selection.screen_gain`` ranks by them; None: off).
         self.screen_errors = _screen_errors(config)
-        self.evaluation_cost, self.work_count = _evaluation_cost(config, domain)
+        self.evaluation_cost = _evaluation_cost(config, domain)
         #: Whether the batch under evaluation came from the scheduler (then it is told), not from a screen.
         self.asked = True
 
     def propose(self, *, outer_iteration: int) -> Proposal:
         qd = self.config.qd
-        self.asked = self.screen is None or outer_iteration < qd.initial_random_batches or self.archive.empty
+        self.asked = (self.screen is None or outer_iteration < MAP_ELITES_RANDOM_BATCHES
+                      or self.archive.empty)
         if self.asked:
             return Proposal(self.scheduler.ask())
         # MAP-Elites' own step (uniform parents, its mutation), screened: a larger batch of mutants, of which
         # those whose screened result adds to the archive are evaluated (its emitters keep no state to tell).
         tic = time.perf_counter()
         batch = qd.num_emitters * qd.batch_size
-        mutants = elite_mutants(self.archive, count=int(round(self.config.selection.screen_pool * batch)), share=1.0,
-                                qd=qd, rng=self.seeds.rng, bounds=self.solution_bounds)
+        mutants = elite_mutants(self.archive, count=int(round(self.config.experimental.screen_pool * batch)),
+                                share=1.0, qd=qd, rng=self.seeds.rng, bounds=self.solution_bounds)
         screened = keep_screened(mutants, self.archive, screen=self.screen, limit=batch, errors=self.screen_errors,
-                                 neighbours=self.config.selection.gain_neighbours, cost=self.evaluation_cost)
+                                 neighbours=self.config.experimental.gain_neighbours, cost=self.evaluation_cost)
         fallback = len(screened.kept) == 0
         kept = np.arange(min(batch, len(mutants))) if fallback else screened.kept
         seconds = time.perf_counter() - tic
@@ -215,7 +214,7 @@ class DirectQD:
                 self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures,
                                  occupancy=batch.occupancy)
             if self.screen_errors is not None:
-                batch.add_screen_errors(self.screen_errors, work=self.work_count.recorded(batch))
+                batch.add_screen_errors(self.screen_errors)
             return {}
         if batch.complete:
             # The emitters need the whole batch they asked for; tell() also adds to the archive.
@@ -246,7 +245,7 @@ class DirectQD:
 
 def _screen_errors(config: RunConfig) -> PickErrors | None:
     """An empty record of the screen's errors where ``selection.screen_gain`` ranks by them (None: it does not)."""
-    return PickErrors(window=config.selection.gain_window) if config.selection.screen_gain else None
+    return PickErrors(window=config.experimental.gain_window) if config.selection.screen_gain else None
 
 
 def _load_screen_errors(config: RunConfig, state: dict[str, Any]) -> PickErrors | None:
@@ -280,7 +279,7 @@ def domain_screen(config: RunConfig, domain: Domain, seeds: "RunSeeds") -> Scree
     if not callable(getattr(domain, "screen", None)):
         raise ConfigError(f"selection.screen_episodes: the {domain.name!r} domain cannot screen levels (it has no "
                           "screen method; Maze has); set selection.screen_episodes = 0")
-    precision = resolve_precision(config.selection.screen_precision, torch.device("cpu"))
+    precision = resolve_precision(config.experimental.screen_precision, torch.device("cpu"))
 
     def screen(solutions: Solutions) -> tuple[np.ndarray, np.ndarray]:
         seed = int(seeds.rng.integers(2**31 - 1))
@@ -292,60 +291,15 @@ def domain_screen(config: RunConfig, domain: Domain, seeds: "RunSeeds") -> Scree
     return screen
 
 
-def _evaluation_cost(config: RunConfig, domain: Domain) -> tuple[EvaluationCost | None, "_WorkCount"]:
-    """``selection.cost_measure`` as the domain's measure index, or as one of its work counts (then also
-    returned as a :class:`_WorkCount`); None: not used, or every evaluation costs the same.
-
-    Raises:
-        ConfigError: The domain has no such measure or work count (a domain passed in may not be the
-            config's own).
-    """
-    selection = config.selection
-    if not (selection.expected_gain or selection.screen_gain) or not selection.cost_measure:
-        return None, _WorkCount(name="", domain=domain)
-    names = list(domain.measure_names)
-    if selection.cost_measure in names:
-        cost = EvaluationCost(measure=names.index(selection.cost_measure), offset=selection.cost_offset)
-        return cost, _WorkCount(name="", domain=domain)
-    counts = [*getattr(domain, "work_names", ()), OCCUPANCY_COST]
-    if selection.cost_measure not in counts:
-        raise ConfigError(f"selection.cost_measure: {selection.cost_measure!r} is neither one of the domain's measures "
-                          f"{names} nor one of its work counts {counts}; set it to one an evaluation's cost grows "
-                          "with, or to '' (every evaluation costs the same)")
-    return (EvaluationCost(measure=None, offset=selection.cost_offset),
-            _WorkCount(name=selection.cost_measure, domain=domain))
-
-
-@dataclasses.dataclass(frozen=True)
-class _WorkCount:
-    """The work count an expected-gain selection prices evaluations by: what each evaluation recorded of it,
-    and, where the surrogate predicts it, what each candidate will need.
-
-    Attributes:
-        name: One of the domain's ``work_names``, or :data:`~dsage_ray.config.OCCUPANCY_COST` (the agent's
-            time in the level: the occupancy sum, which the two-stage surrogate also predicts per level);
-            empty: none.
-        domain: The domain whose ``work_counts(result)`` records the named counts.
-    """
-
-    name: str
-    domain: Domain
-
-    def recorded(self, batch: EvaluatedBatch) -> np.ndarray | None:
-        """The count of each successful evaluation of ``batch`` (None: no count is used)."""
-        if not self.name:
-            return None
-        if self.name == OCCUPANCY_COST:
-            return batch.occupancy.reshape(len(batch.ok), -1).sum(axis=1).astype(np.float64)
-        return np.array([self.domain.work_counts(batch.results[i])[self.name] for i in batch.ok], np.float64)
-
-    def predicted(self, surrogate: "Surrogate", solutions: Solutions) -> np.ndarray | None:
-        """Each candidate's own predicted count, where the surrogate predicts it (None: the selection takes
-        the count its nearest recent picks recorded)."""
-        if self.name != OCCUPANCY_COST:
-            return None
-        occupancy = surrogate.predict(encode_solutions(self.domain, solutions)).occupancy
-        return occupancy.reshape(len(occupancy), -1).sum(axis=1)
+def _evaluation_cost(config: RunConfig, domain: Domain) -> EvaluationCost | None:
+    """The domain's cost model (its ``evaluation_cost``: a measure an evaluation's cost grows with, and the cost
+    at 0 in that measure's units), where ``selection.screen_gain`` ranks by it; None: every evaluation costs the
+    same (no ranking, no cost model, or the run does not measure the model's measure)."""
+    model = getattr(domain, "evaluation_cost", None)
+    if not config.selection.screen_gain or model is None or model[0] not in domain.measure_names:
+        return None
+    measure, offset = model
+    return EvaluationCost(measure=list(domain.measure_names).index(measure), offset=offset)
 
 
 class SurrogateAssisted:
@@ -354,8 +308,8 @@ class SurrogateAssisted:
     Args:
         config: The run's config (``surrogate``, ``qd``, ``selection``, ``n_rand``).
         domain: The domain.
-        archive: The ground-truth archive (``selection.skip_filled``, ``prefer_new_cells``, ``expected_gain``
-            and ``elite_mutants`` read it; :meth:`learn` fills it).
+        archive: The ground-truth archive (``selection.elite_mutants`` and the screen read it; :meth:`learn`
+            fills it).
         seeds: The run's seed streams.
         evaluator: Evaluates the held-out levels, if any.
         progress: Optional progress callback (``holdout``, ``exploit`` phases).
@@ -376,19 +330,14 @@ class SurrogateAssisted:
         self.progress = progress
         self.surrogate = Surrogate.for_domain(domain, config=config.surrogate, seed=seeds.next_qd_seed())
         self.dataset = self.surrogate.make_dataset()
-        self.holdout = HeldOutLevels(count=config.surrogate.holdout_levels, domain=domain, seeds=seeds)
+        self.holdout = HeldOutLevels(count=config.experimental.holdout_levels, domain=domain, seeds=seeds)
         self.last_predictions: tuple[np.ndarray, np.ndarray] | None = None
         #: Samples of the dataset that came from ``surrogate.init`` (the oldest ones), not from this run.
         self.prior_samples = 0
-        #: The surrogate's errors on recent picks (``selection.expected_gain`` reads them).
-        self.pick_errors = PickErrors(window=config.selection.gain_window)
-        self.evaluation_cost, self.work_count = _evaluation_cost(config, domain)
+        self.evaluation_cost = _evaluation_cost(config, domain)
         self.screen = domain_screen(config, domain, seeds)
         #: The screen's errors on evaluated picks (``selection.screen_gain`` ranks by them; None: off).
         self.screen_errors = _screen_errors(config)
-        #: Evaluated levels nothing was predicted for (the random first batch), as dataset positions and
-        #: work counts: the first expected-gain selection predicts them, to learn the errors and costs from.
-        self.unpredicted = {"positions": np.empty(0, np.int64), "work": np.empty(0)}
 
     def propose(self, *, outer_iteration: int) -> Proposal:
         proposal = Proposal(np.empty(0))
@@ -416,15 +365,9 @@ class SurrogateAssisted:
         proposal.times["exploit"] = time.perf_counter() - tic
         tic = time.perf_counter()
         proposal.solutions, proposal.screened = self._select(surrogate_archive, proposal.metrics, proposal.times)
-        cap = self.config.surrogate.init_first_picks
-        if outer_iteration == 0 and cap and len(proposal.solutions) > cap:
-            keep = np.sort(self.seeds.rng.choice(len(proposal.solutions), size=cap, replace=False))
-            proposal.solutions = proposal.solutions[keep]
-            proposal.screened = None if proposal.screened is None else proposal.screened[keep]
-            proposal.metrics["selection_capped"] = float(cap)
         if self.config.selection.elite_mutants:
             mutants = elite_mutants(self.archive, count=self.config.selection.elite_mutants,
-                                    share=self.config.selection.elite_share, qd=self.config.qd, rng=self.seeds.rng,
+                                    share=self.config.experimental.elite_share, qd=self.config.qd, rng=self.seeds.rng,
                                     bounds=getattr(self.domain, "solution_bounds", None))
             proposal.solutions = np.concatenate([proposal.solutions, mutants])
             if proposal.screened is not None:
@@ -440,38 +383,16 @@ class SurrogateAssisted:
         metrics: dict[str, float] = {}
         encoded = encode_solutions(self.domain, batch.solutions)
         if self.screen_errors is not None:
-            batch.add_screen_errors(self.screen_errors, work=self.work_count.recorded(batch))
+            batch.add_screen_errors(self.screen_errors)
         if batch.ok:
             self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures, occupancy=batch.occupancy)
-            first = len(self.dataset)
             self.dataset.append(encoded=encoded, results=batch.results)
-            if batch.predicted is None and self.config.selection.expected_gain and not len(self.pick_errors):
-                work = self.work_count.recorded(batch)
-                self.unpredicted = {"positions": np.arange(first, len(self.dataset), dtype=np.int64),
-                                    "work": np.empty(0) if work is None else work}
             # A cold start's first batch is random: nothing was predicted for it.
             if batch.predicted is not None:
                 errors = self.surrogate.mae(encoded, batch.results, prediction=batch.predicted)
                 metrics.update({f"mae_{self._label(k)}": v for k, v in errors.items()})
                 self.last_predictions = (batch.predicted.measures[batch.ok], batch.measures)
-                self.pick_errors.add(predicted_objective=batch.predicted.objective[batch.ok],
-                                     predicted_measures=batch.predicted.measures[batch.ok],
-                                     objective=batch.objective, measures=batch.measures,
-                                     work=self.work_count.recorded(batch))
         return metrics
-
-    def _errors_of_unpredicted(self) -> None:
-        """Before the first expected-gain selection: the surrogate, just trained, predicts the levels nothing was
-        predicted for, so that the selection has errors (optimistic: it trained on them) and real costs to go by."""
-        positions = self.unpredicted["positions"]
-        if len(self.pick_errors) or not len(positions) or positions.max() >= len(self.dataset):
-            return
-        prediction = self.surrogate.predict(self.dataset.levels(positions))
-        work = self.unpredicted["work"] if len(self.unpredicted["work"]) == len(positions) else None
-        self.pick_errors.add(predicted_objective=prediction.objective, predicted_measures=prediction.measures,
-                             objective=self.dataset.objective[positions], measures=self.dataset.measures[positions],
-                             work=work)
-        self.unpredicted = {"positions": np.empty(0, np.int64), "work": np.empty(0)}
 
     # ---------------------------------------------------------------------------------- phases
 
@@ -479,19 +400,18 @@ class SurrogateAssisted:
         """Model improvement: trains on the most recent evaluations (weights and Adam state persist)."""
         losses = self.surrogate.train(self.dataset)
         metrics = {"surrogate_loss": losses.pop("total"), "surrogate_epochs": losses.pop("epochs")}
-        if "validation" in losses:
-            metrics["surrogate_validation_loss"] = losses.pop("validation")
         metrics.update({f"surrogate_loss_{self._label(k)}": v for k, v in losses.items()})
         return metrics
 
     def _warm_start(self) -> dict[str, float]:
-        """Loads ``surrogate.init``'s weights (and, with ``init_prior``, its dataset) before the first exploit."""
+        """Loads ``surrogate.init``'s weights (and, with ``experimental.init_prior``, its dataset) before the first
+        exploit."""
         from dsage_ray.core.warm_start import load_warm_start
 
         source = load_warm_start(self.config.surrogate.init)
         source.check_compatible(self.config, level_shape=self.dataset.level_shape)
         self.surrogate.model.load_state_dict(source.surrogate["model"])
-        if self.config.surrogate.init_prior:
+        if self.config.experimental.init_prior:
             self.dataset.load_state_dict({key: source.dataset[key] for key in (
                 "levels", "objective", "measures", "occupancy")} | {"level_shape": self.dataset.level_shape})
             self.prior_samples = len(self.dataset)
@@ -522,36 +442,15 @@ class SurrogateAssisted:
         """Selection: downsample / random / full picks from the surrogate archive, and their screened results
         (None: no screen; ``times["screen"]``: the part of it spent screening them)."""
         selection = self.config.selection
-        if selection.expected_gain:
-            self._errors_of_unpredicted()
-            candidates = surrogate_archive.data(["objective", "measures", "solution"])
-            work = self.work_count.predicted(self.surrogate, candidates["solution"])
-            outcomes = expected_outcomes(candidates["objective"], candidates["measures"],
-                                         ground_truth_archive=self.archive, errors=self.pick_errors,
-                                         neighbours=selection.gain_neighbours, cost=self.evaluation_cost, work=work)
-            chosen = best_per_block(surrogate_archive, outcomes.gain_per_cost, block=selection.block,
-                                    min_gain=selection.min_gain, rng=self.seeds.rng)
-            picks = chosen.indices
-            metrics["selection_expected_gain"] = float(outcomes.gain[chosen.positions].sum())
-            metrics["selection_relative_cost"] = (float(outcomes.cost[chosen.positions].mean())
-                                                  if len(picks) else 0.0)
-            metrics["selection_dropped"] = float(chosen.dropped)
-            metrics["selection_fallback"] = float(chosen.fallback)
-        else:
-            picks = select_solutions(surrogate_archive, method=selection.method, block=selection.block,
-                                     count=selection.count, rng=self.seeds.rng,
-                                     new_cells=self.archive if selection.prefer_new_cells else None)
-        if selection.skip_filled:
-            skipped = skip_filled(surrogate_archive, picks, self.archive)
-            picks = skipped.kept
-            metrics["selection_filled"] = float(skipped.filled)
-            metrics["selection_fallback"] = float(skipped.fallback)
+        picks = select_solutions(surrogate_archive, method=selection.method, block=selection.block,
+                                 count=selection.count, rng=self.seeds.rng)
         estimates = None
         if self.screen is not None:
             tic = time.perf_counter()
             screened = screen_picks(surrogate_archive, picks, self.archive, screen=self.screen,
-                                    pool=selection.screen_pool, rng=self.seeds.rng, errors=self.screen_errors,
-                                    neighbours=selection.gain_neighbours, cost=self.evaluation_cost)
+                                    pool=self.config.experimental.screen_pool, rng=self.seeds.rng,
+                                    errors=self.screen_errors, neighbours=self.config.experimental.gain_neighbours,
+                                    cost=self.evaluation_cost)
             times["screen"] = time.perf_counter() - tic
             picks, estimates = screened.kept, screened.estimates
             metrics.update(_screen_metrics(screened.screened, screened.new, screened.fallback, screened.expected_new))
@@ -564,9 +463,8 @@ class SurrogateAssisted:
 
     def state_dict(self) -> dict[str, Any]:
         return {"scheduler": None, "surrogate": self.surrogate.state_dict(), "dataset": self.dataset.state_dict(),
-                "prior_samples": self.prior_samples, "pick_errors": self.pick_errors.state_dict(),
+                "prior_samples": self.prior_samples,
                 "screen_errors": None if self.screen_errors is None else self.screen_errors.state_dict(),
-                "unpredicted": {key: value.copy() for key, value in self.unpredicted.items()},
                 **self.holdout.state_dict()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -574,10 +472,6 @@ class SurrogateAssisted:
         self.surrogate.load_state_dict(state["surrogate"])
         self.dataset.load_state_dict(state["dataset"])
         self.prior_samples = state.get("prior_samples", 0)
-        if state.get("pick_errors") is not None:  # checkpoints written before expected_gain have none
-            self.pick_errors = PickErrors.from_state_dict(state["pick_errors"])
-        if state.get("unpredicted") is not None:
-            self.unpredicted = {key: np.asarray(value) for key, value in state["unpredicted"].items()}
         self.screen_errors = _load_screen_errors(self.config, state)
         self.holdout.load_state_dict(state)
         self.last_predictions = state["last_predictions"]

@@ -12,11 +12,9 @@ the levels; they are evaluated for real; the proposer learns from the results. W
 4. *Agent simulation*: the picks are evaluated for real and enter the ground-truth archive and the
    dataset.
 
-The first iteration evaluates ``n_rand`` random solutions instead. With
-``selection.skip_filled`` (the ``dsage_novel`` variant, not the paper's) step 3 drops the picks
-the ground-truth archive already beats, by the surrogate's prediction.
+The first iteration evaluates ``n_rand`` random solutions instead.
 
-*Held-out accuracy* (``surrogate.holdout_levels > 0``): before the first outer iteration, that
+*Held-out accuracy* (``experimental.holdout_levels > 0``): before the first outer iteration, that
 many random valid levels are evaluated for real, once. They are extra evaluations, counted as
 ``holdout_evals`` and never in ``evals``: they use their own seed streams and never enter the
 dataset, the archive or the budget, so a run's search is the same with or without them. Every

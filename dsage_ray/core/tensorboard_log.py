@@ -34,6 +34,10 @@ SCALAR_GROUP = "dsage"
 QD_SCORE_VS_WALL_TIME = f"{SCALAR_GROUP}/qd_score_vs_wall_time"
 
 
+#: Elite levels drawn per image step, spread along the first measure.
+ELITE_LEVELS = 4
+
+
 class RunTensorBoard:
     """Writes one run's scalars every outer iteration and its images every ``image_every``.
 
@@ -41,14 +45,12 @@ class RunTensorBoard:
 
     Args:
         logdir: Folder of the event file (the run or trial folder).
-        image_every: Outer iterations between images (images are also written once the budget is spent).
-        image_levels: Elite levels drawn per image step.
+        image_every: Outer iterations between images (images are also written once the budget is spent); 0: none.
     """
 
-    def __init__(self, *, logdir: str | Path, image_every: int, image_levels: int) -> None:
+    def __init__(self, *, logdir: str | Path, image_every: int) -> None:
         self.logdir = Path(logdir)
         self.image_every = image_every
-        self.image_levels = image_levels
         self._writer = None
 
     def log(self, run: "RunSnapshot", metrics: Mapping[str, float]) -> None:
@@ -65,7 +67,7 @@ class RunTensorBoard:
         if "wall_time" in metrics:
             self._writer.add_scalar(QD_SCORE_VS_WALL_TIME, float(metrics["qd_score"]), int(metrics["wall_time"]))
         iteration = int(metrics["outer_iteration"])
-        if iteration % self.image_every == 0 or run.done:
+        if self.image_every and (iteration % self.image_every == 0 or run.done):
             self._log_images(run, iteration=iteration, step=step)
         self._writer.flush()
 
@@ -91,7 +93,7 @@ class RunTensorBoard:
                                     measure_names=measure_names, zoom=True)
             self._writer.add_image("archive/heatmap", heatmap, step, dataformats="HWC")
             if getattr(run.domain, "render", None) is not None:
-                for rank, (_, png) in enumerate(render_elites(archive, run.domain, self.image_levels)):
+                for rank, (_, png) in enumerate(render_elites(archive, run.domain, ELITE_LEVELS)):
                     self._writer.add_image(f"levels/elite_{rank}", png_to_array(png), step, dataformats="HWC")
         predictions = run.last_predictions
         if predictions is not None:

@@ -5,7 +5,7 @@ run spends its first outer iterations learning what the last run's surrogate alr
 ``surrogate.init`` a run starts from an earlier surrogate instead:
 
 * its **weights** replace the freshly initialised ones (Adam starts afresh, with the run's ``lr``);
-* its **dataset** becomes the oldest part of the run's dataset when ``surrogate.init_prior`` is on
+* its **dataset** becomes the oldest part of the run's dataset when ``experimental.init_prior`` is on
   (the default). Training reads the most recent ``surrogate.train_window`` samples, so the prior
   weighs fully in the first trainings and leaves the window as the run's own evaluations arrive:
   it is only a prior when the agent has changed;
@@ -15,8 +15,7 @@ run spends its first outer iterations learning what the last run's surrogate alr
 ``surrogate.init`` names a file ``dsage-ray surrogate pretrain`` wrote, or any earlier surrogate
 run: a run folder, an audit folder, a Tune trial folder or a ``checkpoint.dsage`` file. Both hold
 the same parts (a config, the surrogate's state, its dataset), so one loader reads them all. The
-source must have the run's network (surrogate ``kind``, ``channels``, ``dilations``, target scaling,
-summed measure) and level encoding; anything else may differ, the agent included.
+source must have the run's network (surrogate ``kind``, ``channels``, summed measure) and level encoding; anything else may differ, the agent included.
 
 Nothing here touches the run's RNG streams: a warm-started run is as reproducible as a cold one.
 """
@@ -37,7 +36,7 @@ from dsage_ray.errors import InputError
 #: ``format`` of a pretrained-surrogate file (a :mod:`dsage_ray.core.checkpoint` file holding this dict).
 PRETRAINED_FORMAT = "dsage_ray pretrained surrogate"
 #: Surrogate config keys that shape the network's weights or their meaning: a source must match them.
-ARCHITECTURE_KEYS = ("kind", "channels", "dilations", "target_scaling", "occupancy_sum_measure")
+ARCHITECTURE_KEYS = ("kind", "channels", "occupancy_sum_measure")
 
 
 class SurrogateInitError(InputError):
@@ -215,8 +214,7 @@ def pretrain(*, sources: Sequence[WarmStart], config: RunConfig, out: str | Path
         source.check_compatible(config, level_shape=sample.shape[1:])
     epochs = config.surrogate.epochs if epochs is None else epochs
     started = time.perf_counter()
-    pooled = config.replace(**{"surrogate.epochs": 1, "surrogate.incremental_epochs": 0,
-                               "surrogate.validation_fraction": 0.0})
+    pooled = config.replace(**{"surrogate.epochs": 1})
     surrogate = Surrogate.for_domain(domain, config=pooled.surrogate, seed=seed)
     dataset = concatenate_datasets(surrogate, [source.dataset for source in sources])
     rng = np.random.default_rng(seed)

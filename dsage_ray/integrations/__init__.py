@@ -40,8 +40,8 @@ DEFAULT_EPISODES = None
 SERIES_SUBDIR = "audit_series"
 #: Config keys of every audit unless the caller's ``overrides`` set them: a smaller random start and
 #: selection than ``tiny`` (so that ``audit_budget`` 30 is one cold outer iteration after 20 random levels, or
-#: three warm-started ones), and no elite pictures in the search's TensorBoard.
-DEFAULT_OVERRIDES: Mapping[str, Any] = {"n_rand": 20, "selection.count": 10, "image_levels": 0}
+#: three warm-started ones), and no pictures in the search's TensorBoard.
+DEFAULT_OVERRIDES: Mapping[str, Any] = {"n_rand": 20, "selection.count": 10, "image_every": 0}
 
 log = logging.getLogger(__name__)
 

@@ -7,15 +7,13 @@ from dsage_ray.qd.archives import (
     make_archive,
 )
 from dsage_ray.qd.emitters import CrossEntropyEmitter, HaltonEmitter, MapElitesBitmapEmitter, RandomEmitter
-from dsage_ray.qd.gain import EvaluationCost, GainPicks, Outcomes, PickErrors, best_per_block, expected_outcomes
+from dsage_ray.qd.gain import EvaluationCost, Outcomes, PickErrors, expected_outcomes
 from dsage_ray.qd.optimizer import InnerLoopTimings, emitter_seeds, make_emitters, make_scheduler, run_inner_loop
 from dsage_ray.qd.selection import (
     SELECTION_METHODS,
-    FilledSkip,
     block_ids,
     gather_elites,
     select_solutions,
-    skip_filled,
 )
 
 __all__ = [
@@ -23,8 +21,6 @@ __all__ = [
     "SELECTION_METHODS",
     "CrossEntropyEmitter",
     "EvaluationCost",
-    "FilledSkip",
-    "GainPicks",
     "HaltonEmitter",
     "InnerLoopTimings",
     "MapElitesBitmapEmitter",
@@ -33,7 +29,6 @@ __all__ = [
     "RandomEmitter",
     "archive_stats",
     "archive_to_dataframe",
-    "best_per_block",
     "block_ids",
     "emitter_seeds",
     "expected_outcomes",
@@ -43,5 +38,4 @@ __all__ = [
     "make_scheduler",
     "run_inner_loop",
     "select_solutions",
-    "skip_filled",
 ]

@@ -1,41 +1,31 @@
-"""Which surrogate elites are worth a real evaluation, by the QD-score they are expected to add (the
-``dsage_gain`` variant; not in the paper).
+"""Which candidates are worth a real evaluation, by the QD-score they are expected to add per expected cost
+(``selection.screen_gain``; not in the paper).
 
-The paper's downsampling evaluates one uniformly chosen surrogate elite per block of cells. Where the
-surrogate's measure errors span many cells (the Maze path length is off by about 126 steps, some 30
-cells), a pick's predicted cell says little about where it lands, and late in a run most picks land
-in cells the ground-truth archive already holds.
+A cheap estimate of a candidate (a surrogate's prediction, a one-episode screen) says where it lands, but not
+how far off that tends to be. The estimate's errors on the levels recently evaluated do. :func:`expected_outcomes`
+treats them as the distribution of a candidate's true outcome: the candidate's estimate plus the error of each
+of the ``neighbours`` recent levels whose *estimated* measures were closest to its own (so an error that depends
+on the estimate, e.g. short paths being screened well, carries over). Each such sample lands in a ground-truth
+cell and adds what :class:`~ribs.archives.GridArchive` would add to the QD-score there; the mean over the samples
+is the candidate's expected gain.
 
-The surrogate's errors on the picks it recently selected do say how far off it tends to be, and
-where. :func:`expected_outcomes` treats them as the distribution of a candidate's true outcome: the
-candidate's prediction plus the error of each of the ``neighbours`` recent picks whose *predicted*
-measures were closest to its own (so an error that depends on the prediction, e.g. short paths being
-predicted well, carries over). Each such sample lands in a ground-truth cell and adds what
-:class:`~ribs.archives.GridArchive` would add to the QD-score there. The mean over the samples is the
-candidate's expected gain (:func:`expected_outcomes`).
+Evaluations do not all cost the same: a Maze evaluation steps the agent about as many times as its mean path
+length, so a level the agent solves in 20 steps costs about an eighth of one it fails. With an
+:class:`EvaluationCost` the same neighbours' real measures say what a candidate's evaluation will cost, and the
+gain is counted per evaluation of average cost (docs/results/equal_compute §16: the ranked screen).
 
-Evaluations do not all cost the same: a Maze evaluation steps the agent about as many times as its
-mean path length, so a level the agent solves in 20 steps costs about an eighth of one it fails. With an
-:class:`EvaluationCost`, the same neighbours' real measures (or the work counts their evaluations
-recorded, e.g. Mario's A* search iterations) say what a candidate's evaluation will cost, unless the
-candidate's own predicted work is given; the gain is then counted per evaluation of average cost.
-:func:`best_per_block` keeps the most promising elite of each block and drops those below ``min_gain``.
-
-Measured on ACCEL (docs/results/equal_compute, section 9): level with uniform downsampling, per
-evaluation and per CPU second. Its picks realise about 0.87 of the gain it expects. On Mario (section
-10, one tuning seed) no cost model helped: on levels it has not trained on, the surrogate cannot tell
-which will leave Mario stuck.
+Choosing the surrogate's picks the same way (the removed ``dsage_gain`` variant) was level with uniform
+downsampling (equal_compute §9, §10).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 from ribs.archives import GridArchive
 
-from dsage_ray.qd.selection import block_ids
 
 
 @dataclasses.dataclass
@@ -46,26 +36,21 @@ class PickErrors:
         window: How many of the latest picks are kept.
         predicted: ``(n, 1 + M)``: predicted objective, then the M predicted measures.
         actual: ``(n, 1 + M)``: the real objective and measures, same order.
-        work: ``(n,)``: what each evaluation cost, as the count an :class:`EvaluationCost` without a
-            measure reads (NaN where none was recorded).
     """
 
     window: int
     predicted: np.ndarray = dataclasses.field(default_factory=lambda: np.empty((0, 0)))
     actual: np.ndarray = dataclasses.field(default_factory=lambda: np.empty((0, 0)))
-    work: np.ndarray = dataclasses.field(default_factory=lambda: np.empty(0))
 
     def __post_init__(self) -> None:
         if self.window < 1:
             raise ValueError(f"window must be positive (got {self.window})")
-        if len(self.work) != len(self.predicted):  # a checkpoint written before work was recorded holds none
-            self.work = np.full(len(self.predicted), np.nan)
 
     def __len__(self) -> int:
         return len(self.predicted)
 
     def add(self, *, predicted_objective: np.ndarray, predicted_measures: np.ndarray, objective: np.ndarray,
-            measures: np.ndarray, work: np.ndarray | None = None) -> None:
+            measures: np.ndarray) -> None:
         """Appends evaluated picks (row i of each array is pick i), then keeps the latest :attr:`window`.
 
         Raises:
@@ -79,42 +64,34 @@ class PickErrors:
             raise ValueError(f"predictions {predicted.shape} and results {actual.shape} differ in shape")
         if len(self) and predicted.shape[1] != self.predicted.shape[1]:
             raise ValueError(f"picks have {predicted.shape[1] - 1} measures, earlier ones {self.predicted.shape[1] - 1}")
-        work = np.full(len(predicted), np.nan) if work is None else np.asarray(work, np.float64).reshape(-1)
-        if len(work) != len(predicted):
-            raise ValueError(f"{len(work)} work counts for {len(predicted)} picks")
         if len(predicted) == 0:
             return
         if len(self):
             predicted, actual = np.concatenate([self.predicted, predicted]), np.concatenate([self.actual, actual])
-            work = np.concatenate([self.work, work])
-        self.predicted, self.actual, self.work = predicted[-self.window:], actual[-self.window:], work[-self.window:]
+        self.predicted, self.actual = predicted[-self.window:], actual[-self.window:]
 
     def state_dict(self) -> dict[str, Any]:
         """Plain arrays, for a checkpoint."""
-        return {"window": self.window, "predicted": self.predicted.copy(), "actual": self.actual.copy(),
-                "work": self.work.copy()}
+        return {"window": self.window, "predicted": self.predicted.copy(), "actual": self.actual.copy()}
 
     @classmethod
     def from_state_dict(cls, state: dict[str, Any]) -> "PickErrors":
         return cls(window=int(state["window"]), predicted=np.asarray(state["predicted"], np.float64),
-                   actual=np.asarray(state["actual"], np.float64),
-                   work=np.asarray(state.get("work", np.empty(0)), np.float64))
+                   actual=np.asarray(state["actual"], np.float64))
 
 
 @dataclasses.dataclass(frozen=True)
 class EvaluationCost:
     """What an evaluation costs: ``offset + x``, where ``x`` is a measure it grows with (e.g. the Maze's mean
-    path length, since the simulator steps the agent that many times per episode) or, without a measure,
-    the work count each evaluated pick recorded (:attr:`PickErrors.work`, e.g. Mario's A* search
-    iterations).
+    path length, since the simulator steps the agent that many times per episode).
 
     Attributes:
-        measure: Index of the measure among the archive's measures; None: the recorded work.
+        measure: Index of the measure among the archive's measures.
         offset: The cost of an evaluation whose ``x`` is 0, in ``x``'s units (resetting and building the
             level); must be positive.
     """
 
-    measure: int | None
+    measure: int
     offset: float
 
     def __post_init__(self) -> None:
@@ -149,7 +126,6 @@ def expected_outcomes(
     errors: PickErrors,
     neighbours: int,
     cost: EvaluationCost | None = None,
-    work: np.ndarray | None = None,
     chunk: int = 1024,
 ) -> Outcomes:
     """The QD-score each candidate is expected to add to ``ground_truth_archive``, and what it would cost.
@@ -166,11 +142,7 @@ def expected_outcomes(
         errors: Recent picks' predictions and results; empty: the predictions are taken as exact.
         neighbours: How many recent picks, nearest in predicted measures (scaled by the archive's
             ranges), lend their errors to a candidate; all of them if fewer are held.
-        cost: How an evaluation's cost follows from its measures or recorded work; None: every evaluation
-            costs the same.
-        work: ``(n,)`` the candidates' own predicted work (e.g. their predicted occupancy sum), for a
-            ``cost`` without a measure; their cost is then ``cost.offset + work`` instead of what their
-            neighbours' evaluations cost.
+        cost: How an evaluation's cost follows from its measures; None: every evaluation costs the same.
         chunk: Candidates scored at a time (bounds memory at ``chunk × len(errors)`` distances).
 
     Raises:
@@ -184,7 +156,7 @@ def expected_outcomes(
                          f"recent picks {errors.predicted.shape[1] - 1 if len(errors) else '-'}")
     if neighbours < 1:
         raise ValueError(f"neighbours must be positive (got {neighbours})")
-    if cost is not None and cost.measure is not None and not 0 <= cost.measure < dim:
+    if cost is not None and not 0 <= cost.measure < dim:
         raise ValueError(f"cost measure index {cost.measure} is not one of the archive's {dim} measures")
     cell_objective = _cell_objectives(ground_truth_archive)
     if len(errors) == 0:
@@ -192,9 +164,8 @@ def expected_outcomes(
         # word, and the cost from the predicted measure relative to the candidates' mean.
         gains = _added(ground_truth_archive, cell_objective, objective, measures)
         costs = np.ones(len(objective))
-        # Recorded work is only known once evaluated: before that, only a prediction says anything.
-        own = _own_costs(cost, measures, work)
-        if own is not None and len(objective):
+        if cost is not None and len(objective):
+            own = np.maximum(cost.offset + measures[:, cost.measure], 0.0)
             costs = own / max(own.mean(), 1e-12)
         return Outcomes(gain=gains, cost=np.maximum(costs, 1e-6))
     scale = np.asarray(ground_truth_archive.upper_bounds, np.float64) - np.asarray(ground_truth_archive.lower_bounds,
@@ -204,12 +175,7 @@ def expected_outcomes(
     if cost is None:
         spent = np.ones(len(errors))
     else:
-        basis = errors.actual[:, 1 + cost.measure] if cost.measure is not None else errors.work
-        # A pick without a recorded count (an older checkpoint's) costs what the others do on average.
-        basis = np.where(np.isnan(basis), np.nanmean(basis) if np.isfinite(basis).any() else 0.0, basis)
-        spent = np.maximum(cost.offset + basis, 0.0)
-    own = _own_costs(cost, measures, work) if cost is not None and cost.measure is None else None
-    own = None if own is None else own / spent.mean()
+        spent = np.maximum(cost.offset + errors.actual[:, 1 + cost.measure], 0.0)
     spent = spent / spent.mean()
     k = min(neighbours, len(errors))
     gains, costs = np.empty(len(objective)), np.empty(len(objective))
@@ -222,23 +188,9 @@ def expected_outcomes(
         sample_objective = objective[part, None] + sampled[:, :, 0]
         sample_measures = measures[part, None, :] + sampled[:, :, 1:]
         gains[part] = _added(ground_truth_archive, cell_objective, sample_objective, sample_measures).mean(axis=1)
-        costs[part] = spent[nearest].mean(axis=1) if own is None else own[part]
+        costs[part] = spent[nearest].mean(axis=1)
     # A neighbourhood of evaluations that cost nothing would make any gain infinitely cheap.
     return Outcomes(gain=gains, cost=np.maximum(costs, 1e-6))
-
-
-def _own_costs(cost: EvaluationCost | None, measures: np.ndarray, work: np.ndarray | None) -> np.ndarray | None:
-    """What each candidate's own prediction says its evaluation costs (unnormalised), if anything does."""
-    if cost is None:
-        return None
-    if cost.measure is not None:
-        return np.maximum(cost.offset + measures[:, cost.measure], 0.0)
-    if work is not None:
-        work = np.asarray(work, np.float64).reshape(-1)
-        if len(work) != len(measures):
-            raise ValueError(f"{len(work)} predicted work counts for {len(measures)} candidates")
-        return np.maximum(cost.offset + work, 0.0)
-    return None
 
 
 def _added(archive: GridArchive, cell_objective: np.ndarray, objective: np.ndarray, measures: np.ndarray) -> np.ndarray:
@@ -256,62 +208,3 @@ def _cell_objectives(archive: GridArchive) -> np.ndarray:
     data = archive.data(["index", "objective"])
     cells[np.asarray(data["index"], np.int64)] = data["objective"]
     return cells
-
-
-@dataclasses.dataclass
-class GainPicks:
-    """What :func:`best_per_block` chose.
-
-    Attributes:
-        indices: Sorted archive indices to evaluate.
-        positions: Where each of them is in ``archive.data("index")`` (and so in ``gains``), same order.
-        dropped: Blocks whose best elite had ``gains`` below ``min_gain``.
-        fallback: Every block's best was below ``min_gain``, so all of them were kept.
-    """
-
-    indices: np.ndarray
-    positions: np.ndarray
-    dropped: int
-    fallback: bool
-
-
-def best_per_block(
-    archive: GridArchive,
-    gains: np.ndarray,
-    *,
-    block: Sequence[int],
-    min_gain: float,
-    rng: np.random.Generator,
-) -> GainPicks:
-    """The elite of highest ``gains`` in each occupied downsampling block, keeping those ``>= min_gain``.
-
-    Ties within a block are broken uniformly at random. When no block's best reaches ``min_gain``,
-    every block's best is kept: a run that evaluated nothing would learn nothing that could change
-    the surrogate's mind.
-
-    Args:
-        archive: The surrogate archive.
-        gains: What each elite is expected to add (e.g. :attr:`Outcomes.gain_per_cost`), in the order of
-            ``archive.data("index")``.
-        block: Cells per block along each measure, as for ``downsample``.
-        min_gain: Smallest expected gain worth an evaluation.
-        rng: Breaks ties.
-
-    Raises:
-        ValueError: ``gains`` is not one value per elite, or ``block`` is invalid.
-    """
-    indices = np.asarray(archive.data("index"), dtype=np.int64)
-    gains = np.asarray(gains, np.float64)
-    if gains.shape != indices.shape:
-        raise ValueError(f"gains must hold one value per elite ({len(indices)}), got shape {gains.shape}")
-    if len(indices) == 0:
-        return GainPicks(indices=indices, positions=np.empty(0, dtype=np.int64), dropped=0, fallback=False)
-    blocks = block_ids(archive, indices, block)
-    order = np.lexsort((rng.random(len(indices)), -gains, blocks))
-    first_of_block = order[np.r_[True, blocks[order][1:] != blocks[order][:-1]]]
-    keep = gains[first_of_block] >= min_gain
-    fallback = not keep.any()
-    chosen = first_of_block if fallback else first_of_block[keep]
-    chosen = chosen[np.argsort(indices[chosen])]
-    return GainPicks(indices=indices[chosen], positions=chosen, dropped=0 if fallback else int((~keep).sum()),
-                     fallback=fallback)

@@ -86,7 +86,7 @@ def screen_picks(surrogate_archive: GridArchive, picks: np.ndarray, ground_truth
     With ``errors``, candidates are kept by their expected gain instead (:func:`keep_screened`).
 
     When no candidate qualifies, the picks are kept: the search then has nothing it believes is new, and
-    spending nothing would stall it (as :func:`~dsage_ray.qd.selection.skip_filled` does).
+    spending nothing would stall it.
 
     Args:
         surrogate_archive: The archive the picks index (predicted objectives and measures).

@@ -1,9 +1,7 @@
-"""Which surrogate elites get a real evaluation: downsample, random or full (SPEC §1), optionally
-skipping those the ground-truth archive already beats (the ``dsage_novel`` variant)."""
+"""Which surrogate elites get a real evaluation: downsample, random or full (SPEC §1)."""
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Callable, Sequence
 
 import numpy as np
@@ -19,14 +17,12 @@ def select_solutions(
     block: Sequence[int],
     count: int,
     rng: np.random.Generator,
-    new_cells: GridArchive | None = None,
 ) -> np.ndarray:
     """Picks elites of ``archive`` for real evaluation.
 
     - ``downsample``: the cell grid is cut into blocks of ``block`` cells per measure (edge blocks may
       be smaller when a block size does not divide the grid), and one occupied elite is chosen
-      uniformly at random per occupied block. With ``new_cells``, only among the block's elites whose
-      cells that archive does not hold yet, where the block has any.
+      uniformly at random per occupied block.
     - ``random``: ``count`` elites uniformly without replacement (all of them if fewer).
     - ``full``: every elite.
 
@@ -39,29 +35,19 @@ def select_solutions(
         block: Cells per block along each measure (``downsample`` only).
         count: Elites to pick (``random`` only).
         rng: Source of randomness; ``full`` does not draw from it.
-        new_cells: ``downsample`` only: an archive over the same cells, usually the ground truth.
-            A pick in a cell it already holds is spent on a level that can at best replace that
-            cell's elite, so the elites of cells it lacks go first.
 
     Returns:
         Sorted integer archive indices of the chosen elites; read their data with :func:`gather_elites`.
 
     Raises:
-        ValueError: Unknown method, ``block`` not one positive entry per measure, or ``new_cells`` with
-            another method or other cells.
+        ValueError: ``block`` is not one positive entry per measure.
+        ConfigError: Unknown method.
     """
     if method not in SELECTION_METHODS:
         raise ConfigError(f"selection.method: unknown method {method!r} (known: {', '.join(SELECTION_METHODS)})"
                           f"{did_you_mean(method, SELECTION_METHODS)}")
     indices = np.sort(np.asarray(archive.data("index"), dtype=np.int64))
-    if new_cells is None:
-        return np.sort(indices[SELECTION_METHODS[method](archive, indices, block, count, rng)])
-    if method != "downsample":
-        raise ValueError(f"new_cells applies to downsampling only (method {method!r})")
-    check_same_cells(archive, new_cells, "new_cells")
-    data = archive.data(["index", "measures"])  # only the measures: no copy of every elite's solution
-    held = new_cells.retrieve(data["measures"][np.argsort(data["index"])])[0]
-    return np.sort(indices[_one_per_block(archive, indices, block, rng, preferred=~held)])
+    return np.sort(indices[SELECTION_METHODS[method](archive, indices, block, count, rng)])
 
 
 def _downsample(archive: GridArchive, indices: np.ndarray, block: Sequence[int], count: int,
@@ -110,67 +96,17 @@ def block_ids(archive: GridArchive, indices: np.ndarray, block: Sequence[int]) -
     return np.ravel_multi_index(tuple(block_coords.T), tuple(grid_shape))
 
 
-def _one_per_block(
-    archive: GridArchive, indices: np.ndarray, block: Sequence[int], rng: np.random.Generator,
-    preferred: np.ndarray | None = None,
-) -> np.ndarray:
-    """Positions into ``indices`` (sorted) of one uniformly chosen elite per occupied block: among the
-    block's ``preferred`` elites (a mask over ``indices``) where it has any."""
+def _one_per_block(archive: GridArchive, indices: np.ndarray, block: Sequence[int],
+                   rng: np.random.Generator) -> np.ndarray:
+    """Positions into ``indices`` (sorted) of one uniformly chosen elite per occupied block."""
     blocks = block_ids(archive, indices, block)
     if len(indices) == 0:
         return np.empty(0, dtype=np.int64)
     # Each elite gets an i.i.d. uniform key; the smallest key in a block is a uniform pick within it.
     keys = rng.random(len(indices))
-    order = np.lexsort((keys, blocks) if preferred is None else (keys, ~preferred, blocks))
+    order = np.lexsort((keys, blocks))
     first_of_block = np.r_[True, blocks[order][1:] != blocks[order][:-1]]
     return np.sort(order[first_of_block])
-
-
-@dataclasses.dataclass
-class FilledSkip:
-    """What :func:`skip_filled` kept.
-
-    Attributes:
-        kept: Sorted archive indices to evaluate.
-        filled: Picks predicted to land in a ground-truth cell that already does at least as well.
-        fallback: Every pick was such a pick, so all of them were kept (see :func:`skip_filled`).
-    """
-
-    kept: np.ndarray
-    filled: int
-    fallback: bool
-
-
-def skip_filled(surrogate_archive: GridArchive, picks: np.ndarray, ground_truth_archive: GridArchive) -> FilledSkip:
-    """Drops picks that the ground-truth archive already beats, by the surrogate's own prediction.
-
-    A pick (an elite of ``surrogate_archive``, whose objective and measures are predictions) is
-    dropped when the ground-truth cell at its predicted measures is occupied with an objective
-    ``>=`` its predicted objective: evaluating it is expected to change nothing. Picks predicted to
-    land in empty cells or to improve an elite are kept.
-
-    When every pick would be dropped, all of them are kept instead: the surrogate then has nothing
-    it believes is new, and spending nothing would leave the run with no new data to correct it
-    (and an outer loop that never spends its budget).
-
-    Args:
-        surrogate_archive: The archive the picks index.
-        picks: Archive indices, e.g. from :func:`select_solutions`.
-        ground_truth_archive: Archive of real evaluations, with the same cells as ``surrogate_archive``.
-
-    Raises:
-        ValueError: The two archives do not have the same cells.
-        KeyError: A pick is not occupied.
-    """
-    check_same_cells(surrogate_archive, ground_truth_archive, "skip_filled")
-    picks = np.sort(np.asarray(picks, dtype=np.int64))
-    if len(picks) == 0:
-        return FilledSkip(kept=picks, filled=0, fallback=False)
-    predicted = gather_elites(surrogate_archive, picks)
-    filled = ~adds_to(ground_truth_archive, predicted["objective"], predicted["measures"])
-    if filled.all():
-        return FilledSkip(kept=picks, filled=int(filled.sum()), fallback=True)
-    return FilledSkip(kept=picks[~filled], filled=int(filled.sum()), fallback=False)
 
 
 def adds_to(archive: GridArchive, objective: np.ndarray, measures: np.ndarray) -> np.ndarray:

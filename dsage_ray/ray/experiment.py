@@ -215,7 +215,6 @@ def run_experiment(
     api: TuneApi = "tuner",
     resume: bool = False,
     max_failures: int = 2,
-    checkpoint_every: int = 1,
     domain_factory: DomainFactory = build_domain,
     verbose: int = 0,
     given: Collection[str] | None = None,
@@ -233,7 +232,6 @@ def run_experiment(
         resume: Continue an interrupted experiment of the same name (unfinished and errored trials
             resume from their last checkpoints).
         max_failures: Times a crashed trial is restored from its last checkpoint.
-        checkpoint_every: Outer iterations between checkpoints.
         domain_factory: Builds the domain in the trial and in each simulator actor.
         verbose: Tune's own console verbosity (1 adds its status tables). A progress line per
             trial result is printed at every verbosity (:class:`~dsage_ray.ray.progress.ProgressLines`).
@@ -253,19 +251,19 @@ def run_experiment(
     # One writer per experiment folder (where it is a folder of this machine; a bucket cannot be locked).
     with folder_lock(local / name, what="experiment") if local is not None else contextlib.nullcontext():
         return _run_tune(param_space, name=name, storage_path=storage_path, api=api, resume=resume,
-                         max_failures=max_failures, checkpoint_every=checkpoint_every, verbose=verbose,
+                         max_failures=max_failures, verbose=verbose,
                          domain_factory=domain_factory)
 
 
 def _run_tune(param_space: Mapping[str, Any], *, name: str, storage_path: str, api: TuneApi, resume: bool,
-              max_failures: int, checkpoint_every: int, verbose: int,
+              max_failures: int, verbose: int,
               domain_factory: DomainFactory | None) -> ExperimentResult:
     experiment_path = f"{storage_path.rstrip('/')}/{name}"
     # The agents travel as bytes (Tune puts these arguments in the object store): no trial needs the driver's paths.
     trainable = tune.with_parameters(DSAGETrainable, domain_factory=domain_factory,
                                      agent_files=pack_agent_files(config_agent_specs(param_space)))
-    # Tune checkpoints at the end too, so a finished trial's last state is always on disk.
-    checkpoint_config = tune.CheckpointConfig(checkpoint_frequency=checkpoint_every, checkpoint_at_end=True,
+    # Every outer iteration (a trial loses at most one), and at the end, so a finished trial's last state is on disk.
+    checkpoint_config = tune.CheckpointConfig(checkpoint_frequency=1, checkpoint_at_end=True,
                                               num_to_keep=2)
     callbacks = [ProgressLines(), CSVLoggerCallback(), JsonLoggerCallback()]
 

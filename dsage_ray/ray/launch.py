@@ -46,7 +46,7 @@ def run_with_tune(
     start_ray(address)
     check_resources(config)
     experiment = run_experiment(config.to_flat(), name=config.name, storage_path=out_dir, api="tuner",
-                                resume=resume, max_failures=max_failures, checkpoint_every=config.checkpoint_every)
+                                resume=resume, max_failures=max_failures)
     (trial,) = experiment.trials
     return trial
 
@@ -90,4 +90,4 @@ def ablate(
     shape = " × ".join(f"{key} ({len(values)})" for key, values in axes.items())
     print(f"{config.name}: {shape} via {api}, storage {out_dir}", flush=True)
     return run_experiment(param_space, name=config.name, storage_path=out_dir, api=api, resume=resume,
-                          max_failures=max_failures, checkpoint_every=config.checkpoint_every, given=given)
+                          max_failures=max_failures, given=given)

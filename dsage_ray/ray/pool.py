@@ -45,6 +45,8 @@ logger = logging.getLogger(__name__)
 DomainFactory = Callable[[RunConfig], Domain]
 
 #: Environment variables that cap the thread pools of the numeric libraries in an actor process.
+#: Seconds to wait for every simulator actor to start before failing instead of hanging.
+PLACEMENT_TIMEOUT_S = 120.0
 _THREAD_ENV_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
 
@@ -146,10 +148,9 @@ class SimulatorPool:
         self.config = config
         self.num_workers = config.ray.num_workers if num_workers is None else num_workers
         self.cpus_per_worker = config.ray.cpus_per_worker if cpus_per_worker is None else cpus_per_worker
-        self.chunk_size = config.ray.chunk_size if chunk_size is None else chunk_size
+        self.chunk_size = config.experimental.chunk_size if chunk_size is None else chunk_size
         self.max_in_flight = max_in_flight
-        self.placement_timeout_s = (config.ray.placement_timeout_s if placement_timeout_s is None
-                                    else placement_timeout_s)
+        self.placement_timeout_s = PLACEMENT_TIMEOUT_S if placement_timeout_s is None else placement_timeout_s
         self.max_deaths_per_chunk = max_deaths_per_chunk
         self.domain_factory = domain_factory
         if self.num_workers < 1:
@@ -202,7 +203,7 @@ class SimulatorPool:
                 f"in {where}. Either they do not fit (lower ray.num_workers or ray.cpus_per_worker, or add "
                 f"nodes), or they are still starting: Ray runs its workers at a low priority (niceness 15, "
                 f"RAY_worker_niceness), so on a machine busy with other processes, importing torch and building "
-                f"the domain can take minutes (raise ray.placement_timeout_s)")
+                f"the domain can take minutes (SimulatorPool's placement_timeout_s)")
         try:
             return ray.get(probes)
         except RayActorError as exc:

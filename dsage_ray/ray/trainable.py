@@ -66,8 +66,7 @@ class DSAGETrainable(tune.Trainable):
         self.pool = (SimulatorPool(config=self.run_config, domain_factory=domain_factory, agent_files=agent_files)
                      if self.run_config.ray.num_workers > 0 else None)
         self.runner = DSAGE(config=self.run_config, evaluator=self.pool, domain=domain)
-        tensorboard = RunTensorBoard(logdir=self.output_dir, image_every=self.run_config.image_every,
-                                     image_levels=self.run_config.image_levels)
+        tensorboard = RunTensorBoard(logdir=self.output_dir, image_every=self.run_config.image_every)
         self.loop = RunLoop(runner=self.runner, out_dir=self.output_dir, callbacks=[tensorboard])
         # Reported so that a misplaced pool (actors outside the trial's bundles) is visible.
         trial_group = ray.get_runtime_context().get_placement_group_id()

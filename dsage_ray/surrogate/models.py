@@ -22,8 +22,8 @@ if TYPE_CHECKING:
 LEAKY_SLOPE = 0.2
 #: Channels of the first convolution of both predictors (the paper's; ``surrogate.channels``).
 BASE_CHANNELS = 64
-#: Dilation of each residual block of the occupancy predictor: two plain blocks (the paper's;
-#: ``surrogate.dilations``).
+#: Dilation of each residual block of the occupancy predictor: two plain blocks (the paper's; wider receptive
+#: fields did not predict better, docs/results/surrogate_accuracy).
 BASE_DILATIONS = (1, 1)
 #: The measure predictor downsamples until this spatial size, then flattens.
 FINAL_SIZE = 4

@@ -37,7 +37,7 @@ LevelValues = Callable[[np.ndarray], dict[str, np.ndarray]]
 
 #: Surrogate kinds by name: ``two_stage`` predicts occupancy first (DSAGE), ``one_stage`` does not.
 #: With ``"none"`` (plain QD, no surrogate) these are the config's ``surrogate.kind`` names. Each is
-#: built from the input's shape and the config's architecture keys (``channels``, ``dilations``).
+#: built from the input's shape and the config's width (``channels``).
 #: A 1×1 input is a parameter vector (the gym domain's levels), which the vector models read with MLPs of
 #: ``channels`` hidden units.
 MODELS: dict[str, Callable[..., nn.Module]] = {
@@ -45,8 +45,7 @@ MODELS: dict[str, Callable[..., nn.Module]] = {
         VectorTwoStageModel(input_channels=input_channels, occupancy_shape=occupancy_shape,
                             num_measures=num_measures, width=config.channels) if input_size == 1 else
         TwoStageModel(input_channels=input_channels, input_size=input_size, occupancy_shape=occupancy_shape,
-                      num_measures=num_measures, channels=config.channels, dilations=tuple(config.dilations),
-                      statistics=statistics),
+                      num_measures=num_measures, channels=config.channels, statistics=statistics),
     "one_stage": lambda *, input_channels, input_size, occupancy_shape, num_measures, config, statistics=None:
         VectorOneStageModel(input_channels=input_channels, num_measures=num_measures, width=config.channels)
         if input_size == 1 else
@@ -58,6 +57,8 @@ KINDS = tuple(MODELS)
 #: blend is what the fair benchmark scored (rank-averaging the networks with the random walker).
 PRIOR_WEIGHT = 0.5
 PRECISIONS = ("auto", "fp32", "bf16")
+#: Levels per prediction chunk: bounds the memory of a prediction, not its result.
+PREDICT_BATCH_SIZE = 4096
 #: x86 CPU flags of native bf16 arithmetic. Without them bf16 is emulated and slower than float32.
 #: (ARM's bf16 extensions are left out: never measured here, so ``auto`` keeps float32 there.)
 NATIVE_BF16_FLAGS = ("avx512_bf16", "amx_bf16")
@@ -137,7 +138,6 @@ class Surrogate:
         num_measures: Number of measures.
         config: Training and prediction settings.
         seed: Seeds the initial weights and the minibatch order.
-        measure_ranges: ``(low, high)`` per measure; required by ``config.target_scaling = "range"``.
         measure_names: The measures' names; required by ``config.occupancy_sum_measure``, which names one.
         statistics: Per-level scalars fed to the measure heads (:class:`~dsage_ray.surrogate.models.LevelStatistics`).
         prior: With ``config.prior_measure``: the domain's parameter-free prior of that measure, encoded levels
@@ -154,7 +154,6 @@ class Surrogate:
 
     def __init__(self, *, kind: str, input_channels: int, input_shape: tuple[int, int],
                  occupancy_shape: tuple[int, int], num_measures: int, config: SurrogateConfig, seed: int,
-                 measure_ranges: Sequence[tuple[float, float]] | None = None,
                  measure_names: Sequence[str] | None = None, statistics: LevelStatistics | None = None,
                  sum_residual: bool = False, prior: Callable[[torch.Tensor], torch.Tensor] | None = None,
                  level_values: LevelValues | None = None) -> None:
@@ -170,8 +169,6 @@ class Surrogate:
         self.occupancy_shape = tuple(occupancy_shape)
         self.num_measures = num_measures
         self.device = resolve_device(config.device)
-        self._measure_offset, self._measure_scale = _target_scaling(config.target_scaling, measure_ranges,
-                                                                    num_measures, self.device)
         self._sum_index = _occupancy_sum_index(config.occupancy_sum_measure, kind, measure_names, num_measures)
         self._sum_residual = sum_residual
         self._prior_index = _measure_index("prior_measure", config.prior_measure, measure_names, num_measures)
@@ -194,7 +191,7 @@ class Surrogate:
                                  occupancy_shape=self.occupancy_shape, num_measures=num_measures, config=config,
                                  statistics=statistics)
         self.model = model.to(self.device)
-        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr, betas=tuple(config.betas))
+        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr)
         self._shuffle_rng = torch.Generator().manual_seed(seed)
 
     @classmethod
@@ -210,7 +207,7 @@ class Surrogate:
         sample = encode_solutions(domain, domain.random_solutions(1, np.random.default_rng(0)))
         return cls(kind=config.kind, input_channels=sample.shape[1], input_shape=tuple(sample.shape[2:]),
                    occupancy_shape=domain.occupancy_shape, num_measures=len(domain.measure_names), config=config,
-                   seed=seed, measure_ranges=domain.measure_ranges, measure_names=domain.measure_names,
+                   seed=seed, measure_names=domain.measure_names,
                    prior=domain_prior(domain, config.prior_measure),
                    level_values=domain_level_values(domain) if config.exact_level_values else None)
 
@@ -233,11 +230,10 @@ class Surrogate:
 
     def _losses(self, output: ModelOutput, objective: torch.Tensor, measures: torch.Tensor,
                 occupancy: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Returns the training loss and the per-head MSEs (``head_names`` order, measures in scaled units)."""
+        """Returns the training loss and the per-head MSEs (``head_names`` order)."""
         output = self._sum_occupancy(output)
         predicted = torch.cat([output.objective[:, None], output.measures], dim=1)
-        scaled = (measures - self._measure_offset) / self._measure_scale
-        target = torch.cat([objective[:, None], scaled], dim=1)
+        target = torch.cat([objective[:, None], measures], dim=1)
         head_mse = F.mse_loss(predicted, target, reduction="none").mean(dim=0)
         loss = head_mse.mean()
         if output.occupancy is None:
@@ -248,36 +244,21 @@ class Surrogate:
     def train(self, dataset: SurrogateDataset) -> dict[str, float]:
         """Fits the model on the most recent ``config.train_window`` samples.
 
-        Trains ``config.epochs`` epochs, or ``config.incremental_epochs`` (when set) once the model has
-        trained before: the weights and Adam's moments persist, so a later training starts from a fitted
-        model and only has to follow the window's new samples. "Trained before" is read from Adam's state,
-        which checkpoints keep, so a resumed run counts exactly as an uninterrupted one.
-        With ``config.validation_fraction > 0`` a random share of the
-        window is held out instead, training stops after ``config.patience`` epochs without a lower
-        validation loss, and the weights of the best epoch are kept.
+        Trains ``config.epochs`` epochs. The weights and Adam's moments persist, so a later training starts
+        from a fitted model.
 
         Returns:
             The last epoch's sample-weighted mean MSE per head (``head_names``; occupancy unweighted),
-            ``"total"``, the loss that was minimised, and ``"epochs"``, the epochs trained; with early
-            stopping also ``"validation"``, the best validation loss.
+            ``"total"``, the loss that was minimised, and ``"epochs"``, the epochs trained.
         """
         window = dataset.recent(self.config.train_window)
         n = len(window)
         if n == 0:
             raise ValueError("cannot train the surrogate on an empty dataset")
-        train_indices = np.arange(n)
-        validation_indices = None
-        n_validation = int(n * self.config.validation_fraction)
-        if 0 < n_validation < n:
-            split = torch.randperm(n, generator=self._shuffle_rng).numpy()
-            validation_indices, train_indices = np.sort(split[:n_validation]), np.sort(split[n_validation:])
         batch_size = self.config.batch_size
-        best_loss, best_weights, stale = float("inf"), None, 0
-        epochs = 0
-        incremental = self.config.incremental_epochs > 0 and bool(self.optimizer.state)
-        for _ in range(self.config.incremental_epochs if incremental else self.config.epochs):
+        for _ in range(self.config.epochs):
             self.model.train()
-            order = train_indices[torch.randperm(len(train_indices), generator=self._shuffle_rng).numpy()]
+            order = torch.randperm(n, generator=self._shuffle_rng).numpy()
             # Accumulated on the device: one host sync per epoch, not one per minibatch.
             sums = torch.zeros(len(self.head_names) + 1, device=self.device)
             for start in range(0, len(order), batch_size):
@@ -288,28 +269,15 @@ class Surrogate:
                 loss.backward()
                 self.optimizer.step()
                 sums += torch.cat([head_mse, loss[None]]).detach() * len(indices)
-            epochs += 1
-            if validation_indices is None:
-                continue
-            validation_loss = self._validation_loss(window, validation_indices)
-            if validation_loss < best_loss:
-                best_loss, best_weights, stale = validation_loss, _cpu_copy(self.model.state_dict()), 0
-            else:
-                stale += 1
-                if stale >= self.config.patience:
-                    break
-        losses = dict(zip((*self.head_names, "total"), (sums / len(train_indices)).tolist()))
-        losses["epochs"] = float(epochs)
-        if best_weights is not None:
-            self.model.load_state_dict(best_weights)
-            losses["validation"] = best_loss
+        losses = dict(zip((*self.head_names, "total"), (sums / n).tolist()))
+        losses["epochs"] = float(self.config.epochs)
         if self._prior_index is not None:
             self._prior_fit = self._fit_prior(window)
         return losses
 
     def _log_prior(self, encoded: np.ndarray) -> np.ndarray:
-        """``log(1 + prior)`` of ``(n, C, S, S)`` float32 levels, float64, in chunks of ``predict_batch_size``."""
-        step = self.config.predict_batch_size
+        """``log(1 + prior)`` of ``(n, C, S, S)`` float32 levels, float64, in chunks of :data:`PREDICT_BATCH_SIZE`."""
+        step = PREDICT_BATCH_SIZE
         parts = [self._prior(torch.from_numpy(encoded[start:start + step])).double().cpu().numpy()
                  for start in range(0, len(encoded), step)]
         return np.log1p(np.concatenate(parts)) if parts else np.zeros(0)
@@ -324,18 +292,6 @@ class Surrogate:
         slope, intercept = np.polyfit(log_prior[finite], target[finite], 1)
         return float(intercept), float(slope)
 
-    def _validation_loss(self, window, indices: np.ndarray) -> float:
-        """The training loss on held-out samples, in ``eval()`` mode (BatchNorm's running statistics)."""
-        self.model.eval()
-        total = 0.0
-        with torch.inference_mode():
-            for start in range(0, len(indices), self.config.predict_batch_size):
-                chunk = indices[start:start + self.config.predict_batch_size]
-                levels, *targets = window.batch(chunk, self.device)
-                loss, _ = self._losses(self.model(levels), *targets)
-                total += float(loss) * len(chunk)
-        return total / len(indices)
-
     def _sum_occupancy(self, output: ModelOutput) -> ModelOutput:
         """Replaces the ``occupancy_sum_measure`` head's output by the sum of the predicted occupancy.
 
@@ -346,7 +302,7 @@ class Surrogate:
         if self._sum_index is None:
             return output
         i = self._sum_index
-        total = (output.occupancy.float().sum(dim=(1, 2)) - self._measure_offset[i]) / self._measure_scale[i]
+        total = output.occupancy.float().sum(dim=(1, 2))
         if self._sum_residual:
             total = total + output.measures[:, i]
         measures = torch.cat([output.measures[:, :i], total[:, None], output.measures[:, i + 1:]], dim=1)
@@ -355,7 +311,7 @@ class Surrogate:
     # --------------------------------------------------------------------------------- prediction
 
     def predict(self, encoded: EncodedLevels) -> Prediction:
-        """Predicts for ``(n, input_channels, size, size)`` levels in chunks of ``config.predict_batch_size``.
+        """Predicts for ``(n, input_channels, size, size)`` levels in chunks of :data:`PREDICT_BATCH_SIZE`.
 
         With :attr:`precision` ``"bf16"`` the two-stage model's residual blocks run in bf16
         (:meth:`~dsage_ray.surrogate.models.OccupancyPredictor.forward`); the results are float32 either way.
@@ -367,8 +323,8 @@ class Surrogate:
         self.model.eval()
         chunks: list[ModelOutput] = []
         with torch.inference_mode():
-            for start in range(0, len(encoded), self.config.predict_batch_size):
-                levels = torch.from_numpy(encoded[start:start + self.config.predict_batch_size]).to(self.device)
+            for start in range(0, len(encoded), PREDICT_BATCH_SIZE):
+                levels = torch.from_numpy(encoded[start:start + PREDICT_BATCH_SIZE]).to(self.device)
                 chunks.append(self.model(levels, bf16_blocks=self.precision == "bf16"))
         if not chunks:
             height, width = self.occupancy_shape
@@ -376,7 +332,7 @@ class Surrogate:
                               occupancy=np.zeros((0, height, width), np.float32) if "occupancy" in self.head_names else None)
         objective, measures, occupancy = (None if parts[0] is None else torch.cat(parts)
                                           for parts in zip(*map(self._sum_occupancy, chunks)))
-        measures = (measures * self._measure_scale + self._measure_offset).cpu().numpy()
+        measures = measures.cpu().numpy()
         if self._prior_fit is not None:
             intercept, slope = self._prior_fit
             i = self._prior_index
@@ -490,23 +446,6 @@ def _measure_index(key: str, name: str, measure_names: Sequence[str] | None, num
     if len(names) != num_measures or name not in names:
         raise ValueError(f"{key} {name!r} is not one of the measures {names}")
     return names.index(name)
-
-
-def _target_scaling(name: str, measure_ranges: Sequence[tuple[float, float]] | None, num_measures: int,
-                    device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
-    """``(offset, scale)`` per measure: the network learns ``(measure - offset) / scale``."""
-    if name == "none":
-        return torch.zeros(num_measures, device=device), torch.ones(num_measures, device=device)
-    if name != "range":
-        raise ValueError(f"surrogate target_scaling must be 'none' or 'range', got {name!r}")
-    if measure_ranges is None or len(measure_ranges) != num_measures:
-        raise ValueError(f"target_scaling 'range' needs one (low, high) per measure ({num_measures}), "
-                         f"got {measure_ranges!r}")
-    low = torch.tensor([float(lo) for lo, _ in measure_ranges], device=device)
-    high = torch.tensor([float(hi) for _, hi in measure_ranges], device=device)
-    if not bool(torch.all(high > low)):
-        raise ValueError(f"every measure range needs high > low, got {measure_ranges!r}")
-    return low, high - low
 
 
 def _cpu_copy(tree: Any) -> Any:

@@ -176,7 +176,7 @@ def test_maze_audits_take_the_level_values_from_the_level_unless_told_otherwise(
 
 def test_a_dsage_maze_audit_mutates_its_best_elites_and_other_searches_do_not():
     assert audit_config(agent=AUDITED, preset="cpu").selection.elite_mutants == 150
-    assert audit_config(agent=AUDITED, preset="cpu", variant="dsage_novel").selection.elite_mutants == 150
+    assert audit_config(agent=AUDITED, preset="cpu", variant="dsage_only_down").selection.elite_mutants == 150
     told = audit_config(agent=AUDITED, preset="cpu", overrides={"selection.elite_mutants": 0})
     assert told.selection.elite_mutants == 0
     # A search without a surrogate would refuse the key; it is simply not added.
@@ -211,6 +211,6 @@ def test_a_search_on_disk_reports_its_config_from_the_checkpoint_header_or_an_ol
 
 
 def test_audits_hold_no_levels_out_unless_asked():
-    assert audit_config(agent=AUDITED, preset="cpu").surrogate.holdout_levels == 0
-    asked = audit_config(agent=AUDITED, preset="cpu", overrides={"surrogate.holdout_levels": 30})
-    assert asked.surrogate.holdout_levels == 30
+    assert audit_config(agent=AUDITED, preset="cpu").experimental.holdout_levels == 0
+    asked = audit_config(agent=AUDITED, preset="cpu", overrides={"experimental.holdout_levels": 30})
+    assert asked.experimental.holdout_levels == 30

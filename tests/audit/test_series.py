@@ -24,7 +24,7 @@ from dsage_ray.cli import main
 from .test_report_browser import browser  # noqa: F401 - the headless Chromium fixture (skips where it is missing)
 
 #: One outer iteration of 6 random 8x8 mazes, 4 episodes per level: a few seconds per checkpoint.
-TINY = {"n_rand": 6, "image_levels": 0, "maze.height": 8, "maze.width": 8}
+TINY = {"n_rand": 6, "image_every": 0, "maze.height": 8, "maze.width": 8}
 SETTINGS = dict(preset="tiny", budget=6, episodes=4, overrides=TINY, local=True)
 #: The same on the command line.
 TINY_ARGS = ["--preset", "tiny", "--budget", "6", "--episodes", "4", "--local",

@@ -32,7 +32,9 @@ def synthetic(n: int, config, seed: int = 0) -> bench.SearchData:
     levels = domain.encode(domain.random_solutions(n, rng))
     units = levels[:, :, 0, 0].astype(np.float64)
     objective = (units[:, 0] + 1) / 2  # in [0, 1], like a failure rate
-    measures = np.stack([2.0 * units[:, 1], 250 + 200 * units[:, 2]], axis=1)  # x_end, length
+    # x_end, and a length of the same scale: with raw targets in the hundreds (a real episode length) the length would
+    # drive the loss (docs/results/gym_audit, the surrogate section)
+    measures = np.stack([2.0 * units[:, 1], 2.0 + units[:, 2]], axis=1)
     height, width = domain.occupancy_shape
     rows = np.clip(((units[:, 3] + 1) / 2 * height).astype(int), 0, height - 1)
     occupancy = np.zeros((n, height, width), np.float32)
@@ -42,7 +44,7 @@ def synthetic(n: int, config, seed: int = 0) -> bench.SearchData:
 
 
 def test_both_models_rank_a_target_that_is_a_function_of_the_parameters():
-    data = synthetic(240, gym_config(epochs=40, batch_size=32, target_scaling="range", lr=0.003))
+    data = synthetic(240, gym_config(epochs=40, batch_size=32, lr=0.003))
     (train, test), = bench.splits(len(data.objective), count=1, test_share=0.25, seed=1)
     assert len(test) == 60 and not set(train) & set(test)
     for kind in bench.KINDS:

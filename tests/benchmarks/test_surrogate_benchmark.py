@@ -113,7 +113,7 @@ def test_a_run_folder_round_trips_through_the_file_into_the_benchmark_data(tmp_p
 
     config = RunConfig.build({"domain": "maze", "preset": "tiny", "maze.agent": "builtin:wall_follower",
                               "maze.episodes": 1, "budget": 40, "n_rand": 20, "surrogate.epochs": 1,
-                              "qd.exploit_iterations": 2, "selection.count": 10, "surrogate.holdout_levels": 4,
+                              "qd.exploit_iterations": 2, "selection.count": 10, "experimental.holdout_levels": 4,
                               "image_every": 1000})
     run = run_locally(config, out_dir=tmp_path / "run", console=False)
     import torch

@@ -21,7 +21,7 @@ def holdout_history(runner):
 
 
 def test_holdout_metrics_every_trained_iteration_outside_the_budget():
-    runner = make_runner(**{"surrogate.holdout_levels": HOLDOUT})
+    runner = make_runner(**{"experimental.holdout_levels": HOLDOUT})
     first = runner.step()
     assert first["holdout_evals"] == HOLDOUT and first["evals"] == SMALL_RUN["n_rand"]
     assert not any(k.startswith(("holdout_mae", "holdout_spearman")) for k in first)  # nothing trained yet
@@ -45,7 +45,7 @@ def test_holdout_metrics_every_trained_iteration_outside_the_budget():
 def test_held_out_levels_never_change_the_search():
     plain = make_runner()
     plain.run()
-    measured = make_runner(**{"surrogate.holdout_levels": HOLDOUT})
+    measured = make_runner(**{"experimental.holdout_levels": HOLDOUT})
     measured.run()
     assert archive_snapshot(measured.archive) == archive_snapshot(plain.archive)
     assert [h["qd_score"] for h in measured.history] == [h["qd_score"] for h in plain.history]
@@ -57,7 +57,7 @@ def test_held_out_levels_never_change_the_search():
 
 
 def test_holdout_metrics_are_exact_across_checkpoint_resume_and_not_re_evaluated():
-    overrides = {"surrogate.holdout_levels": HOLDOUT}
+    overrides = {"experimental.holdout_levels": HOLDOUT}
     reference = make_runner(**overrides)
     reference.run()
     assert any("holdout_spearman_num_walls" in h for h in reference.history)
@@ -77,7 +77,7 @@ def test_holdout_metrics_are_exact_across_checkpoint_resume_and_not_re_evaluated
 
 
 def test_held_out_set_depends_on_the_seed_only():
-    a, b, c = (make_runner(**{"surrogate.holdout_levels": HOLDOUT, "seed": s}) for s in (0, 0, 1))
+    a, b, c = (make_runner(**{"experimental.holdout_levels": HOLDOUT, "seed": s}) for s in (0, 0, 1))
     for runner in (a, b, c):
         runner.step()
     np.testing.assert_array_equal(a.holdout["solutions"], b.holdout["solutions"])
@@ -94,7 +94,7 @@ class ValidOnlyDomain(BitmapDomain):
 
 
 def test_domains_with_valid_levels_supply_the_held_out_set_and_failures_are_left_out():
-    config = RunConfig.build({**SMALL_RUN, "surrogate.holdout_levels": HOLDOUT})
+    config = RunConfig.build({**SMALL_RUN, "experimental.holdout_levels": HOLDOUT})
     runner = DSAGE(config=config, domain=ValidOnlyDomain())
     runner.step()
     assert np.all(runner.holdout["solutions"][:, :8] == 0)
@@ -107,7 +107,7 @@ def test_domains_with_valid_levels_supply_the_held_out_set_and_failures_are_left
 
 
 def test_baselines_hold_nothing_out():
-    runner = make_runner(variant="map_elites", **{"surrogate.holdout_levels": HOLDOUT})
+    runner = make_runner(variant="map_elites", **{"experimental.holdout_levels": HOLDOUT})
     metrics = runner.step()
     assert metrics["holdout_evals"] == 0 and runner.holdout is None
 
@@ -126,8 +126,8 @@ def test_maze_held_out_levels_are_valid_and_seeded():
 def test_bad_holdout_count_is_one_config_error():
     from dsage_ray.config import ConfigError
 
-    with pytest.raises(ConfigError, match="surrogate.holdout_levels"):
-        RunConfig.build({**SMALL_RUN, "surrogate.holdout_levels": -1})
+    with pytest.raises(ConfigError, match="experimental.holdout_levels"):
+        RunConfig.build({**SMALL_RUN, "experimental.holdout_levels": -1})
 
 
 def test_a_batch_whose_every_evaluation_fails_stops_the_run_with_the_evaluations_error():

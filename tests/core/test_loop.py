@@ -1,4 +1,4 @@
-"""The one run loop: callbacks, checkpoints every ``checkpoint_every`` iterations, exact resume, run folders."""
+"""The one run loop: callbacks, a checkpoint every outer iteration, exact resume, run folders."""
 
 from __future__ import annotations
 
@@ -34,25 +34,24 @@ class Recorder:
         self.calls.append(("close",))
 
 
-def test_run_calls_back_checkpoints_every_k_iterations_and_writes_outputs_at_the_end(tmp_path, monkeypatch):
+def test_run_calls_back_checkpoints_every_iteration_and_writes_outputs_at_the_end(tmp_path, monkeypatch):
     run = config()
     runner = DSAGE(config=run, domain=BitmapDomain())
     recorder = Recorder()
     loop = RunLoop(runner=runner, out_dir=tmp_path, callbacks=[recorder])
     saved: list[int] = []
     monkeypatch.setattr(loop, "save", lambda path: saved.append(runner.outer_iteration))
-    loop.run(checkpoint=tmp_path / CHECKPOINT_NAME, checkpoint_every=2)
+    loop.run(checkpoint=tmp_path / CHECKPOINT_NAME)
     loop.close()
     iterations = len(runner.history)
     assert iterations >= 3
-    # Every second iteration, and the last one whatever its number.
-    assert saved == sorted({*range(2, iterations + 1, 2), iterations})
+    assert saved == list(range(1, iterations + 1))
     assert recorder.calls == [("start", 0), *(("step", int(m["evals"])) for m in runner.history), ("close",)]
     assert (tmp_path / "archive.csv").exists() and (tmp_path / "metrics.json").exists()
 
 
 def test_run_locally_resumed_after_a_crash_writes_the_uninterrupted_archive(tmp_path):
-    run = config(checkpoint_every=1)
+    run = config()
     reference = run_locally(run, out_dir=tmp_path / "reference", domain=BitmapDomain(), console=False)
 
     # An interrupted run: two iterations checkpointed, then the process "dies" (no outputs, no close).

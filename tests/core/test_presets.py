@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dsage_ray.config import RunConfig, paper_comparison, variants
+from dsage_ray.config import RunConfig
 from dsage_ray.domains.mario.plugin import MarioConfig
 
 
@@ -30,25 +30,7 @@ def test_mario_random_latents_follow_latent_sigma(sigma):
     assert latents.std() == pytest.approx(sigma, rel=0.02) and abs(latents.mean()) < 0.02 * sigma
 
 
-@pytest.mark.parametrize("domain", ["maze", "mario"])
-def test_novel_variant_exists_beside_the_paper_comparison(domain):
-    config = RunConfig.build({"domain": domain, "variant": "dsage_novel"})
-    assert config.selection.skip_filled and config.surrogate.kind == "two_stage"
-    assert config.selection.method == "downsample"
-    assert "dsage_novel" not in paper_comparison(domain)
-    assert not any(v.get("selection.skip_filled") for name, v in variants(domain).items() if name != "dsage_novel")
-
-
-@pytest.mark.parametrize("domain", ["maze", "mario"])
-def test_gain_variant_exists_beside_the_paper_comparison(domain):
-    config = RunConfig.build({"domain": domain, "variant": "dsage_gain"})
-    assert config.selection.expected_gain and config.selection.method == "downsample"
-    assert config.surrogate.kind == "two_stage" and not config.selection.skip_filled
-    assert "dsage_gain" not in paper_comparison(domain)
-    assert not any(v.get("selection.expected_gain") for name, v in variants(domain).items() if name != "dsage_gain")
-
-
 def test_held_out_levels_are_on_in_the_maze_cpu_preset_only():
-    assert RunConfig.build({"domain": "maze", "preset": "cpu"}).surrogate.holdout_levels == 100
+    assert RunConfig.build({"domain": "maze", "preset": "cpu"}).experimental.holdout_levels == 100
     for domain, preset in (("maze", "paper"), ("maze", "tiny"), ("mario", "tiny")):
-        assert RunConfig.build({"domain": domain, "preset": preset}).surrogate.holdout_levels == 0
+        assert RunConfig.build({"domain": domain, "preset": preset}).experimental.holdout_levels == 0

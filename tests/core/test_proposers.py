@@ -25,7 +25,7 @@ class PrecisionScreeningDomain(ScreeningBitmapDomain):
 
 def _config(precision: str) -> RunConfig:
     return RunConfig.build({"domain": "maze", "preset": "tiny", "variant": "dsage",
-                            "selection.screen_episodes": 1, "selection.screen_precision": precision})
+                            "selection.screen_episodes": 1, "experimental.screen_precision": precision})
 
 
 @pytest.mark.parametrize("precision", ["fp32", "bf16"])

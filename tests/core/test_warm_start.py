@@ -61,7 +61,7 @@ def test_warm_start_loads_weights_and_prior_and_exploits_from_the_first_iteratio
 
 def test_a_warm_run_without_its_prior_keeps_only_its_own_evaluations(cold_checkpoint):
     path, _ = cold_checkpoint
-    runner = bitmap_runner(seed=5, **{"surrogate.init": str(path), "surrogate.init_prior": False})
+    runner = bitmap_runner(seed=5, **{"surrogate.init": str(path), "experimental.init_prior": False})
     metrics = runner.step()
     assert metrics["prior_samples"] == 0
     assert len(runner.dataset) == metrics["evaluated_this_iteration"]
@@ -102,8 +102,7 @@ def test_the_init_path_is_made_absolute_when_the_config_is_built(monkeypatch, tm
         RunConfig.build({**SMALL_RUN, "variant": "map_elites", "surrogate.init": "x"})
 
 
-@pytest.mark.parametrize("key, value", [("surrogate.channels", 8), ("surrogate.dilations", (1, 2)),
-                                        ("variant", "dsage_basic")])
+@pytest.mark.parametrize("key, value", [("surrogate.channels", 8), ("variant", "dsage_basic")])
 def test_a_source_of_another_network_is_refused_naming_the_key(cold_checkpoint, key, value):
     path, state = cold_checkpoint
     source = load_warm_start(path)
@@ -188,20 +187,3 @@ def test_pretrain_surrogate_is_public_and_takes_paths_and_keys(maze_run, tmp_pat
     with pytest.raises(SurrogateInitError, match="no source"):
         dsage_ray.pretrain_surrogate([], out=tmp_path / "none.surrogate")
     assert not (tmp_path / "none.surrogate").exists()
-
-
-def test_init_first_picks_caps_the_first_warm_batch_only(cold_checkpoint):
-    path, _ = cold_checkpoint
-    uncapped = bitmap_runner(seed=5, **{"surrogate.init": str(path)}).step()
-    cap = int(uncapped["evaluated_this_iteration"]) // 2
-    assert cap >= 1, "the uncapped first batch must be large enough to cap"
-    runner = bitmap_runner(seed=5, **{"surrogate.init": str(path), "surrogate.init_first_picks": cap})
-    first = runner.step()
-    assert first["evaluated_this_iteration"] == cap and first["selection_capped"] == cap
-    second = runner.step()
-    assert "selection_capped" not in second
-
-
-def test_init_first_picks_must_not_be_negative():
-    with pytest.raises(ConfigError, match="surrogate.init_first_picks"):
-        RunConfig.build({**SMALL_RUN, "surrogate.init_first_picks": -1})

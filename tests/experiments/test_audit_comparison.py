@@ -66,7 +66,7 @@ def test_the_table_prints_every_audit_beside_the_means():
 def test_arms_are_labelled_variants_with_their_own_keys_on_the_seeds_asked_for(tmp_path):
     script = load_script()
     args = script.parse_args(["--variants", "cold=dsage,warm=dsage,dr", "--arm-set", "warm:surrogate.init=/x/y",
-                              "--arm-set", "warm:surrogate.init_prior=false", "--first-seed", "200", "--seeds", "2",
+                              "--arm-set", "warm:experimental.init_prior=false", "--first-seed", "200", "--seeds", "2",
                               "--set", "maze.episodes=3", "--out", str(tmp_path)])
     assert script.parse_arms(args) == {"cold": "dsage", "warm": "dsage", "dr": "dr"}
     assert script.seeds(args) == [200, 201]
@@ -74,7 +74,7 @@ def test_arms_are_labelled_variants_with_their_own_keys_on_the_seeds_asked_for(t
     cold = script.audit_command(args, "cold", 200, tmp_path / "cold_seed200")
     assert warm[warm.index("--variant") + 1] == "dsage" and warm[warm.index("--seed") + 1] == "200"
     assert [warm[i + 1] for i, a in enumerate(warm) if a == "--set"] == [
-        "maze.episodes=3", "surrogate.init=/x/y", "surrogate.init_prior=false"]
+        "maze.episodes=3", "surrogate.init=/x/y", "experimental.init_prior=false"]
     assert [cold[i + 1] for i, a in enumerate(cold) if a == "--set"] == ["maze.episodes=3"]
     bad = script.parse_args(["--variants", "dsage", "--arm-set", "warm:surrogate.init=/x"])
     try:

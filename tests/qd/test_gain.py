@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from dsage_ray.qd import make_archive
-from dsage_ray.qd.gain import EvaluationCost, PickErrors, best_per_block, expected_outcomes
+from dsage_ray.qd.gain import EvaluationCost, PickErrors, expected_outcomes
 
 
 def _line(filled: dict[int, float], cells: int = 8):
@@ -122,56 +122,6 @@ def test_before_any_pick_is_evaluated_the_predictions_are_taken_as_exact():
     np.testing.assert_allclose(plain.cost, [1.0])
 
 
-def _worked_picks() -> PickErrors:
-    """Two picks predicted (and landed) at 1.5 and 5.5, of work 3 and 9."""
-    errors = PickErrors(window=10)
-    errors.add(predicted_objective=np.ones(2), predicted_measures=np.array([[1.5], [5.5]]), objective=np.ones(2),
-               measures=np.array([[1.5], [5.5]]), work=np.array([3.0, 9.0]))
-    return errors
-
-
-def test_a_cost_without_a_measure_reads_the_work_the_neighbours_recorded():
-    # Two picks predicted at 1.5 and 5.5, of work 3 and 9 (offset 1: costs 4 and 10, mean 7). A candidate
-    # costs what its nearest pick did; one recorded without work counts the mean of the others.
-    errors, cost = _worked_picks(), EvaluationCost(measure=None, offset=1.0)
-    outcomes = expected_outcomes(np.ones(2), np.array([[1.2], [5.8]]), ground_truth_archive=_line({}),
-                                 errors=errors, neighbours=1, cost=cost)
-    np.testing.assert_allclose(outcomes.cost, [4 / 7, 10 / 7])
-    errors.add(predicted_objective=np.ones(1), predicted_measures=np.array([[7.5]]), objective=np.ones(1),
-               measures=np.array([[7.5]]))
-    assert np.isnan(errors.work[-1])
-    restored = PickErrors.from_state_dict(errors.state_dict())
-    np.testing.assert_array_equal(restored.work, errors.work)
-    alone = expected_outcomes(np.ones(1), np.array([[7.4]]), ground_truth_archive=_line({}), errors=restored,
-                              neighbours=1, cost=cost)
-    np.testing.assert_allclose(alone.cost, [7 / 7])
-    # Before any pick, work is unknown: every candidate costs the same.
-    cold = expected_outcomes(np.ones(2), np.array([[1.2], [5.8]]), ground_truth_archive=_line({}),
-                             errors=PickErrors(window=3), neighbours=1, cost=cost)
-    np.testing.assert_allclose(cold.cost, [1.0, 1.0])
-    # A checkpoint written before work was recorded holds none: it reads as NaN.
-    old = PickErrors.from_state_dict({k: v for k, v in errors.state_dict().items() if k != "work"})
-    assert len(old.state_dict()["work"]) == len(old) and np.isnan(old.state_dict()["work"]).all()
-    with pytest.raises(ValueError, match="work counts"):
-        errors.add(predicted_objective=np.ones(1), predicted_measures=np.ones((1, 1)), objective=np.ones(1),
-                   measures=np.ones((1, 1)), work=np.ones(2))
-
-
-def test_a_candidates_own_predicted_work_prices_it_over_its_neighbours_costs():
-    # The recent picks cost 1 + 3 and 1 + 9 (mean 7); candidates predicted to work 6 and 0 cost 7/7 and 1/7,
-    # whatever their neighbours cost. Before any pick, relative to each other (7 and 1, mean 4).
-    errors, cost = _worked_picks(), EvaluationCost(measure=None, offset=1.0)
-    outcomes = expected_outcomes(np.ones(2), np.array([[1.2], [5.8]]), ground_truth_archive=_line({}),
-                                 errors=errors, neighbours=1, cost=cost, work=np.array([6.0, 0.0]))
-    np.testing.assert_allclose(outcomes.cost, [1.0, 1 / 7])
-    cold = expected_outcomes(np.ones(2), np.array([[1.2], [5.8]]), ground_truth_archive=_line({}),
-                             errors=PickErrors(window=3), neighbours=1, cost=cost, work=np.array([6.0, 0.0]))
-    np.testing.assert_allclose(cold.cost, [7 / 4, 1 / 4])
-    with pytest.raises(ValueError, match="predicted work counts"):
-        expected_outcomes(np.ones(2), np.ones((2, 1)), ground_truth_archive=_line({}), errors=errors, neighbours=1,
-                          cost=cost, work=np.ones(3))
-
-
 def test_expected_outcomes_bad_input():
     truth = _line({})
     with pytest.raises(ValueError, match="neighbours"):
@@ -193,30 +143,3 @@ def _surrogate_archive():
 def _gains_by_cell(archive, by_cell):
     measures = archive.data("measures")
     return np.array([by_cell.get(tuple(np.floor(m).astype(int)), 0.0) for m in measures])
-
-
-def test_best_per_block_keeps_each_blocks_best_above_the_floor():
-    archive = _surrogate_archive()
-    gains = _gains_by_cell(archive, {(1, 0): 0.9, (0, 1): 0.5, (2, 1): 0.1})
-    chosen = best_per_block(archive, gains, block=(2, 2), min_gain=0.0, rng=np.random.default_rng(0))
-    cells = sorted(tuple(c) for c in archive.int_to_grid_index(chosen.indices))
-    assert cells == [(1, 0), (2, 1)] and chosen.dropped == 0 and not chosen.fallback
-    assert sorted(gains[chosen.positions].tolist()) == [0.1, 0.9]
-    assert archive.data("index")[chosen.positions].tolist() == chosen.indices.tolist()
-
-    floored = best_per_block(archive, gains, block=(2, 2), min_gain=0.2, rng=np.random.default_rng(0))
-    assert [tuple(c) for c in archive.int_to_grid_index(floored.indices)] == [(1, 0)] and floored.dropped == 1
-
-
-def test_best_per_block_keeps_every_blocks_best_when_none_reaches_the_floor_and_breaks_ties_at_random():
-    archive = _surrogate_archive()
-    flat = np.zeros(len(archive))
-    chosen = best_per_block(archive, flat, block=(2, 2), min_gain=0.5, rng=np.random.default_rng(0))
-    assert len(chosen.indices) == 2 and chosen.fallback and chosen.dropped == 0
-    picks = {tuple(best_per_block(archive, flat, block=(2, 2), min_gain=0.0, rng=np.random.default_rng(seed)).indices)
-             for seed in range(20)}
-    assert len(picks) > 1
-    with pytest.raises(ValueError, match="one value per elite"):
-        best_per_block(archive, np.zeros(3), block=(2, 2), min_gain=0.0, rng=np.random.default_rng(0))
-    empty = make_archive(solution_dim=2, dims=(4, 2), ranges=[(0, 4), (0, 2)])
-    assert len(best_per_block(empty, np.zeros(0), block=(2, 2), min_gain=0.0, rng=np.random.default_rng(0)).indices) == 0

@@ -28,7 +28,7 @@ KINDS = {
 
 def _scheduler(kind, seed=0, archive_seed=3):
     cls, make, predict, sampler = KINDS[kind]
-    config = QDConfig(emitter=kind, num_emitters=3, batch_size=4, mutation_cells=2, initial_random_batches=1)
+    config = QDConfig(emitter=kind, num_emitters=3, batch_size=4, mutation_cells=2)
     archive = make(seed=archive_seed)
     return make_scheduler(archive, config=config, solution_dim=DIM, random_solutions=sampler, seed=seed), predict
 

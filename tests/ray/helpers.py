@@ -21,9 +21,8 @@ SMALL = {
     "ray.num_workers": 1,
     "ray.cpus_per_worker": 0.5,
     "ray.trial_cpus": 0.5,
-    "ray.placement_timeout_s": 60.0,
     # One solution per task: the fault tests kill actors mid-batch and need work still in flight.
-    "ray.chunk_size": 1,
+    "experimental.chunk_size": 1,
 }
 
 

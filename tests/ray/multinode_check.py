@@ -37,7 +37,7 @@ def check_agent_travels_as_data(cluster: Cluster, workers: list) -> None:
     folder = Path(tempfile.mkdtemp(prefix="dsage_ray_agent_test_"))
     shutil.copy(ASSETS_DIR / "accel" / "model_20000.tar", folder / "mine.tar")
     config = RunConfig.build({"domain": "maze", "maze.agent": f"dcd:{folder / 'mine.tar'}", "maze.episodes": 4,
-                              "ray.chunk_size": 1})
+                              "experimental.chunk_size": 1})
     load_agent(config.domain_config.agent)  # the driver loads it once (preflight)...
     files = pack_agent_files(config_agent_specs(config.to_dict()))  # ... and reads its bytes
     shutil.rmtree(folder)  # gone from the only disk that had it

@@ -17,7 +17,7 @@ from dsage_ray.ray.pool import SimulatorPool
 @pytest.fixture
 def config(agent_plugin) -> RunConfig:
     return RunConfig.build({"preset": "tiny", "maze.agent": f"{agent_plugin}:forward", "maze.episodes": 1,
-                            "ray.num_workers": 1, "ray.cpus_per_worker": 0.5, "ray.placement_timeout_s": 60.0})
+                            "ray.num_workers": 1, "ray.cpus_per_worker": 0.5})
 
 
 def test_a_plug_in_kind_evaluates_in_the_pool_as_in_process(ray_session, agent_plugin, config):

@@ -22,7 +22,7 @@ def test_values_are_read_like_set_values_and_commas_inside_brackets_or_quotes_st
     assert parse_grid("selection.block=[4,3],[8,6]") == ("selection.block", [[4, 3], [8, 6]])
     assert parse_grid('name="a,b",c') == ("name", ["a,b", "c"])
     assert parse_grid("surrogate.lr=1e-3,0.01") == ("surrogate.lr", [0.001, 0.01])
-    assert parse_grid("selection.skip_filled=true,false") == ("selection.skip_filled", [True, False])
+    assert parse_grid("selection.screen_gain=true,false") == ("selection.screen_gain", [True, False])
 
 
 @pytest.mark.parametrize("text, message", [

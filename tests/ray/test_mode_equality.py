@@ -34,11 +34,10 @@ CONFIG = {
     "maze.agent": "builtin:wall_follower",
     "maze.episodes": 2,
     "budget": 58,
-    "checkpoint_every": 100,
     "image_every": 100,
     "ray.trial_cpus": 0.5,
     "ray.cpus_per_worker": 0.25,
-    "ray.chunk_size": 1,
+    "experimental.chunk_size": 1,
 }
 VARIANTS = ("dsage", "map_elites")
 WORKERS = (1, 2)
@@ -51,8 +50,7 @@ def tune_trials(tmp_path_factory) -> dict[tuple[str, int], dict]:
     space = grid_param_space(base, {"variant": list(VARIANTS), "ray.num_workers": list(WORKERS)})
     # DSAGE with two actors runs pipelined: its next picks are chosen while its batch is out in the pool.
     space["pipeline"] = tune.sample_from(lambda spec: pipelined(spec.config["variant"], spec.config["ray.num_workers"]))
-    experiment = run_experiment(space, name="modes", storage_path=tmp_path_factory.mktemp("tune"), max_failures=0,
-                                checkpoint_every=base.checkpoint_every)
+    experiment = run_experiment(space, name="modes", storage_path=tmp_path_factory.mktemp("tune"), max_failures=0)
     trials = {}
     for trial in experiment.trials:
         trials[trial.config.variant, trial.config.ray.num_workers] = outputs(trial.path, trial.config)
@@ -107,15 +105,14 @@ def test_in_process_and_tune_with_one_or_two_actors_write_the_same_archive(varia
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_a_screened_search_writes_the_same_archive_in_process_and_through_tune(variant, tmp_path):
     # The screen plays its episodes where the proposer runs (the trial's process) and draws its seeds from the
-    # run's stream, so it must not make the modes differ. MAP-Elites screens once its one random batch is done.
-    config = RunConfig.build({**CONFIG, "variant": variant, "selection.screen_episodes": 1,
-                              "qd.initial_random_batches": 1, "ray.num_workers": 1})
+    # run's stream, so it must not make the modes differ. MAP-Elites screens once its random batches are done.
+    config = RunConfig.build({**CONFIG, "variant": variant, "selection.screen_episodes": 1, "budget": 100,
+                              "ray.num_workers": 1})
     run_locally(config, out_dir=tmp_path / "local")
     local = outputs(tmp_path / "local", config)
     assert sum(row.get("selection_screened", 0) for row in local["metrics"]) > 0
     experiment = run_experiment(grid_param_space(config, {"variant": [variant]}), name="screened",
-                                storage_path=tmp_path / "tune", max_failures=0,
-                                checkpoint_every=config.checkpoint_every)
+                                storage_path=tmp_path / "tune", max_failures=0)
     (trial,) = experiment.trials
     tuned = outputs(trial.path, trial.config)
     assert tuned["config"] == local["config"]

@@ -54,10 +54,13 @@ def test_loss_is_mean_head_mse_plus_weighted_occupancy():
 
 
 @pytest.mark.parametrize("precision", ["fp32", "bf16"])
-def test_prediction_shapes_and_chunking(precision):
+def test_prediction_shapes_and_chunking(precision, monkeypatch):
+    import dsage_ray.surrogate.surrogate as surrogate_module
+
     levels = random_levels(10, size=8)
-    whole = make(predict_batch_size=4096, precision=precision).predict(levels)
-    chunked = make(predict_batch_size=3, precision=precision).predict(levels)
+    whole = make(precision=precision).predict(levels)
+    monkeypatch.setattr(surrogate_module, "PREDICT_BATCH_SIZE", 3)
+    chunked = make(precision=precision).predict(levels)
     assert whole.objective.shape == (10,) and whole.measures.shape == (10, 2)
     assert whole.occupancy.shape == (10, *OCC)
     for a, b in zip((whole.objective, whole.measures, whole.occupancy),
@@ -170,65 +173,21 @@ def test_rejects_bad_arguments():
                   config=SurrogateConfig(device="cpu"), seed=0)
 
 
-def test_early_stopping_keeps_the_best_epoch_and_says_how_many_it_trained(monkeypatch):
-    surrogate = make(epochs=40, lr=3e-2, validation_fraction=0.25, patience=2)
-    dataset, _ = toy_dataset(surrogate)
-    seen: list[tuple[float, dict]] = []
-    score = surrogate._validation_loss
-
-    def recording(window, indices):
-        assert len(indices) == 16  # a quarter of the 64 samples, never trained on this call
-        loss = score(window, indices)
-        seen.append((loss, {k: v.clone() for k, v in surrogate.model.state_dict().items()}))
-        return loss
-
-    monkeypatch.setattr(surrogate, "_validation_loss", recording)
-    losses = surrogate.train(dataset)
-    losses_by_epoch = [loss for loss, _ in seen]
-    best = int(np.argmin(losses_by_epoch))
-    assert losses["epochs"] == len(seen)
-    # It stopped `patience` epochs after the best one (or ran out of epochs).
-    assert len(seen) == 40 or len(seen) == best + 1 + 2
-    assert losses["validation"] == losses_by_epoch[best]
-    for key, value in surrogate.model.state_dict().items():
-        torch.testing.assert_close(value, seen[best][1][key])
-
-
-def test_without_validation_every_epoch_trains_and_no_validation_is_reported():
+def test_every_training_runs_every_epoch_and_says_so():
     surrogate = make(epochs=4)
     dataset, _ = toy_dataset(surrogate)
-    losses = surrogate.train(dataset)
-    assert losses["epochs"] == 4 and "validation" not in losses
-
-
-def test_range_scaling_maps_the_network_output_onto_each_measure_range():
-    surrogate = Surrogate(kind="one_stage", input_channels=5, input_shape=(8, 8), occupancy_shape=OCC, num_measures=2,
-                          config=SurrogateConfig(device="cpu", precision="fp32", target_scaling="range"), seed=0,
-                          measure_ranges=[(0.0, 648.0), (10.0, 20.0)])
-    heads = surrogate.model.measure_predictor.heads
-    with torch.no_grad():
-        heads.weight.zero_()
-        heads.bias.copy_(torch.tensor([0.25, 0.5, 1.0]))
-    prediction = surrogate.predict(random_levels(3, size=8, seed=1))
-    np.testing.assert_allclose(prediction.objective, 0.25)
-    np.testing.assert_allclose(prediction.measures, [[324.0, 20.0]] * 3)
-    with pytest.raises(ValueError, match="one \\(low, high\\) per measure"):
-        Surrogate(kind="one_stage", input_channels=5, input_shape=(8, 8), occupancy_shape=OCC, num_measures=2,
-                  config=SurrogateConfig(device="cpu", target_scaling="range"), seed=0)
+    assert [surrogate.train(dataset)["epochs"] for _ in range(2)] == [4, 4]
 
 
 def test_occupancy_sum_measure_is_the_sum_of_the_predicted_occupancy_in_raw_units():
-    config = SurrogateConfig(device="cpu", precision="fp32", target_scaling="range",
-                             occupancy_sum_measure="path")
+    config = SurrogateConfig(device="cpu", precision="fp32", occupancy_sum_measure="path")
     surrogate = Surrogate(kind="two_stage", input_channels=5, input_shape=(8, 8), occupancy_shape=OCC,
-                          num_measures=2, config=config, seed=0, measure_ranges=[(0.0, 10.0), (0.0, 648.0)],
-                          measure_names=["walls", "path"])
+                          num_measures=2, config=config, seed=0, measure_names=["walls", "path"])
     prediction = surrogate.predict(random_levels(4, size=8, seed=1))
     np.testing.assert_allclose(prediction.measures[:, 1], prediction.occupancy.sum(axis=(1, 2)), rtol=1e-5)
     # The other head is untouched: the same weights without the option predict the same first measure.
     plain = Surrogate(kind="two_stage", input_channels=5, input_shape=(8, 8), occupancy_shape=OCC, num_measures=2,
-                      config=SurrogateConfig(device="cpu", precision="fp32", target_scaling="range"), seed=0,
-                      measure_ranges=[(0.0, 10.0), (0.0, 648.0)])
+                      config=SurrogateConfig(device="cpu", precision="fp32"), seed=0)
     np.testing.assert_allclose(prediction.measures[:, 0], plain.predict(random_levels(4, size=8, seed=1)).measures[:, 0])
 
 
@@ -256,20 +215,7 @@ def test_occupancy_sum_measure_must_name_a_measure_of_a_two_stage_model():
 
 
 def test_architecture_keys_reach_the_network():
-    surrogate = make(channels=8, dilations=(1, 2))
+    surrogate = make(channels=8)
     assert surrogate.model.occupancy_predictor.net[0].out_channels == 8
-    assert [b.conv1.dilation[0] for b in surrogate.model.occupancy_predictor.net[2:-1]] == [1, 2]
+    assert [b.conv1.dilation[0] for b in surrogate.model.occupancy_predictor.net[2:-1]] == [1, 1]  # the paper's
     assert make("one_stage", channels=8).model.measure_predictor.features[0].out_channels == 8
-
-
-def test_incremental_epochs_apply_after_the_first_training_also_after_a_resume():
-    surrogate = make(epochs=3, incremental_epochs=1)
-    dataset, _ = toy_dataset(surrogate, n=20)
-    assert surrogate.train(dataset)["epochs"] == 3
-    state = pickle.loads(pickle.dumps(surrogate.state_dict()))
-    assert surrogate.train(dataset)["epochs"] == 1
-    resumed = make(epochs=3, incremental_epochs=1, seed=5)
-    resumed.load_state_dict(state)  # a fitted model: Adam's state says it has trained
-    assert resumed.train(dataset)["epochs"] == 1
-    paper = make(epochs=2)  # incremental_epochs 0: every training runs all epochs
-    assert [paper.train(dataset)["epochs"] for _ in range(2)] == [2, 2]

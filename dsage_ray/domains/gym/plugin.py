@@ -21,7 +21,7 @@ class GymConfig:
     """The ``[gym]`` section of a run config."""
 
     #: Work counts its domain reports per evaluation (``work_counts``: environment steps), which
-    #: ``selection.cost_measure`` may name.
+    #: benchmarks may read.
     work_names: ClassVar[tuple[str, ...]] = ("steps",)
 
     #: A shipped space's name (``cartpole``, ``lunarlander``), a space file (TOML), or "" (``params`` only).

@@ -19,7 +19,7 @@ MarioObjective = Literal["completion", "incompletion"]
 class MarioConfig:
     """The Mario domain (SPEC §3)."""
 
-    #: Work counts its domain reports per evaluation (``work_counts``), which ``selection.cost_measure`` may name.
+    #: Work counts its domain reports per evaluation (``work_counts``).
     work_names: ClassVar[tuple[str, ...]] = ("search_iterations", "ticks")
     runs: int = 5
     timer: int = 20

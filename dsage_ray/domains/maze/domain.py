@@ -32,6 +32,10 @@ class MazeDomain:
     name = "maze"
     #: Bitmaps are 0/1: archives and datasets keep them as int8 (256 bytes per 16×16 elite).
     solution_dtype = np.int8
+    #: An evaluation's cost grows in proportion to the agent's mean path length (50 episodes step the agent that
+    #: often), plus a fixed part (building and resetting the level) worth about 200 steps in the ranked screen
+    #: (``selection.screen_gain``; offset tuned on one seed, docs/results/equal_compute §16).
+    evaluation_cost = ("mean_path_length", 200.0)
 
     def __init__(self, *, config: MazeConfig):
         self.config = config
@@ -141,7 +145,7 @@ class MazeDomain:
         """A cheap first look at many solutions: :meth:`evaluate` with ``episodes`` episodes per level instead of
         the configured count, every level of a chunk stepped in one batch (``selection.screen_episodes``).
         With ``precision`` ``"bf16"`` the agents play their :meth:`~dsage_ray.agents.base.Agent.reduced_precision`
-        copies, where they have one (``selection.screen_precision``).
+        copies, where they have one (``experimental.screen_precision``).
 
         With one or two episodes this costs a few percent of a full evaluation per level, and ranks ACCEL's
         50-episode mean path length far better than the surrogate does (Spearman ρ 0.91 with one episode, 0.94

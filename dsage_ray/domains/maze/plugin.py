@@ -9,7 +9,6 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Callable, ClassVar, Literal
 
-from dsage_ray.config import COMMON_VARIANTS
 from dsage_ray.domains.registry import AgentKinds, AuditSpec, DomainSpec, ReportField
 
 #: Keys of :data:`dsage_ray.domains.maze.measures.OBJECTIVES`.
@@ -20,7 +19,7 @@ MazeObjective = Literal["validity", "failure_rate", "regret", "regression"]
 class MazeConfig:
     """The Maze domain (SPEC §2)."""
 
-    #: Work counts its domain reports per evaluation (``work_counts``), which ``selection.cost_measure`` may name.
+    #: Work counts its domain reports per evaluation (``work_counts``).
     work_names: ClassVar[tuple[str, ...]] = ("steps",)
     agent: str = "builtin:wall_follower"
     episodes: int = 50
@@ -52,7 +51,7 @@ class MazeConfig:
 #: ``paper`` reproduces the paper's numbers; ``cpu`` finishes well under an hour on 2 cores; ``demo``
 #: is the few-minute run of ``make run``; ``tiny`` is for tests and smoke runs.
 PRESETS: dict[str, dict[str, Any]] = {
-    # The paper held no levels out; ``--set surrogate.holdout_levels=100`` adds 0.1% to its budget.
+    # The paper held no levels out; ``--set experimental.holdout_levels=100`` adds 0.1% to its budget.
     "paper": {},
     # CPU presets scale the paper's loop down (SPEC §4: one paper inner loop is ~20 minutes of
     # surrogate predictions on 2 cores). A shorter inner loop fills a smaller surrogate archive,
@@ -69,7 +68,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         "selection.block": (4, 3),
         "selection.count": 100,
         # 100 held-out evaluations outside the budget: +5% evaluations.
-        "surrogate.holdout_levels": 100,
+        "experimental.holdout_levels": 100,
         # Measured on a seed-0 ACCEL run's own data (benchmarks/bench_surrogate_training.py, README):
         # held-out Spearman ρ of the path length 0.18-0.37 with these channels vs 0.03-0.06 without.
         # More epochs, batch 64, a 20,000 window, early stopping and range-scaled targets did not help.
@@ -109,11 +108,6 @@ PRESETS: dict[str, dict[str, Any]] = {
 #: The paper's Maze QD baseline beside the DSAGE variants and DR (common to every domain).
 VARIANTS: dict[str, dict[str, Any]] = {
     "map_elites": {"surrogate.kind": "none", "qd.emitter": "map_elites", "qd.num_emitters": 5, "qd.batch_size": 30},
-    # With the Maze's cost model: a 50-episode evaluation's CPU time grows in proportion to the agent's mean
-    # path length, plus a fixed part worth about 74 steps (benchmarks/bench_evaluation_cost.py on ACCEL:
-    # correlation 0.93-0.95).
-    "dsage_gain": {**COMMON_VARIANTS["dsage_gain"], "selection.cost_measure": "mean_path_length",
-                   "selection.cost_offset": 74.0},
 }
 
 #: The Maze numbers of a collection entry the audit report shows (``MazeDomain.entry_fields``).

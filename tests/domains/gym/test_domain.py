@@ -144,8 +144,8 @@ def test_an_audit_ends_with_a_collection_a_report_and_reproducible_entries(polic
     assert printed["failure_rate"] == pytest.approx(record["objective"])
 
 
-def test_selection_may_weigh_picks_by_the_steps_an_evaluation_takes(policy_file):
-    run = config(**{"variant": "dsage_gain", "selection.cost_measure": "steps", "gym.agent": policy_file})
+def test_an_evaluation_counts_the_environment_steps_it_took(policy_file):
+    run = config(**{"gym.agent": policy_file})
     domain = build_domain(run)
     result = domain.evaluate(np.zeros(domain.solution_dim, dtype=np.float32), 0)
     assert domain.work_counts(result) == {"steps": result.info["mean_length"] * run.gym.episodes}

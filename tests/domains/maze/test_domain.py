@@ -57,7 +57,7 @@ def test_evaluate_loads_agent_once_and_is_deterministic(loads):
     assert {"success_rate", "episode_lengths", "successes", "optimal_path_length", "start", "goal",
             "valid"} <= set(a.info)
     assert len(a.info["episode_lengths"]) == 10
-    # Its work: every step of every episode, as selection.cost_measure = "steps" reads it.
+    # Its work: every step of every episode.
     assert domain.work_names == ("steps",)
     assert domain.work_counts(a) == {"steps": float(sum(a.info["episode_lengths"]))} == domain.work_counts(b)
 
