@@ -117,8 +117,14 @@ def _add_ablate(subparsers) -> None:
 
 
 def _add_config(subparsers) -> None:
-    parser = subparsers.add_parser("config", help="print the resolved run config as JSON (runs nothing)")
-    parser.add_argument("config", help="a TOML/JSON config, e.g. experiments/configs/maze_dsage.toml")
+    parser = subparsers.add_parser(
+        "config", help="list every config key (one line each: name, default, values, status, note); with a config "
+                       "file, print the config a run resolves it to, as JSON (runs nothing)")
+    parser.add_argument("config", nargs="?", help="a TOML/JSON config, e.g. experiments/configs/maze_dsage.toml "
+                                                  "(without one: the list of keys)")
+    listing = parser.add_argument_group("the list of keys")
+    listing.add_argument("--domain", help="also list this domain's section (maze, mario, gym, ...)")
+    listing.add_argument("--experimental", action="store_true", help="also list the experimental keys")
     add_config_arguments(parser)
     parser.set_defaults(handler=_config)
 
@@ -126,6 +132,16 @@ def _add_config(subparsers) -> None:
 def _config(args: argparse.Namespace) -> int:
     import json
 
+    if args.config is None:
+        from dsage_ray.config_listing import format_lines, key_lines
+        from dsage_ray.domains import domain_names
+        from dsage_ray.errors import InputError, did_you_mean
+
+        if args.domain is not None and args.domain not in domain_names():
+            raise InputError(f"--domain: unknown domain {args.domain!r} (known: {', '.join(domain_names())})"
+                             f"{did_you_mean(args.domain, domain_names())}")
+        print(format_lines(key_lines(domain=args.domain, experimental=args.experimental)))
+        return 0
     # Defaults, preset, variant and --set resolved exactly as `run` resolves them; nothing else is imported.
     flat = load_run_config(args, args.config).to_flat()
     # One key per line (lists inline): valid JSON that also greps and diffs well.

@@ -56,8 +56,9 @@ def key(default: Any, *, status: str, values: str = "", note: str = "") -> Any:
     Args:
         default: The default value (a tuple stays immutable; no factory needed).
         status: ``paper`` (the paper's algorithm or value), ``tool`` (how the tool runs, not the search),
-            ``default-on`` (beyond the paper, on in the presets or audits that ``note`` names) or
-            ``experimental`` (beyond the paper and off; ``note`` gives its measured effect).
+            ``default-on`` (beyond the paper, on in the presets or audits that ``note`` names), ``opt-in`` (beyond the
+            paper, measured to help where ``note`` says, not yet on in a preset) or ``experimental`` (beyond the paper
+            and off; ``note`` gives its measured effect).
         values: The values it takes, where its type does not say (``>= 1``, ``(0, 1]``).
         note: One line: what it does, and where measured, what it did.
     """
@@ -79,7 +80,8 @@ class SurrogateConfig:
     #: Width of the networks (the first convolution of both predictors); 64 is the paper's. The residual
     #: blocks' cost grows as its square (benchmarks/bench_surrogate.py prints FLOPs and predictions/s).
     channels: int = key(64, status="paper", values=">= 1",
-                        note="network width; 16 costs a quarter of 64's time for 5% QD-score (equal_compute §1)")
+                        note="network width; 16 cut the surrogate's share of a Maze cpu run from ≈50% to 17% for "
+                             "5% less QD-score (equal_compute §1)")
     #: Prediction arithmetic: ``fp32``, ``bf16`` (the two-stage model's residual blocks, most of its work,
     #: under bf16 autocast) or ``auto`` (bf16 on CUDA and on CPUs with native bf16, else fp32). Training is
     #: always fp32. ``auto`` resolves per machine, as ``device`` does.
@@ -112,7 +114,7 @@ class SurrogateConfig:
     #: ``log(1 + prior)`` fitted to the training window after each training. Empty (the paper): the network alone.
     prior_measure: str = key("", status="default-on", values="a measure name or empty",
                              note="blend this measure's prediction with the domain's prior (Maze cpu preset: "
-                                  "30% lower error on the picks)")
+                                  "30% lower error on the picks, QD-score level)")
 
 
 @dataclasses.dataclass
@@ -156,16 +158,15 @@ class SelectionConfig:
     #: ground truth (not in the paper; :mod:`dsage_ray.qd.screen`). MAP-Elites (``qd.emitter = "map_elites"``
     #: without a surrogate) screens mutants of its elites instead, once its random start-up is over. 0 (the
     #: paper): evaluate the picks as chosen.
-    screen_episodes: int = key(0, status="default-on", values=">= 0",
-                               note="play candidates this many episodes before evaluating (Maze cpu preset; "
-                                    "equal_compute §15-17)")
+    screen_episodes: int = key(0, status="opt-in", values=">= 0",
+                               note="play candidates this many episodes before evaluating (Maze; equal_compute §15-17)")
     #: With ``screen_episodes``: keep the screened candidates expected to add most to the ground truth per expected
     #: cost, judged by the screen's errors on recently evaluated levels and the domain's cost model
     #: (``evaluation_cost`` of its config section: Maze's grows with the mean path length), instead of those whose
     #: screened cell alone would add, in the order screened (not in the paper; :func:`dsage_ray.qd.screen.keep_screened`).
-    screen_gain: bool = key(False, status="default-on",
-                            note="rank screened candidates by expected gain per cost (Maze cpu preset; "
-                                 "equal_compute §16: 1.31× MAP-Elites at equal CPU time)")
+    screen_gain: bool = key(False, status="opt-in",
+                            note="rank screened candidates by expected gain per cost (with 16 channels and 2×3 blocks: "
+                                 "1.31× MAP-Elites at equal CPU time, equal_compute §16-17)")
 
 
 @dataclasses.dataclass
@@ -261,8 +262,8 @@ class RunConfig:
     #: one process they run one after the other. Either way a run computes the same thing, so a seed
     #: gives the same archive in-process and through Tune. The price: each selection is made by a
     #: surrogate one batch behind.
-    pipeline: bool = key(False, status="default-on",
-                         note="train and pick while the last picks are evaluated (equal_compute §7)")
+    pipeline: bool = key(False, status="opt-in",
+                         note="train and pick while the last picks are evaluated by Ray actors (equal_compute §7)")
     surrogate: SurrogateConfig = dataclasses.field(default_factory=SurrogateConfig)
     qd: QDConfig = dataclasses.field(default_factory=QDConfig)
     selection: SelectionConfig = dataclasses.field(default_factory=SelectionConfig)
