@@ -9,8 +9,7 @@ STAMP := $(VENV)/.installed
 # Benchmarks that read a finished run (RUN=its folder, holding checkpoint.dsage) instead of making their own data.
 RUN_BENCHMARKS := benchmarks/bench_surrogate_training.py benchmarks/bench_surrogate_ceiling.py
 # Benchmarks that read the run folders of a published experiment (their commands are in docs/results).
-FOLDER_BENCHMARKS := benchmarks/bench_equal_compute.py benchmarks/bench_evaluation_cost.py \
-	benchmarks/bench_cost_prediction.py
+FOLDER_BENCHMARKS := benchmarks/bench_equal_compute.py benchmarks/bench_evaluation_cost.py
 
 $(STAMP): pyproject.toml Makefile
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)

@@ -549,7 +549,8 @@ COMMON_VARIANTS: dict[str, dict[str, Any]] = {
     "dsage_basic": {"surrogate.kind": "one_stage", "selection.method": "full", "surrogate.occupancy_sum_measure": ""},
     "dsage_rsample": {"surrogate.kind": "two_stage", "selection.method": "random"},
     # Domain randomisation: the random emitter draws every level from the domain's own generator.
-    "dr": {"surrogate.kind": "none", "qd.emitter": "random", "qd.num_emitters": 5, "qd.batch_size": 30},
+    "dr": {"surrogate.kind": "none", "qd.emitter": "random", "qd.num_emitters": 5, "qd.batch_size": 30,
+           "selection.screen_episodes": 0, "selection.screen_gain": False},
 }
 
 

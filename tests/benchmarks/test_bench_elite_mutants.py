@@ -12,7 +12,16 @@ BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
 sys.path.insert(0, str(BENCHMARKS))
 
 import bench_elite_mutants as bench  # noqa: E402
-from tests.benchmarks.test_bench_cost_prediction import tiny_run  # noqa: E402
+
+
+def tiny_run(tmp_path: Path, **overrides) -> Path:
+    from dsage_ray.config import RunConfig
+    from dsage_ray.core.loop import run_locally
+
+    config = RunConfig.build({"domain": "maze", "preset": "tiny", "maze.agent": "builtin:wall_follower",
+                              "maze.episodes": 2, "budget": 60, "n_rand": 30, "surrogate.epochs": 1,
+                              "qd.exploit_iterations": 2, "image_every": 1000, **overrides})
+    return run_locally(config, out_dir=tmp_path / "run", console=False)
 
 
 def test_each_pool_of_parents_gets_a_line_of_its_mutants(tmp_path, capsys):
