@@ -30,7 +30,13 @@ def test_mario_random_latents_follow_latent_sigma(sigma):
     assert latents.std() == pytest.approx(sigma, rel=0.02) and abs(latents.mean()) < 0.02 * sigma
 
 
-def test_held_out_levels_are_on_in_the_maze_cpu_preset_only():
-    assert RunConfig.build({"domain": "maze", "preset": "cpu"}).experimental.holdout_levels == 100
-    for domain, preset in (("maze", "paper"), ("maze", "tiny"), ("mario", "tiny")):
+def test_no_preset_holds_levels_out_and_the_maze_cpu_preset_is_the_screened_design():
+    for domain, preset in (("maze", "paper"), ("maze", "cpu"), ("maze", "tiny"), ("mario", "tiny")):
         assert RunConfig.build({"domain": domain, "preset": preset}).experimental.holdout_levels == 0
+    cpu = RunConfig.build({"domain": "maze", "preset": "cpu"})
+    assert (cpu.surrogate.channels, cpu.selection.block) == (16, (2, 3))
+    assert cpu.selection.screen_episodes == 1 and cpu.selection.screen_gain
+    # The baselines stay the paper's: unscreened.
+    for variant in ("map_elites", "dr"):
+        baseline = RunConfig.build({"domain": "maze", "preset": "cpu", "variant": variant})
+        assert baseline.selection.screen_episodes == 0 and not baseline.selection.screen_gain
