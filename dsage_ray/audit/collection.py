@@ -87,7 +87,7 @@ def audit_config(
         seed: Run seed; also seeds the collection's re-evaluations.
         name: Run name, the Tune experiment folder (default ``audit_<agent>``).
         overrides: Further dotted config keys (``--set``), applied last. Audits hold no levels out
-            (``surrogate.holdout_levels = 0``) unless these say otherwise, and a DSAGE search also takes the
+            (``experimental.holdout_levels = 0``) unless these say otherwise, and a DSAGE search also takes the
             registration's ``audit.surrogate_keys`` (Maze: ``selection.elite_mutants = 150``).
         started: The config of the search this audit continues (``--resume``). The registration's
             ``audit.surrogate_keys`` then keep the values it was started with, so an audit begun under an
@@ -113,8 +113,8 @@ def audit_config(
     if budget is not None:
         values["budget"] = budget
     # The held-out levels are a diagnostic of the surrogate for research runs (about 10% of a cpu run's
-    # time); an audit wants failures, so it holds none out unless asked (--set surrogate.holdout_levels=100).
-    values["surrogate.holdout_levels"] = 0
+    # time); an audit wants failures, so it holds none out unless asked (--set experimental.holdout_levels=100).
+    values["experimental.holdout_levels"] = 0
     config = RunConfig.build({**values, **(overrides or {})})
     if spec.audit.surrogate_keys and config.mutates_elites:
         defaults = dict(spec.audit.surrogate_keys)
@@ -197,7 +197,9 @@ def build_collection(
         archive: The search's ground-truth archive.
         config: The audit's run config (agent, objective, measures, episodes per re-evaluation).
         out_dir: The collection folder; written whole, then swapped in. The ``reproduce`` commands name
-            the level files by absolute path, so they run from any directory (and not after a move).
+            the level files by absolute path, so they run from any directory (and not after a move); the
+            report shows them with the path relative to the folder
+            (:func:`~dsage_ray.audit.report.portable_command`), to run in it, wherever it is.
         evaluator: Evaluates ``(solutions, seeds)`` with a domain built from ``config``; default in-process
             (the Ray simulator pool fits here too).
         max_levels: Keep only the elites the search rated worst (all by default).
@@ -255,21 +257,19 @@ def build_collection(
             "measures": dict(zip(domain.measure_names, map(float, result.measures))),
             "seed": int(seed),
             "episodes": int(domain.episodes),
-            # Absolute, so the command runs from any directory (not only where the audit was started).
+            # Absolute, so the command runs from any directory of this machine (not only where the audit was
+            # started); the report shows it relative to the collection folder, which works wherever it moves.
             "reproduce": domain.reproduce_command(out_dir.resolve() / level_file, seed=seed),
             "search_objective": entry["search_objective"],
             "search_measures": dict(zip(domain.measure_names, entry["search_measures"])),
         }
-        title = f"#{rank}: {objective_name} {result.objective:.2f}, success {success:.2f}"
         reference = domain.reference_numbers(result)
         if reference is not None:
             record["reference"] = {**reference, "seed": int(seed)}
             record["regression"] = float(reference["success_rate"]) - success
-            # The regression itself, not its [0, 1] score, which would read like a second, different number.
-            title = (f"#{rank}: success {success:.2f}, reference {reference['success_rate']:.2f} "
-                     f"(regression {record['regression']:+.2f})")
         record.update(domain.entry_fields(solution, result, level_file=level_file))
-        (staging / image_file).write_bytes(domain.render_evaluation(solution, result, title=title,
+        # The picture names its level and no number: the report's card shows the numbers beside it once.
+        (staging / image_file).write_bytes(domain.render_evaluation(solution, result, title=f"level #{rank}",
                                                                     occupancy_max=occupancy_max))
         records.append(record)
 

@@ -13,7 +13,11 @@ import numpy as np
 from dsage_ray.domains.gym.space import EnvSpace
 from dsage_ray.types import EvaluationResult
 
-#: Points of every text in the picture: shown at about half its pixel width in the report, 12 pt stays >= 10 px.
+#: The picture's width in inches: a report card shows it at about 330 to 410 px, so an inch is about 100 px on
+#: the page, and the resolution that keeps it sharp on a high-density screen.
+FIGURE_WIDTH = 3.6
+DPI = 200
+#: Points of the titles and axis labels; the tick labels are 1 and 2 points smaller, still 12 px or more on the page.
 FONT_SIZE = 12
 
 
@@ -62,7 +66,7 @@ def level_picture(space: EnvSpace, values: Mapping[str, Any], *, occupancy: np.n
     show_occupancy = bool(space.occupancy) and occupancy is not None
     panels = [p for p, shown in (("frame", frame is not None), ("occupancy", show_occupancy)) if shown] or ["text"]
     heights = {"frame": 2.2, "occupancy": 2.9, "text": 0.4 + 0.22 * len(values)}
-    fig = Figure(figsize=(3.6, 0.5 + sum(heights[p] for p in panels)), dpi=100)
+    fig = Figure(figsize=(FIGURE_WIDTH, 0.5 + sum(heights[p] for p in panels)), dpi=DPI)
     FigureCanvasAgg(fig)
     axes = fig.subplots(len(panels), 1, gridspec_kw={"height_ratios": [heights[p] for p in panels]}, squeeze=False)
     for ax, panel in zip(axes[:, 0], panels):

@@ -34,6 +34,11 @@ TILE_COLOURS: np.ndarray = np.array([
 assert len(TILE_COLOURS) == len(TILES)
 
 TILE_PX = 16  # the framework's tile size in pixels; agent events are in these units
+#: A titled picture's width in inches (a report card shows it at about 330 to 410 px), its resolution and the
+#: points of its text.
+FIGURE_WIDTH = 3.6
+DPI = 200
+FONT_SIZE = 10
 
 
 def render_level(level: np.ndarray | str | Sequence[str], *, scale: int = 8, path: np.ndarray | None = None,
@@ -84,23 +89,30 @@ def render_level(level: np.ndarray | str | Sequence[str], *, scale: int = 8, pat
 
 
 def _titled_png(image: np.ndarray, *, scale: int, title: str) -> bytes:
-    """``image`` in a figure with a title and row/column ticks in tiles (the level text's coordinates)."""
+    """``image`` in a figure with a title and row/column ticks in tiles (the level text's coordinates).
+
+    Drawn for the width a report shows it at (:data:`FIGURE_WIDTH` inches, about 330 to 410 px on the page),
+    with :data:`FONT_SIZE`-point text: every label stays at about 12 px or more on the page.
+    """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     rows, cols = image.shape[0] // scale, image.shape[1] // scale
-    fig = Figure(figsize=(0.15 * cols + 0.8, 0.15 * rows + 0.9), dpi=100)
+    line = FONT_SIZE * 1.4 / 72  # inches per line of text
+    image_w = FIGURE_WIDTH - 2.5 * line
+    fig = Figure(figsize=(FIGURE_WIDTH, image_w * rows / cols + 4.5 * line), dpi=DPI)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     ax.imshow(image, extent=(-0.5, cols - 0.5, rows - 0.5, -0.5), interpolation="nearest")
-    ax.set_xticks(range(0, cols, 5))
+    # A tick every 10 columns and 5 rows: the numbers of a 56-column level would run into each other.
+    ax.set_xticks(range(0, cols, 10))
     ax.set_yticks(range(0, rows, 5))
-    ax.tick_params(labelsize=8, length=2, pad=1)
-    ax.set_xlabel("column", fontsize=9)
-    ax.set_ylabel("row", fontsize=9)
-    ax.set_title(title, fontsize=11)
+    ax.tick_params(labelsize=FONT_SIZE, length=2, pad=1)
+    ax.set_xlabel("column", fontsize=FONT_SIZE, labelpad=1)
+    ax.set_ylabel("row", fontsize=FONT_SIZE, labelpad=1)
+    ax.set_title(title, fontsize=FONT_SIZE)
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", bbox_inches="tight")
+    fig.savefig(buffer, format="png", bbox_inches="tight", pad_inches=0.04)
     return buffer.getvalue()
 
 
