@@ -3,9 +3,18 @@
 One file that opens anywhere, with no network: inline CSS, a small inline script (sortable tables, a text
 filter, "never solved" and per-measure range filters), base64-embedded heatmaps and worst-level pictures.
 The full table links to the collection's own level files and pictures by relative path, which keeps the page
-small for a thousand levels and its links working wherever the collection folder is moved. The reproduce
-commands are the collection's own (``reproduce`` of each level), which name the level file by the absolute
-path the audit wrote it to: they run from any directory, and point at the old place after a move.
+small for a thousand levels and its links working wherever the collection folder is moved.
+
+**Reproduce commands.** The collection records each level's command (``reproduce``) with the absolute path the
+audit wrote its level file to, so that it runs from any directory of that machine. The page shows it with the
+level file relative to the collection folder instead (:func:`portable_command`), and says to run it there: the
+command then works wherever the folder is, on any machine.
+
+**A collection from someone else.** Every field put into the page is escaped, every number the page computes
+with is checked to be one (a ``ValueError`` names the field that is not), and a file named by a field is
+linked, or its picture embedded, only when the name is a relative path inside the collection folder
+(:func:`collection_href`): a ``javascript:`` or ``http:`` name, an absolute path or a ``..`` step out is
+shown as text, not linked.
 
 Reads both collection formats through :func:`~dsage_ray.audit.collection_file.load_collection`, which gives a
 v1 collection (Maze only) the v2 keys (``domain``, ``reference``, each level's ``reproduce``): only v2 here.
@@ -13,7 +22,8 @@ Nothing here knows a domain: which of an entry's numbers are shown, under which 
 with which explanation, and which of the collection's settings, is the domain's registration's
 (:class:`~dsage_ray.domains.AuditSpec` ``columns`` and ``settings``); a collection of a domain that is not
 installed shows every numeric key of its entries.
-The page fits a phone's width: wide tables scroll inside their own box, pictures shrink, commands wrap.
+The page fits a phone's width: wide tables scroll inside their own box (a line above says so when they do),
+pictures shrink to a card's width, which their text is sized for, commands wrap.
 """
 
 from __future__ import annotations
@@ -21,9 +31,13 @@ from __future__ import annotations
 import base64
 import html
 import io
+import math
 import os
+import re
 import shlex
-from pathlib import Path
+import urllib.parse
+from decimal import ROUND_CEILING, ROUND_FLOOR, Decimal
+from pathlib import Path, PurePosixPath
 from typing import Any, Callable, Collection, Sequence
 
 import numpy as np
@@ -41,6 +55,10 @@ REGIONS_PER_MEASURE = 4
 #: Entry keys every domain has; other numeric top-level keys are the domain's own numbers.
 _GENERIC_KEYS = {"id", "objective", "success_rate", "seed", "episodes", "search_objective", "regression"}
 
+#: The narrowest the page shows a picture: a worst-level card on a 390 px phone. The pictures' text is sized
+#: for it (the domains' ``render`` modules): about 12 px or more there, larger wherever a card is wider.
+PICTURE_MIN_WIDTH = 330
+
 _STYLE = """
 :root { --line: #d8dbe0; --head: #eef1f5; --muted: #5b6470; --accent: #b03a2e; }
 body { font: 15px/1.45 system-ui, -apple-system, "Segoe UI", sans-serif; margin: 0 auto;
@@ -52,35 +70,43 @@ code { font: 0.86em/1.3 ui-monospace, "DejaVu Sans Mono", monospace; background:
        border-radius: 3px; overflow-wrap: anywhere; }
 code.cmd { user-select: all; } code.cmd span { display: inline-block; max-width: 100%; overflow-wrap: anywhere; }
 dl.meta { display: grid; grid-template-columns: max-content minmax(0, 1fr); gap: .2rem 1.2rem; margin: 0; }
-dl.meta dt { color: var(--muted); } dl.meta dd { margin: 0; }
+dl.meta dt { color: var(--muted); } dl.meta dd { margin: 0; overflow-wrap: anywhere; }
+dl.glossary { max-width: 62rem; margin: 0; } dl.glossary div { margin: 0 0 .3rem; }
+dl.glossary dt { display: inline; font-weight: 600; } dl.glossary dd { display: inline; margin: 0; }
+dl.glossary dt::after { content: ":"; }
 .stats { display: flex; flex-wrap: wrap; gap: .8rem; }
 .stat { border: 1px solid var(--line); border-radius: 6px; padding: .5rem .9rem; min-width: 9rem; }
 .stat b { display: block; font-size: 1.6rem; } .stat span { color: var(--muted); font-size: .85rem; }
-.figs { display: grid; grid-template-columns: repeat(auto-fit, minmax(min(480px, 100%), 1fr)); gap: 1rem; }
-.figs img { width: 100%; max-width: 760px; }
+.figs { display: grid; grid-template-columns: repeat(auto-fit, minmax(min(420px, 100%), 1fr)); gap: 1rem; }
+.figs img { width: 100%; max-width: 620px; }
 .cards { display: grid; grid-template-columns: repeat(auto-fill, minmax(min(330px, 100%), 1fr)); gap: 1rem; }
-.cards.wide { grid-template-columns: repeat(auto-fill, minmax(min(520px, 100%), 1fr)); }
+.cards.wide { grid-template-columns: repeat(auto-fill, minmax(min(640px, 100%), 1fr)); }
 .card { border: 1px solid var(--line); border-radius: 6px; padding: .7rem; display: flex; flex-direction: column;
         gap: .4rem; font-size: .9rem; min-width: 0; }
-.card img { width: 100%; height: auto; } .card .pics { display: flex; gap: .5rem; }
-.card .pics figure { flex: 1; margin: 0; } .card figcaption { text-align: center; color: var(--muted); }
+.card img { width: 100%; max-width: 520px; height: auto; }
+.card .pics { display: flex; flex-wrap: wrap; gap: .5rem; }
+.card .pics figure { flex: 1 1 300px; min-width: 0; margin: 0; }
+.card figcaption { text-align: center; color: var(--muted); }
 .card h3 { margin: 0; font-size: 1.05rem; }
 .card table { margin: 0; font-size: .85rem; width: 100%; } .card td, .card th { padding: 1px 6px; }
 button { font: inherit; font-size: .8rem; padding: 1px 8px; cursor: pointer; }
 #levels td button.copy { font-size: .75rem; padding: 0 6px; line-height: 1.25; }
-#levels td:nth-child(2), #levels th:nth-child(2) { text-align: left; }
 table { border-collapse: collapse; margin: .5rem 0; font-size: .88rem; }
 th, td { border: 1px solid var(--line); padding: 3px 8px; text-align: right; white-space: nowrap; }
-th { background: var(--head); } td.l, th.l { text-align: left; }
+th { background: var(--head); white-space: normal; vertical-align: bottom; } td.l, th.l { text-align: left; }
+td.files { white-space: normal; text-align: left; min-width: 16rem; }
 tbody tr:nth-child(even) { background: #fafbfc; } tbody tr:hover { background: #fff6d6; }
 table.sortable th { user-select: none; position: sticky; top: 0; z-index: 1; }
-th button.sort { font: inherit; color: inherit; background: none; border: 0; padding: 0; cursor: pointer; }
+th button.sort { font: inherit; color: inherit; background: none; border: 0; padding: 0; cursor: pointer;
+                 text-align: inherit; }
 th button.sort:focus-visible { outline: 2px solid #1f6feb; outline-offset: 2px; }
 table.sortable th[aria-sort=ascending]::after { content: " \\25B2"; }
 table.sortable th[aria-sort=descending]::after { content: " \\25BC"; }
 .scroll { max-height: 80vh; overflow: auto; border: 1px solid var(--line); }
-.hscroll { overflow-x: auto; } .hscroll table { margin: 0; }
-.scroll table { margin: 0; } .scroll td code.cmd { font-size: .8em; white-space: nowrap; }
+.hscroll { overflow-x: auto; } .hscroll table { margin: 0; } .scroll table { margin: 0; }
+.scrollhint { color: var(--muted); font-size: .85rem; margin: .3rem 0; }
+#levels tbody td:first-child { position: sticky; left: 0; background: #fff; }
+#levels thead th:first-child { left: 0; z-index: 2; }
 #levels tr { scroll-margin-top: 2.5rem; } #levels tr:target { outline: 2px solid #e0a800; outline-offset: -2px; }
 .filters { display: flex; flex-wrap: wrap; gap: .6rem 1.4rem; align-items: center; margin: .4rem 0 .6rem; }
 .filters input[type=number] { width: 5.5rem; } .filters input[type=search] { width: 16rem; max-width: 100%; }
@@ -89,7 +115,8 @@ table.sortable th[aria-sort=descending]::after { content: " \\25BC"; }
 """
 
 # Sorting for every table.sortable (its headers are buttons, so the keyboard reaches them; a cell's data-sort,
-# where it has one, is its sort key); filters for the table with id "levels" when the page has one.
+# where it has one, is its sort key); the scroll hints; filters for the table with id "levels" when the page
+# has one.
 _SCRIPT = """
 (function () {
   document.querySelectorAll('table.sortable').forEach(function (table) {
@@ -111,33 +138,42 @@ _SCRIPT = """
       body.append.apply(body, keyed.map(function (k) { return k[1]; }));
     });
   });
-  // Copy buttons: the command beside the button, or the one in the button's table row.
+  // A scroll hint shows while the box after it is wider than the screen lets it be.
+  function hints() {
+    document.querySelectorAll('.scrollhint').forEach(function (hint) {
+      var box = hint.nextElementSibling;
+      hint.hidden = box.scrollWidth <= box.clientWidth + 1;
+    });
+  }
+  window.addEventListener('resize', hints);
+  hints();
+  // Copy buttons: the button's own command (data-cmd), or the command beside it.
   document.addEventListener('click', function (event) {
     var button = event.target.closest('button.copy');
     if (!button) return;
-    var row = button.closest('tr'), code = row ? row.querySelector('code.cmd') : button.previousElementSibling;
+    var code = button.previousElementSibling, text = button.dataset.cmd || code.textContent;
     var done = function () { button.textContent = 'copied'; };
     var fallback = function () {
-      var range = document.createRange();
-      range.selectNodeContents(code);
-      window.getSelection().removeAllRanges();
-      window.getSelection().addRange(range);
+      var area = document.createElement('textarea');
+      area.value = text;
+      document.body.appendChild(area);
+      area.select();
       if (document.execCommand('copy')) done();
+      area.remove();
     };
-    if (navigator.clipboard) navigator.clipboard.writeText(code.textContent).then(done, fallback);
+    if (navigator.clipboard) navigator.clipboard.writeText(text).then(done, fallback);
     else fallback();
   });
   var table = document.getElementById('levels');
   if (!table) return;
   var rows = Array.from(table.tBodies[0].rows), query = document.getElementById('query');
-  // The text filter reads what a row shows and its files' names, not its reproduce command (which names the
-  // domain and the folder, so it would match every row).
+  // The text filter reads what a row shows (not its buttons) and its files' names.
   var texts = rows.map(function (row) {
-    return Array.from(row.cells).filter(function (cell) { return !cell.querySelector('code.cmd'); })
-      .map(function (cell) {
-        return cell.textContent + ' ' + Array.from(cell.querySelectorAll('a'), function (a) {
-          return a.getAttribute('href'); }).join(' ');
-      }).join(' ').toLowerCase();
+    return Array.from(row.cells, function (cell) {
+      return Array.from(cell.childNodes).filter(function (node) { return node.nodeName !== 'BUTTON'; })
+        .map(function (node) { return node.textContent; }).join(' ') + ' ' +
+        Array.from(cell.querySelectorAll('a'), function (a) { return a.getAttribute('href'); }).join(' ');
+    }).join(' ').toLowerCase();
   });
   var never = document.getElementById('never'), regressed = document.getElementById('regressed');
   var lows = Array.from(document.querySelectorAll('input.lo'));
@@ -158,22 +194,24 @@ _SCRIPT = """
     shown.textContent = count + ' of ' + rows.length + ' levels shown';
   }
   document.querySelectorAll('.filters input').forEach(function (input) { input.addEventListener('input', apply); });
-  function reset() {
+  function clear() {
     document.querySelectorAll('.filters input').forEach(function (i) {
       if (i.type === 'checkbox') i.checked = false; else i.value = '';
     });
-    apply();
   }
-  document.getElementById('reset').addEventListener('click', reset);
+  document.getElementById('reset').addEventListener('click', function () { clear(); apply(); });
   // A link to a level's row ("worst level") shows the row even when the filters hide it.
   document.addEventListener('click', function (event) {
     var link = event.target.closest('a[href^="#level-"]');
     var row = link && document.getElementById(link.getAttribute('href').slice(1));
-    if (row && row.hidden) reset();
+    if (row && row.hidden) { clear(); apply(); }
   });
+  // A region's button shows its levels alone: the other filters are cleared, and the range inputs take the
+  // range the region table prints.
   document.querySelectorAll('button.region').forEach(function (button) {
     button.addEventListener('click', function () {
       var lo = button.dataset.lo.split(' '), hi = button.dataset.hi.split(' ');
+      clear();
       lows.forEach(function (i, j) { i.value = lo[j]; });
       highs.forEach(function (i, j) { i.value = hi[j]; });
       apply();
@@ -187,6 +225,69 @@ _SCRIPT = """
 
 def _esc(value: Any) -> str:
     return html.escape(str(value), quote=True)
+
+
+#: A URL scheme at the start of a name (``javascript:``, ``http:``, ``data:``, a Windows drive ``C:``).
+_SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.\-]*:")
+
+
+def collection_href(name: Any) -> str | None:
+    """The link to a file of the collection that a collection field names, relative to the collection folder.
+
+    A collection may come from someone else, so a field is linked only when it is a relative path that stays
+    inside the folder; its characters are percent-encoded, so the browser reads it as a file name and nothing
+    else.
+
+    Returns:
+        The URL, or None for anything else: an empty or non-text field, a URL scheme (``javascript:``,
+        ``http:``), an absolute path, a ``..`` step or a backslash.
+    """
+    if not isinstance(name, str) or not name or "\\" in name or _SCHEME.match(name):
+        return None
+    path = PurePosixPath(name)
+    if path.is_absolute() or ".." in path.parts:
+        return None
+    return urllib.parse.quote(path.as_posix())
+
+
+def _collection_file(collection_dir: Path, name: Any) -> Path | None:
+    """The collection's own file that a field names (:func:`collection_href`'s rule, and no symbolic link out
+    of the folder), or None: the page embeds no other file of the disk."""
+    if collection_href(name) is None:
+        return None
+    root = collection_dir.resolve()
+    path = (root / name).resolve()
+    return path if path.is_relative_to(root) and path.is_file() else None
+
+
+def _file_link(name: Any, text: str) -> str:
+    """``text`` linked to the collection's file ``name``; plain text (the name) where it is not one."""
+    href = collection_href(name)
+    if href is None:
+        return f"<span title='not linked: not a file inside the collection folder'>{_esc(name)}</span>"
+    return f"<a href='{href}'>{_esc(text)}</a>"
+
+
+def portable_command(command: str, level_file: str) -> str:
+    """``command`` with its level file named relative to the collection folder, to run in that folder.
+
+    The collection records the absolute path of the level file, which is wrong once the folder moves or is
+    sent to another machine; the path relative to the folder is right wherever it is. Every absolute path in
+    the command that ends with ``level_file`` becomes ``level_file``; the rest is left as it is.
+    """
+    if collection_href(level_file) is None:
+        return command
+    try:
+        words = shlex.split(command)
+    except ValueError:  # not a shell command: shown as it is
+        return command
+    tail = PurePosixPath(level_file).parts
+
+    def relative(word: str) -> str:
+        path = PurePosixPath(word)
+        return level_file if path.is_absolute() and path.parts[-len(tail):] == tail else word
+
+    return shlex.join(relative(word) for word in words)
 
 
 def _compact_png(data: bytes) -> bytes:
@@ -205,20 +306,40 @@ def _img(data: bytes, *, alt: str) -> str:
     return f"<img src='data:image/png;base64,{encoded}' alt='{_esc(alt)}'>"
 
 
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _decimals(values: Sequence[Any]) -> int:
+    """Decimals of a column: none for integers, else suited to the column's magnitude."""
+    numbers = [float(v) for v in values if _is_number(v)]
+    if all(v.is_integer() for v in numbers):
+        return 0
+    top = max(abs(v) for v in numbers)
+    return 3 if top < 10 else 2 if top < 100 else 1
+
+
 def _formatter(values: Sequence[Any]) -> Callable[[Any], str]:
-    """One number format per column: integers as such, else decimals suited to the column's magnitude."""
-    numbers = [v for v in values if isinstance(v, (int, float)) and not isinstance(v, bool)]
-    if numbers and all(float(v).is_integer() for v in numbers):
-        return lambda v: "" if v is None else str(int(v))
-    top = max((abs(float(v)) for v in numbers), default=0.0)
-    decimals = 3 if top < 10 else 2 if top < 100 else 1
-    return lambda v: "" if v is None else f"{float(v):.{decimals}f}"
+    """One number format per column (:func:`_decimals`); HTML, so a value that is not a number is escaped."""
+    decimals = _decimals(values)
+
+    def text(value: Any) -> str:
+        if value is None:
+            return ""
+        return f"{float(value):.{decimals}f}" if _is_number(value) else _esc(value)
+
+    return text
+
+
+def _header(text: str) -> str:
+    """A header's HTML: may wrap after an underscore, so "optimal_path_length" needs no wide column."""
+    return _esc(text).replace("_", "_<wbr>")
 
 
 def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]], *, left: int = 0, numeric: Sequence[bool] = (),
            row_attrs: Sequence[str] | None = None, table_attrs: str = "class='sortable'",
            sorted_by: tuple[int, str] | None = None, titles: dict[str, str] | None = None,
-           descending_first: Collection[str] = ()) -> str:
+           descending_first: Collection[str] = (), cell_classes: dict[int, str] | None = None) -> str:
     """A table with a ``thead``; cells are HTML, headers plain text.
 
     Args:
@@ -232,11 +353,14 @@ def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]], *, left: int =
             arrow (``aria-sort``).
         titles: Tooltips of the headers, by header.
         descending_first: Headers whose first click sorts largest first (where a larger value is worse).
+        cell_classes: A class of the body cells of some columns, by column.
     """
     sortable = "sortable" in table_attrs
 
     def cls(i: int, is_head: bool) -> str:
         names = (["l"] if i < left else []) + (["num"] if is_head and i < len(numeric) and numeric[i] else [])
+        if not is_head and cell_classes and i in cell_classes:
+            names.append(cell_classes[i])
         return f" class='{' '.join(names)}'" if names else ""
 
     def th(i: int, header: str) -> str:
@@ -247,7 +371,9 @@ def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]], *, left: int =
             attrs += f" aria-sort='{sorted_by[1]}'"
         if titles and header in titles:
             attrs += f" title='{_esc(titles[header])}'"
-        label = f"<button type='button' class='sort'>{_esc(header)}</button>" if sortable and header else _esc(header)
+        label = _header(header)
+        if sortable and header:
+            label = f"<button type='button' class='sort'>{label}</button>"
         return f"<th{attrs}>{label}</th>"
 
     def td(i: int, cell: Any) -> str:
@@ -261,6 +387,14 @@ def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]], *, left: int =
         attrs = f" {row_attrs[r]}" if row_attrs and row_attrs[r] else ""
         body.append(f"<tr{attrs}>" + "".join(td(i, c) for i, c in enumerate(row)) + "</tr>")
     return f"<table {table_attrs}><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+
+
+def _scroll_box(table: str, *, box: str = "hscroll") -> str:
+    """``table`` in a box that scrolls it (``hscroll``: sideways; ``scroll``: both ways, at most 80 % of the
+    screen's height), after a line that the page's script shows while the table is wider than the box."""
+    hint = ("<p class='scrollhint' hidden>→ This table is wider than the screen: scroll it sideways for more "
+            "columns.</p>")
+    return f"{hint}<div class='{box}'>{table}</div>"
 
 
 def _page(title: str, body: str) -> str:
@@ -356,8 +490,8 @@ def heatmap_pngs(collection: dict[str, Any]) -> dict[str, bytes]:
     """The collection's levels as archive heatmaps over the first two measures: ``zoomed`` to the cells the
     levels occupy (plus a margin) and ``full`` over the measures' whole ranges, one colour scale for both.
 
-    Each cell shows the highest objective among its levels. Empty when there are no levels or fewer than two
-    measures.
+    Each cell shows the highest objective among its levels (a regression audit: the largest regression, as
+    its [0, 1] score). Empty when there are no levels or fewer than two measures.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -378,8 +512,12 @@ def heatmap_pngs(collection: dict[str, Any]) -> dict[str, bytes]:
     edges = [np.linspace(lo, hi, d + 1) for (lo, hi), d in zip(ranges, dims)]
     occupied = [(int(cells[:, k].min()), int(cells[:, k].max())) for k in range(2)]
 
+    label = _objective_label(collection)
+
     def draw(window: list[tuple[int, int]], title: str) -> bytes:
-        fig = Figure(figsize=(7.0, 5.6), dpi=100)
+        # Sized like the level pictures, for the page: 4.2 in wide is shown 366 px wide on a phone and at most
+        # 620 px on a wide screen; 11 pt stays 12 px or more on the page.
+        fig = Figure(figsize=(4.2, 3.4), dpi=160)
         FigureCanvasAgg(fig)
         ax = fig.add_subplot()
         ax.set_facecolor("#ececec")  # empty cells
@@ -387,24 +525,44 @@ def heatmap_pngs(collection: dict[str, Any]) -> dict[str, bytes]:
                              vmax=vmax)
         ax.set_xlim(edges[0][window[0][0]], edges[0][window[0][1] + 1])
         ax.set_ylim(edges[1][window[1][0]], edges[1][window[1][1] + 1])
-        ax.set_xlabel(measures[0], fontsize=13)
-        ax.set_ylabel(measures[1], fontsize=13)
+        # Names from the collection file are text, not mathtext ("$" in a name would be parsed).
+        ax.set_xlabel(measures[0], fontsize=11, parse_math=False)
+        ax.set_ylabel(measures[1], fontsize=11, parse_math=False)
         ax.tick_params(labelsize=11)
-        ax.set_title(title, fontsize=13)
+        ax.set_title(title, fontsize=11)
         bar = fig.colorbar(mesh, ax=ax)
-        bar.set_label(f"{collection['objective']} (highest in the cell)", fontsize=12)
+        bar.set_label(label, fontsize=11, parse_math=False)
         bar.ax.tick_params(labelsize=11)
-        fig.tight_layout()
+        fig.tight_layout(pad=0.3)
         buffer = io.BytesIO()
         fig.savefig(buffer, format="png")
         return buffer.getvalue()
 
     zoom = [zoom_window(lo, hi, d) for (lo, hi), d in zip(occupied, dims)]
-    return {"zoomed": draw(zoom, f"{len(levels)} levels, zoomed to where they are"),
+    return {"zoomed": draw(zoom, f"Zoomed to the {len(levels)} levels"),
             "full": draw([(0, dims[0] - 1), (0, dims[1] - 1)], "Full measure range")}
 
 
-def _metadata(c: dict[str, Any]) -> str:
+def _search_folder(folder: Any, collection_dir: Path) -> str:
+    """The search folder a collection names: relative to the collection folder where both lie in one audit
+    folder (``../search``, which stays right when the audit folder moves), else as recorded."""
+    if not isinstance(folder, str) or not folder:
+        return "?"
+    audit_dir = collection_dir.resolve().parent
+    if Path(folder).is_absolute() and Path(folder).is_relative_to(audit_dir):
+        return os.path.relpath(folder, collection_dir.resolve())
+    return folder
+
+
+def _coverage(c: dict[str, Any]) -> str:
+    cells = math.prod(int(d) for d in c["archive_dims"])
+    elites = c.get("search_elites")
+    if not _is_number(elites) or cells <= 0:
+        return "?"
+    return f"{int(elites):,} of {cells:,} archive cells hold an elite ({elites / cells:.2%})"
+
+
+def _metadata(c: dict[str, Any], collection_dir: Path) -> str:
     config = c.get("config") or {}
     ranges = ", ".join(f"{m} [{lo:g}, {hi:g}] in {d} cells"
                        for m, (lo, hi), d in zip(c["measures"], c["measure_ranges"], c["archive_dims"]))
@@ -418,8 +576,8 @@ def _metadata(c: dict[str, Any]) -> str:
         ("budget", f"{_esc(config.get('budget', '?'))} real evaluations in the search"),
         ("episodes", f"{_esc(c['episodes'])} per level (re-evaluation)"),
         ("seed", f"{_esc(c.get('run_seed', '?'))} (each level's evaluation seed is in the table)"),
-        ("search folder", f"<code>{_esc(c.get('search_dir') or '?')}</code>, {_esc(c.get('search_elites', '?'))} "
-                          f"elites"),
+        ("search folder", f"<code>{_esc(_search_folder(c.get('search_dir'), collection_dir))}</code>"),
+        ("coverage", _esc(_coverage(c))),
         ("created", _esc(c.get("created", "?"))),
     ]
     audit = audit_declaration(c["domain"])
@@ -454,89 +612,129 @@ def _command(text: str) -> str:
     return f"<div><code class='cmd'>{words}</code> <button class='copy' type='button'>copy</button></div>"
 
 
+# ----------------------------------------------------------------------------- the failure numbers
+# One failure number per level: its failure rate (1 - success rate). The objective is shown beside it only
+# where it is another number (Mario's incompletion, Maze's regret); a regression audit shows the regression
+# (the reference's success rate minus the agent's) instead of its [0, 1] score.
+
+FAILURE_RATE = "failure rate"
+
+
+def _is_regression(c: dict[str, Any]) -> bool:
+    return bool(c.get("reference")) and any("regression" in lv for lv in c["levels"])
+
+
+def _objective_label(c: dict[str, Any]) -> str:
+    return str(c["objective"]).replace("_", " ")
+
+
+def _shows_objective(c: dict[str, Any]) -> bool:
+    """Whether the objective needs its own column: not the failure rate itself, nor a regression's score."""
+    if _is_regression(c):
+        return False
+    return not all(abs(lv["objective"] - (1 - lv["success_rate"])) < 1e-9 for lv in c["levels"])
+
+
+def _failure_rate(record: dict[str, Any]) -> float:
+    return 1.0 - record["success_rate"]
+
+
+def _ranking(c: dict[str, Any]) -> str:
+    """The number the levels are ranked by, worst first, as the page names it."""
+    return "regression" if _is_regression(c) else _objective_label(c) if _shows_objective(c) else FAILURE_RATE
+
+
 def _card(c: dict[str, Any], lv: dict[str, Any], collection_dir: Path, columns: Sequence[ReportField],
           formats: dict[str, Callable[[Any], str]], notes: dict[str, str]) -> str:
     """One worst-level card: picture(s), the level's numbers (next to the reference's), its command(s)."""
-    reference = lv.get("reference") if c.get("reference") else None
-    pictures = [(c["agent"], collection_dir / lv["image_file"])]
+    reference = lv.get("reference") if _is_regression(c) else None
+    pictures = [(c["agent"], lv["image_file"])]
     if reference and reference.get("image_file"):
-        pictures.append((c["reference"], collection_dir / reference["image_file"]))
-    figures = "".join(
-        f"<figure>{_img(p.read_bytes(), alt=p.name) if p.is_file() else '(missing picture)'}"
-        f"{f'<figcaption>{_esc(name)}</figcaption>' if len(pictures) > 1 else ''}</figure>" for name, p in pictures)
-    rows = [("success rate", "success_rate", lv["success_rate"])]
-    rows += [(m, m, v) for m, v in lv["measures"].items()]
-    rows += [(column.name, column.key, lv[column.key]) for column in columns]
+        pictures.append((c["reference"], reference["image_file"]))
+
+    def figure(name: str, file: Any) -> str:
+        path = _collection_file(collection_dir, file)
+        picture = _img(path.read_bytes(), alt=path.name) if path else "(no picture)"
+        caption = f"<figcaption>{_esc(name)}</figcaption>" if len(pictures) > 1 else ""
+        return f"<figure>{picture}{caption}</figure>"
+
+    rows = [(FAILURE_RATE, "failure_rate", _failure_rate(lv), reference and _failure_rate(reference))]
+    if not (reference or _shows_objective(c)):
+        rows = []  # the headline's number
+    rows += [(m, m, v, None) for m, v in lv["measures"].items()]
+    rows += [(column.name, column.key, lv[column.key], reference and reference.get(column.key)) for column in columns]
     if reference:
-        rows += [(k, k, None) for k in _reference_numbers(c) if k not in lv and k != "success_rate"]
+        rows += [(k.replace("_", " "), k, None, reference[k]) for k in _reference_numbers(c)
+                 if k not in lv and k != "success_rate"]
     cell = lambda key, v: "" if v is None else formats.get(key, _formatter([v]))(v)  # noqa: E731
     label = lambda name, key: (f"<td class='l' title='{_esc(notes[key])}'>{_esc(name)}</td>"  # noqa: E731
                                if key in notes else f"<td class='l'>{_esc(name)}</td>")
     if reference:
-        body = "".join(f"<tr>{label(name, key)}<td>{cell(key, v)}</td>"
-                       f"<td>{cell(key, reference.get(key))}</td></tr>" for name, key, v in rows)
+        body = "".join(f"<tr>{label(name, key)}<td>{cell(key, v)}</td><td>{cell(key, ref)}</td></tr>"
+                       for name, key, v, ref in rows)
         # Role names keep the card narrow; the specs are in the page header and the tooltips.
         head = (f"<tr><th class='l'></th><th title='{_esc(c['agent'])}'>agent</th>"
                 f"<th title='{_esc(c['reference'])}'>reference</th></tr>")
-    else:
-        body = "".join(f"<tr>{label(name, key)}<td>{cell(key, v)}</td></tr>" for name, key, v in rows)
-        head = ""
-    if reference and "regression" in lv:
         mark = " class='bad'" if lv["regression"] > 0 else ""
-        headline = (f"#{lv['id']}: <span{mark}>regression {lv['regression']:+.2f}</span> "
-                    f"<small>(success {lv['success_rate']:.2f} vs {reference['success_rate']:.2f})</small>")
+        headline = f"#{lv['id']}: <span{mark}>regression {lv['regression']:+.2f}</span>"
     else:
-        headline = f"#{lv['id']}: {_esc(c['objective'])} {lv['objective']:.3f}"
-    command = lv["reproduce"]
-    parts = [f"<div class='card'><h3>{headline}</h3><div class='pics'>{figures}</div>",
-             f"<table>{head}{body}</table>", f"<div>seed {lv['seed']}, {lv['episodes']} episodes:</div>",
+        body = "".join(f"<tr>{label(name, key)}<td>{cell(key, v)}</td></tr>" for name, key, v, _ in rows)
+        head = ""
+        key, value = ("objective", lv["objective"]) if _shows_objective(c) else ("failure_rate", _failure_rate(lv))
+        headline = f"#{lv['id']}: {_esc(_ranking(c))} {cell(key, value)}"
+    command = portable_command(lv["reproduce"], lv["level_file"])
+    parts = [f"<div class='card'><h3>{headline}</h3><div class='pics'>"
+             + "".join(figure(name, file) for name, file in pictures) + "</div>",
+             f"<table>{head}{body}</table>", f"<div>seed {_esc(lv['seed'])}, {_esc(lv['episodes'])} episodes:</div>",
              _command(command)]
     reference_command = _reference_command(c, lv, command) if reference else None
     if reference_command:
-        parts += ["<div>the reference, same seed:</div>", _command(reference_command)]
+        parts += ["<div>the reference, same seed:</div>", _command(portable_command(reference_command,
+                                                                                    lv["level_file"]))]
     return "".join(parts) + "</div>"
 
 
 def _levels_table(c: dict[str, Any], columns_shown: Sequence[ReportField], formats: dict[str, Callable[[Any], str]],
                   notes: dict[str, str]) -> str:
     levels, measures = c["levels"], c["measures"]
-    reference_keys = _reference_numbers(c)
-    columns: list[tuple[str, Callable[[dict[str, Any]], Any]]] = [
-        ("id", lambda lv: lv["id"]),
-        (c["objective"], lambda lv: lv["objective"]),
-        ("success rate", lambda lv: lv["success_rate"]),
-    ]
-    if reference_keys:
-        columns += [(f"reference {k.replace('_', ' ')}", lambda lv, k=k: lv["reference"].get(k))
-                    for k in reference_keys]
-        columns.append(("regression", lambda lv: lv.get("regression")))
-    columns += [(m, lambda lv, m=m: lv["measures"][m]) for m in measures]
-    columns += [(column.name, lambda lv, k=column.key: lv[k]) for column in columns_shown]
-    columns += [("seed", lambda lv: lv["seed"]), ("search objective", lambda lv: lv.get("search_objective"))]
+    objective = _objective_label(c)
+    columns: list[tuple[str, str, Callable[[dict[str, Any]], Any]]] = [("id", "id", lambda lv: lv["id"])]
+    if _shows_objective(c):
+        columns.append((objective, "objective", lambda lv: lv["objective"]))
+    columns.append((FAILURE_RATE, "failure_rate", _failure_rate))
+    if _is_regression(c):
+        columns.append((f"reference {FAILURE_RATE}", "failure_rate", lambda lv: _failure_rate(lv["reference"])))
+        columns += [(f"reference {k.replace('_', ' ')}", k, lambda lv, k=k: lv["reference"].get(k))
+                    for k in _reference_numbers(c) if k != "success_rate"]
+        columns.append(("regression", "regression", lambda lv: lv.get("regression")))
+    columns += [(m, m, lambda lv, m=m: lv["measures"][m]) for m in measures]
+    columns += [(column.name, column.key, lambda lv, k=column.key: lv[k]) for column in columns_shown]
+    columns += [("seed", "seed", lambda lv: lv["seed"]),
+                ("search objective", "search_objective", lambda lv: lv.get("search_objective"))]
     # The domain's columns as on the cards (their declared format, if any); the others suited to their values.
-    shown = {column.name: column.key for column in columns_shown}
-    formats = [formats[shown[name]] if name in shown else _formatter([get(lv) for lv in levels])
-               for name, get in columns]
+    column_formats = [formats.get(key) or _formatter([get(lv) for lv in levels]) for _, key, get in columns]
     rows, attrs = [], []
     for lv in levels:
-        level_file = lv.get("level_file", lv.get("layout_file"))
-        cells = [f(get(lv)) for (_, get), f in zip(columns, formats)]
-        cells.insert(1, f"<a href='{_esc(level_file)}'>level</a> <a href='{_esc(lv['image_file'])}'>picture</a> "
-                        "<button class='copy' type='button' title='copy the reproduce command'>copy</button>")
-        cells.append(f"<code class='cmd'>{_esc(lv['reproduce'])}</code>")
+        cells = [f(get(lv)) for (_, _, get), f in zip(columns, column_formats)]
+        command = portable_command(lv["reproduce"], lv["level_file"])
+        # Paths relative to the collection folder, which wrap; the command is the copy button's.
+        cells.append(f"{_file_link(lv['level_file'], lv['level_file'])} {_file_link(lv['image_file'], 'picture')} "
+                     f"<button class='copy' type='button' data-cmd='{_esc(command)}' "
+                     f"title='copy the command: {_esc(command)}'>copy</button>")
         rows.append(cells)
-        regression = f" data-r='{lv['regression']}'" if "regression" in lv else ""
+        regression = f" data-r='{lv['regression']!r}'" if "regression" in lv else ""
         # The row's id is the target of the region table's "worst level" links.
-        attrs.append(f"id='level-{lv['id']}' data-s='{lv['success_rate']}' "
+        attrs.append(f"id='level-{lv['id']}' data-s='{lv['success_rate']!r}' "
                      f"data-m='{' '.join(repr(float(lv['measures'][m])) for m in measures)}'{regression}")
-    headers = ["id", "files", *(name for name, _ in columns[1:]), "reproduce"]
-    numeric = [True, False] + [True] * (len(columns) - 1) + [False]
-    return ("<div class='scroll'>"
-            + _table(headers, rows, left=0, numeric=numeric, row_attrs=attrs,
-                     table_attrs="class='sortable' id='levels'", sorted_by=(0, "ascending"),
-                     titles={f.name: notes[f.key] for f in columns_shown if f.key in notes},
-                     descending_first={c["objective"], "regression", "search objective"})
-            + "</div>")
+    headers = [name for name, _, _ in columns] + ["files"]
+    numeric = [True] * len(columns) + [False]
+    return _scroll_box(_table(
+        headers, rows, left=0, numeric=numeric, row_attrs=attrs, table_attrs="class='sortable' id='levels'",
+        sorted_by=(0, "ascending"), cell_classes={len(columns): "files"},
+        titles={"search objective": "the search's own value when it kept the level (one evaluation, another seed)",
+                **{f.name: notes[f.key] for f in columns_shown if f.key in notes}},
+        descending_first={objective, FAILURE_RATE, f"reference {FAILURE_RATE}", "regression", "search objective"}),
+        box="scroll")
 
 
 def _filters(c: dict[str, Any]) -> str:
@@ -555,33 +753,97 @@ def _filters(c: dict[str, Any]) -> str:
     return "".join(parts)
 
 
+def printed_range(low: float, high: float, values: Sequence[float], decimals: int) -> tuple[str, str]:
+    """A region's range along one measure as the region table prints it and its button fills it in.
+
+    ``low`` and ``high`` are the lowest and highest value of the region's levels. The printed ends are rounded
+    outward at ``decimals`` (more where needed) so that the range, both ends included, holds exactly the levels
+    between ``low`` and ``high`` among ``values``: no other level's value falls in what the rounding added.
+    """
+    for places in range(decimals, 16):
+        step = Decimal(1).scaleb(-places)
+        lo = Decimal(repr(float(low))).quantize(step, rounding=ROUND_FLOOR)
+        hi = Decimal(repr(float(high))).quantize(step, rounding=ROUND_CEILING)
+        if not any(float(lo) <= v < low or high < v <= float(hi) for v in values):
+            return str(lo), str(hi)
+    return repr(float(low)), repr(float(high))
+
+
 def _regions(c: dict[str, Any], columns: Sequence[ReportField], formats: dict[str, Callable[[Any], str]],
              notes: dict[str, str]) -> str:
-    measures = c["measures"]
+    measures, levels = c["measures"], c["levels"]
     averaged = [column for column in columns if column.mean]
-    regions = region_statistics(c["levels"], measures, means=[column.key for column in averaged])
-    headers = [*(f"{m} range" for m in measures), "levels", f"mean {c['objective']}", "mean success", "min success",
-               *(column.mean for column in averaged), "worst level", ""]
+    regression = _is_regression(c)
+    regions = region_statistics(levels, measures, means=[column.key for column in averaged]
+                                + (["regression"] if regression else []))
+    # Counts and buttons first: on a phone they are what shows without scrolling.
+    ranking = f"mean {_ranking(c)}"
+    headers = ["levels", "", ranking, *([f"mean {FAILURE_RATE}"] if ranking != f"mean {FAILURE_RATE}" else []),
+               "worst level", *measures, *(column.mean for column in averaged)]
+    values = {m: [float(lv["measures"][m]) for lv in levels] for m in measures}
+    decimals = {m: _decimals(values[m]) for m in measures}
     rows = []
     for r in regions:
-        # The range filter keeps the levels within [lo, hi] on every measure (both ends included, as a person
-        # reads "from 16 to 22"). The region's edges would also take in the levels on its upper edge, which
-        # belong to the next region; its own levels' lowest and highest values, written exactly, select
-        # precisely them, since regions do not overlap.
-        lo = " ".join(repr(a) for a, _ in r["extent"].values())
-        hi = " ".join(repr(b) for _, b in r["extent"].values())
-        rows.append([*((f"{a:.1f} – {b:.1f}", a) for a, b in r["ranges"].values()), r["levels"],
-                     f"{r['objective']:.3f}", f"{r['success_rate']:.3f}", f"{r['min_success_rate']:.3f}",
-                     *(formats[column.key](r[column.key]) for column in averaged),
+        printed = {m: printed_range(*r["extent"][m], values[m], decimals[m]) for m in measures}
+        lo = " ".join(a for a, _ in printed.values())
+        hi = " ".join(b for _, b in printed.values())
+        mean = r["regression"] if regression else r["objective"] if _shows_objective(c) else 1 - r["success_rate"]
+        rows.append([r["levels"],
+                     f"<button type='button' class='region' data-lo='{lo}' data-hi='{hi}'>show</button>",
+                     f"{mean:+.3f}" if regression else f"{mean:.3f}",
+                     *([f"{1 - r['success_rate']:.3f}"] if ranking != f"mean {FAILURE_RATE}" else []),
                      (f"<a href='#level-{r['worst']}'>#{r['worst']}</a>", r["worst"]),
-                     f"<button type='button' class='region' data-lo='{lo}' data-hi='{hi}'>show these</button>"])
-    numeric = [True] * (len(headers) - 1) + [False]
-    table = _table(headers, rows, left=len(measures), numeric=numeric, sorted_by=(len(measures) + 1, "descending"),
-                   titles={**{f"{m} range": f"{m} from the first value (included) to the second (excluded, but "
-                                            "included in the last region)" for m in measures},
+                     *((a if a == b else f"{a} – {b}", float(a)) for a, b in printed.values()),
+                     *(formats[column.key](r[column.key]) for column in averaged)])
+    numeric = [True, False] + [True] * (len(headers) - 2)
+    table = _table(headers, rows, left=0, numeric=numeric, sorted_by=(2, "descending"),
+                   descending_first={ranking, f"mean {FAILURE_RATE}"},
+                   titles={**{m: f"the lowest and highest {m} among the region's levels (the regions split each "
+                                 f"measure's range into {REGIONS_PER_MEASURE} equal parts)" for m in measures},
                            "worst level": "the region's worst level: opens its row in the table of all levels",
                            **{column.mean: notes[column.key] for column in averaged if column.key in notes}})
-    return f"<div class='hscroll'>{table}</div>"
+    return _scroll_box(table)
+
+
+def _glossary(c: dict[str, Any]) -> str:
+    """One line per term the page uses, and how the worst levels are ordered."""
+    objective, episodes = _objective_label(c), _esc(c["episodes"])
+    cells = " × ".join(str(int(d)) for d in c["archive_dims"])
+    terms = [(FAILURE_RATE, f"the share of a level's {episodes} episodes that the agent failed (1 − success rate), "
+                            "measured again after the search with the level's recorded seed.")]
+    if _shows_objective(c):
+        terms.append((objective, "the audit's objective, which the search maximised to find these levels; "
+                                 "measured again like the failure rate."))
+    if _is_regression(c):
+        terms.append(("regression", "the reference's success rate minus the agent's, on the same seed: above 0, "
+                                    "the agent fails more often than the reference."))
+    terms += [
+        ("search objective", f"the {_esc(objective)} the search recorded when it kept the level: one evaluation "
+                             "with another seed. The search keeps the highest values it saw, often lucky ones, so "
+                             "this is often higher than the number measured again."),
+        ("measures", f"numbers that describe a level ({_esc(', '.join(c['measures']))}); the search looks for "
+                     "failures spread over their values."),
+        ("archive cell", f"one cell of the grid that splits each measure's range into equal parts ({cells} "
+                         "cells); the search keeps one level per cell."),
+        ("elite", "the level an archive cell keeps: the one with the highest search objective found for that "
+                  "cell. Every level on this page is an elite, measured again."),
+        ("coverage", "the share of the archive's cells that hold an elite."),
+        ("CVaR", "conditional value at risk: the mean success rate of the worst 10% of the levels (those with "
+                 "the lowest success rates); 0 means the agent never succeeds on them."),
+        ("ties", _ties(c)),
+    ]
+    return ("<dl class='glossary' id='terms'>"
+            + "".join(f"<div><dt>{_esc(term)}</dt> <dd>{text}</dd></div>" for term, text in terms) + "</dl>")
+
+
+def _ties(c: dict[str, Any]) -> str:
+    """How levels with the same worst-first number are ordered (the collection's order, :func:`~dsage_ray.audit.
+    collection.build_collection`): by success rate, then as the search rated them."""
+    ranking = _ranking(c)
+    success = "" if ranking == FAILURE_RATE else "with the lower success rate first, then "
+    return (f"levels with the same {_esc(ranking)} are listed {success}with the higher search objective first, "
+            "then in the search archive's order. Numbers are rounded on the page: levels that look tied may "
+            "differ in a later decimal.")
 
 
 def _notes(c: dict[str, Any], columns: Sequence[ReportField]) -> dict[str, str]:
@@ -590,10 +852,54 @@ def _notes(c: dict[str, Any], columns: Sequence[ReportField]) -> dict[str, str]:
     return {column.key: text for column in columns if (text := column.explain(c))}
 
 
+def check_numbers(c: dict[str, Any]) -> None:
+    """Checks that every number the page computes with is one (a collection may come from someone else).
+
+    Raises:
+        ValueError: A field that is not what the page needs, named (``level 3: success_rate ...``).
+    """
+    def number(value: Any, where: str) -> None:
+        if not _is_number(value):
+            raise ValueError(f"collection.json: {where} is {value!r}, not a number")
+
+    if not isinstance(c.get("measures"), list) or not all(isinstance(m, str) for m in c["measures"]):
+        raise ValueError("collection.json: measures is not a list of names")
+    for key in ("measure_ranges", "archive_dims", "levels"):
+        if not isinstance(c.get(key), list):
+            raise ValueError(f"collection.json: {key} is not a list")
+    for j, pair in enumerate(c["measure_ranges"]):
+        for k, value in enumerate(pair if isinstance(pair, list) and len(pair) == 2 else [pair]):
+            number(value, f"measure_ranges[{j}][{k}]")
+    for j, value in enumerate(c["archive_dims"]):
+        if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+            raise ValueError(f"collection.json: archive_dims[{j}] is {value!r}, not a cell count")
+    for i, lv in enumerate(c["levels"]):
+        if not isinstance(lv, dict) or not isinstance(lv.get("id"), int) or isinstance(lv["id"], bool):
+            raise ValueError(f"collection.json: level {i} has no integer id")
+        where = f"level {lv['id']}"
+        for key in ("objective", "success_rate"):
+            number(lv.get(key), f"{where}: {key}")
+        if not isinstance(lv.get("measures"), dict):
+            raise ValueError(f"collection.json: {where}: measures is not a mapping")
+        for m in c["measures"]:
+            number(lv["measures"].get(m), f"{where}: measure {m!r}")
+        if c.get("reference") and "regression" in lv:
+            number(lv["regression"], f"{where}: regression")
+            number((lv.get("reference") or {}).get("success_rate"), f"{where}: reference success_rate")
+        for key in ("level_file", "image_file", "reproduce"):
+            if not isinstance(lv.get(key), str):
+                raise ValueError(f"collection.json: {where}: {key} is not text")
+
+
 def write_report(collection_dir: str | Path) -> Path:
-    """Writes ``report.html`` for the collection in ``collection_dir``; returns its path."""
+    """Writes ``report.html`` for the collection in ``collection_dir``; returns its path.
+
+    Raises:
+        ValueError: Not a collection, or one whose numbers are not numbers (:func:`check_numbers`).
+    """
     collection_dir = Path(collection_dir)
     c = load_collection(collection_dir)
+    check_numbers(c)
     levels = c["levels"]
     columns = report_columns(c)
     notes = _notes(c, columns)
@@ -606,19 +912,25 @@ def write_report(collection_dir: str | Path) -> Path:
         title = f"Audit of {c['agent']}"
         lead = f"Levels where <code>{_esc(c['agent'])}</code> fails, worst first."
     lead += (f" Every number was measured again after the search with the level's recorded seed and "
-             f"{_esc(c['episodes'])} episodes; each level's command prints it again.")
+             f"{_esc(c['episodes'])} episodes; each level's command prints it again. The terms are explained "
+             f"<a href='#terms'>below</a>.")
     parts = [f"<h1>{_esc(title)}</h1><p class='lead'>{lead}</p>", "<h2>Failure diversity</h2>", _summary(summary),
-             "<h2>Run</h2>", _metadata(c)]
+             "<h2>Run</h2>", _metadata(c, collection_dir), "<h2>Terms</h2>", _glossary(c)]
     heatmaps = heatmap_pngs(c)
     if heatmaps:
-        parts += ["<h2>Where the levels are</h2><div class='figs'>",
+        parts += ["<h2>Where the levels are</h2>",
+                  f"<p class='lead'>Each archive cell's colour is the highest {_esc(_objective_label(c))} among its "
+                  "levels; grey cells hold none.</p><div class='figs'>",
                   _img(heatmaps["zoomed"], alt="heatmap, zoomed"), _img(heatmaps["full"], alt="heatmap, full range"),
                   "</div>"]
     shown = levels[:WORST_SHOWN]
     # One number format per key across the collection, so the cards line up with each other and the table.
-    formats = {key: _formatter([lv.get(key) for lv in levels] + [(lv.get("reference") or {}).get(key) for lv in levels])
-               for key in ["success_rate", *(column.key for column in columns), *_reference_numbers(c)]}
-    formats.update({column.key: column.text for column in columns if column.format})
+    references = [lv.get("reference") or {} for lv in levels]
+    formats = {key: _formatter([lv.get(key) for lv in levels] + [r.get(key) for r in references])
+               for key in ["objective", *(column.key for column in columns), *_reference_numbers(c)]}
+    formats["failure_rate"] = _formatter([_failure_rate(lv) for lv in levels]
+                                         + [_failure_rate(r) for r in references if _is_number(r.get("success_rate"))])
+    formats.update({column.key: lambda v, column=column: _esc(column.text(v)) for column in columns if column.format})
     formats.update({m: _formatter([lv["measures"][m] for lv in levels]) for m in c["measures"]})
     # Two pictures per card (the reference's too) need wider cards.
     wide = " wide" if any((lv.get("reference") or {}).get("image_file") for lv in shown) else ""
@@ -626,15 +938,20 @@ def write_report(collection_dir: str | Path) -> Path:
     # and tables that show it, and again as their headers' tooltips.
     explained = "".join(f"<p class='lead note'><b>{_esc(column.name)}</b>: {_esc(notes[column.key])}.</p>"
                         for column in columns if column.key in notes)
-    parts += [f"<h2>Worst {len(shown)} levels</h2>", explained, f"<div class='cards{wide}'>",
+    parts += [f"<h2>Worst {len(shown)} levels</h2>", explained,
+              "<p class='lead'>Run a level's command in the collection folder (the folder that holds this page: "
+              "<code>cd</code> into it first): it names the level file relative to that folder, so it works "
+              "wherever the folder is.</p>",
+              f"<div class='cards{wide}'>",
               *(_card(c, lv, collection_dir, columns, formats, notes) for lv in shown), "</div>",
               "<h2>Per-region statistics</h2>",
-              "<p class='lead'>Levels grouped by equal-width ranges of each measure; "
-              "<i>show these</i> filters the table below to the region's levels; the worst level's link opens "
-              "its row.</p>", _regions(c, columns, formats, notes),
+              f"<p class='lead'>Levels grouped by equal-width ranges of each measure; each range printed is the "
+              f"lowest and highest value among the region's levels. <i>show</i> filters the table below to the "
+              f"region's levels (and clears its other filters); the worst level's link opens its row.</p>",
+              _regions(c, columns, formats, notes),
               f"<h2>All {len(levels)} levels</h2>",
-              "<p class='lead'>Click a column header (or Tab to it and press Enter) to sort; <i>copy</i> copies the "
-              "level's reproduce command (the last column).</p>",
+              "<p class='lead'>Click a column header (or Tab to it and press Enter) to sort, worst first; "
+              "<i>copy</i> copies the level's command, to run in the collection folder.</p>",
               _filters(c), _levels_table(c, columns, formats, notes)]
     path = collection_dir / "report.html"
     atomic_write_text(path, _page(title, "".join(parts)))
@@ -648,8 +965,14 @@ def write_compare_report(path: str | Path, comparison: dict[str, Any], *, collec
     columns of the domain (``comparison["columns"]``: Maze's mean path length, Mario's completion)."""
     collection_dir = Path(collection_dir)
     path = Path(path)
-    # Links relative to the page, so they work wherever the collection and the page are moved together.
-    link = lambda file: _esc(os.path.relpath(collection_dir / file, path.parent))  # noqa: E731
+
+    def link(file: Any) -> str:
+        # Relative to the page, so it works wherever the collection and the page are moved together.
+        if collection_href(file) is None:
+            return _esc(file)
+        href = urllib.parse.quote(Path(os.path.relpath(collection_dir / file, path.parent)).as_posix())
+        return f"<a href='{href}'>{_esc(file)}</a>"
+
     a, b = comparison["agent_a"], comparison["agent_b"]
     rows = comparison["levels"]
     summary = comparison["summary"]
@@ -662,7 +985,7 @@ def write_compare_report(path: str | Path, comparison: dict[str, Any], *, collec
         f"{_esc(comparison['episodes_note'])}.</p>",
         _table(["", "A", "B"], [
             ["mean success rate", f"{summary['success_a']:.3f}", f"{summary['success_b']:.3f}"],
-            *([c["mean"], number[c["key"]](summary[f"{c['key']}_a"]), number[c["key"]](summary[f"{c['key']}_b"])]
+            *([_esc(c["mean"]), number[c["key"]](summary[f"{c['key']}_a"]), number[c["key"]](summary[f"{c['key']}_b"])]
               for c in columns),
             ["levels solved every episode", summary["solved_a"], summary["solved_b"]],
         ], left=1, table_attrs=""),
@@ -676,20 +999,20 @@ def write_compare_report(path: str | Path, comparison: dict[str, Any], *, collec
             changes = "".join(f"; {_esc(c['label'])} {number[c['key']](row[c['key'] + '_a'])} → "
                               f"{number[c['key']](row[c['key'] + '_b'])}" for c in columns)
             parts.append(f"<div class='card'>{_img(images[row['id']], alt=alt)}"
-                         f"<div>#{row['id']}: success A {row['success_a']:.2f} → B {row['success_b']:.2f}"
+                         f"<div>#{_esc(row['id'])}: success A {row['success_a']:.2f} → B {row['success_b']:.2f}"
                          f"{changes}</div></div>")
     parts.append("</div><h2>All levels (B − A)</h2><p class='lead'>Click a column header to sort.</p>")
     classes = [f"class='{r['verdict']}'" if r["verdict"] in ("worse", "better") else "" for r in rows]
     headers = ["id", "level", "success A", "success B", "Δ success",
                *(f"{c['label']} {x}" for c in columns for x in ("A", "B", "Δ")), "verdict"]
-    cells = [[r["id"], f"<a href='{link(r['level_file'])}'>{_esc(r['level_file'])}</a>",
+    cells = [[_esc(r["id"]), link(r["level_file"]),
               f"{r['success_a']:.2f}", f"{r['success_b']:.2f}", f"{r['success_b'] - r['success_a']:+.2f}",
               *(text for c in columns for text in (
                   number[c["key"]](r[c["key"] + "_a"]), number[c["key"]](r[c["key"] + "_b"]),
                   f"{r[c['key'] + '_b'] - r[c['key'] + '_a']:+.3g}")),
-              r["verdict"]] for r in rows]
-    parts.append("<div class='hscroll'>" + _table(
+              _esc(r["verdict"])] for r in rows]
+    parts.append(_scroll_box(_table(
         headers, cells, left=0, numeric=[True, False, *([True] * (len(headers) - 3)), False],
-        row_attrs=classes, sorted_by=(4, "ascending")) + "</div>")
+        row_attrs=classes, sorted_by=(4, "ascending"))))
     atomic_write_text(path, _page(title, "".join(parts)))
     return path

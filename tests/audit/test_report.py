@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import base64
 import io
 import json
 import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 from PIL import Image
 
 from dsage_ray.audit import collection as collection_module
@@ -117,7 +119,10 @@ def test_table_has_every_level_worst_first_with_its_command(tmp_path):
     assert [re.search(r"<td>(\d+)</td>", r[3]).group(1) for r in rows] == [r[0] for r in rows] == [
         str(i) for i in range(15)]
     assert rows[3][1:3] == ("0.75", "109.0 23.0")
-    assert "--seed 1003</code>" in rows[3][3] and "href='levels/level_0003.png'" in rows[3][3]
+    assert "href='levels/level_0003.png'" in rows[3][3] and ">levels/level_0003.txt</a>" in rows[3][3]
+    # The copy button's command names the level file relative to the collection folder.
+    assert re.search(r"data-cmd='dsage-ray maze eval [^']*--layout levels/level_0003\.txt [^']*--seed 1003'",
+                     rows[3][3])
 
 
 def test_v1_collection_renders_with_rebuilt_commands(tmp_path):
@@ -147,7 +152,7 @@ def test_regression_collection_shows_both_agents(tmp_path):
         assert len(commands) == 2
         assert [c.replace(REFERENCE, AGENT) for c in commands[1:]] == commands[:1]
         assert f"--agent {REFERENCE} --layout" in commands[1]
-    for header in ("reference success rate", "reference mean path length", "regression"):
+    for header in ("reference failure rate", "reference mean path length", "regression"):
         assert f">{header}</button></th>" in page, header
     assert "id='regressed'" in page
     summary = failure_summary(load_collection(folder))
@@ -167,9 +172,11 @@ def test_mario_collection_renders_its_own_numbers(tmp_path):
     (folder / "collection.json").write_text(json.dumps(data))
     page = write_report(folder).read_text()
     assert "<dt>domain</dt><dd>mario</dd>" in page
-    assert ">completion</button></th>" in page and ">sky_tiles</button></th>" in page
+    assert ">completion</button></th>" in page and ">sky_<wbr>tiles</button></th>" in page
     assert "mean path length" not in page and "maze eval" not in page and "step limit" not in page
-    assert re.sub(r"</?span>", "", page).count("dsage-ray mario eval --level") == 5 + 5  # cards + table
+    cards = page.split("<h2>Per-region")[0]
+    assert re.sub(r"</?span>", "", cards).count("dsage-ray mario eval --level levels/") == 5
+    assert page.count("data-cmd='dsage-ray mario eval --level levels/") == 5  # the table's copy buttons
 
 
 def test_empty_collection_renders(tmp_path):
@@ -200,7 +207,7 @@ def test_compare_page_is_sortable(tmp_path):
     assert "class='sortable'" in page and page.count("<tr class='worse'>") == 2
     # The domain's compared column: its mean per agent, and per level A, B and the change.
     assert "<td class='l'>mean path length</td><td>10.00</td><td>12.50</td>" in page
-    assert ">mean_path_length Δ</button></th>" in page and page.count("<td>+2.5</td>") == 3
+    assert ">mean_<wbr>path_<wbr>length Δ</button></th>" in page and page.count("<td>+2.5</td>") == 3
     assert all((path.parent / link).is_file() for link in _links(page) if not link.startswith("data:"))
 
 
@@ -257,7 +264,7 @@ def _region_rows(page: str) -> list[tuple[int, list[float], list[float]]]:
     for row in rows:
         cells = re.findall(r"<td[^>]*>(.*?)</td>", row)
         lo, hi = re.search(r"data-lo='([^']*)' data-hi='([^']*)'", row).groups()
-        out.append((int(cells[2]), [float(v) for v in lo.split()], [float(v) for v in hi.split()]))
+        out.append((int(cells[0]), [float(v) for v in lo.split()], [float(v) for v in hi.split()]))
     return out
 
 
@@ -287,12 +294,13 @@ def test_tables_show_their_default_order_and_sort_from_the_keyboard(tmp_path):
     assert re.search(r"<th class='num' aria-sort='ascending'><button type='button' class='sort'>id</button>",
                      levels_head)
     regions = page.split("<h2>Per-region statistics</h2>", 1)[1].split("</table>", 1)[0]
-    assert re.search(r"aria-sort='descending'><button type='button' class='sort'>mean failure_rate</button>",
+    assert re.search(r"aria-sort='descending'><button type='button' class='sort'>mean failure rate</button>",
                      regions)
     assert levels_head.count("aria-sort") == 1 and regions.count("aria-sort") == 1
     # Every named header is a button (Tab reaches it, Enter and Space press it); the buttons' column has none.
     headers = re.findall(r"<th(?: [^>]*)?>(.*?)</th>", regions.split("</thead>", 1)[0])
-    assert all(h.startswith("<button type='button' class='sort'>") for h in headers[:-1]) and headers[-1] == ""
+    assert all(h.startswith("<button type='button' class='sort'>") for i, h in enumerate(headers) if i != 1)
+    assert headers[1] == ""
 
 
 def test_worst_level_is_a_link_to_its_row_and_sorts_as_a_number(tmp_path):
@@ -321,7 +329,7 @@ def test_step_limit_is_explained_from_the_config(tmp_path):
             "the agent never reached the goal")
     assert f"<b>mean_path_length</b>: {note}.</p>" in page and "648" not in page
     # Where the numbers are: the header of the table of all levels, the region table, every card.
-    assert re.search(rf"<th class='num' title='{note}'><button[^>]*>mean_path_length<", page)
+    assert re.search(rf"<th class='num' title='{note}'><button[^>]*>mean_<wbr>path_<wbr>length<", page)
     assert re.search(rf"title='{note}'><button[^>]*>mean path length<", page)
     assert page.count(f"<td class='l' title='{note}'>mean_path_length</td>") == 5
     # A collection that records its domain's limit uses it.
@@ -334,8 +342,9 @@ def test_a_narrow_screen_scrolls_wide_tables_in_their_own_box(tmp_path):
     """The structure that keeps a 390 px page from scrolling sideways (test_report_browser.py measures it)."""
     folder = make_collection(tmp_path / "c", levels=15)
     page = write_report(folder).read_text()
-    assert re.search(r"<div class='hscroll'><table class='sortable'><thead><tr><th class='l num'", page)
-    assert "<div class='scroll'><table class='sortable' id='levels'>" in page
+    assert re.search(r"</p><div class='hscroll'><table class='sortable'><thead><tr><th class='num'", page)
+    assert "</p><div class='scroll'><table class='sortable' id='levels'>" in page
+    assert page.count("<p class='scrollhint' hidden>") == 2  # the script shows them where the box scrolls
     style = page.split("<style>", 1)[1].split("</style>", 1)[0]
     assert re.search(r"(^|\n)img \{ max-width: 100%;", style)
     # Grid columns never ask for more than the screen.
@@ -386,3 +395,182 @@ def test_the_report_command_renders_a_collection_again_from_its_folder_or_its_au
     assert main(["report", str(tmp_path / "nowhere")]) == 2
     error = capsys.readouterr().err
     assert error.startswith("dsage-ray report: error: ") and "not a readable collection" in error
+
+
+HOSTILE = "<script>window.hacked = 1</script>' onmouseover='window.hacked = 2' \""
+
+
+def hostile_collection(folder: Path, outside_png: Path) -> Path:
+    """A collection received from someone else: markup in every text field, file names that point elsewhere."""
+    folder = make_collection(folder, levels=3, regression=True)
+    data = json.loads((folder / "collection.json").read_text())
+    measures = [f"{HOSTILE}a", f"{HOSTILE}b"]
+    data.update(agent=HOSTILE, reference=HOSTILE, domain=HOSTILE, objective=HOSTILE, measures=measures,
+                created=HOSTILE, notes=HOSTILE, search_dir=HOSTILE, episodes=HOSTILE, run_seed=HOSTILE,
+                search_elites=HOSTILE, config={"preset": HOSTILE, "budget": HOSTILE})
+    files = ["javascript:alert(1)", "http://example.com/x.txt", "/etc/passwd", "../../outside.txt"]
+    for i, lv in enumerate(data["levels"]):
+        lv["measures"] = dict(zip(measures, lv["measures"].values()))
+        lv.update(level_file=files[i], layout_file=files[i], seed=HOSTILE, episodes=HOSTILE, search_objective=HOSTILE,
+                  reproduce=f"dsage-ray maze eval --agent '{HOSTILE}' --layout {files[i]}", **{HOSTILE: 1.5})
+        lv["image_file"] = [str(outside_png), "javascript:alert(1)", "../../outside.png"][i]
+        lv["reference"].update(image_file="javascript:alert(2)", **{HOSTILE: 2.5})
+    (folder / "collection.json").write_text(json.dumps(data))
+    return folder
+
+
+def test_a_hostile_collection_is_escaped_and_links_only_its_own_files(tmp_path):
+    outside = tmp_path / "outside.png"
+    outside.write_bytes(_png((1, 2, 3)))
+    (tmp_path / "outside.txt").write_text("secret")
+    folder = hostile_collection(tmp_path / "a" / "b", outside)
+    page = write_report(folder).read_text()
+    assert page.count("<script") == 1 and "window.hacked = 1</script>" not in page  # only the page's own script
+    assert "onmouseover='" not in page and "onmouseover=\"" not in page  # no quote closes an attribute
+    assert page.count("&lt;script&gt;window.hacked = 1&lt;/script&gt;&#x27; onmouseover=&#x27;") > 20
+    links = _links(page)
+    assert not [link for link in links if re.match(r"(?i)\s*(javascript|https?|file|data):", link)
+                and not link.startswith("data:image/png;base64,")]
+    assert not [link for link in links if link.startswith(("/", "..")) or "/.." in link]
+    # The picture outside the collection is neither embedded nor linked: only the two heatmaps are embedded.
+    assert page.count("src='data:image/png;base64,") == 2 and page.count("(no picture)") == 6
+    assert base64.b64encode(outside.read_bytes()).decode() not in page
+    # The refused names are shown as text.
+    assert "<span title='not linked: not a file inside the collection folder'>javascript:alert(1)</span>" in page
+
+
+def test_a_collection_whose_numbers_are_not_numbers_is_refused_by_name(tmp_path, capsys):
+    from dsage_ray.cli import main
+
+    folder = make_collection(tmp_path / "c", levels=3)
+    good = (folder / "collection.json").read_text()
+    breaks = {"level 1: success_rate": lambda data: data["levels"][1].update(success_rate=HOSTILE),
+              "level 2: measure 'num_walls'": lambda data: data["levels"][2]["measures"].update(num_walls=HOSTILE),
+              "level 0 has no integer id": lambda data: data["levels"][0].update(id=HOSTILE)}
+    for message, spoil in breaks.items():
+        data = json.loads(good)
+        spoil(data)
+        (folder / "collection.json").write_text(json.dumps(data))
+        with pytest.raises(ValueError, match=re.escape(f"collection.json: {message}")):
+            write_report(folder)
+        assert main(["report", str(folder)]) == 2
+        assert f"collection.json: {message}" in capsys.readouterr().err
+
+
+def test_link_names_inside_the_collection_only():
+    from dsage_ray.audit.report import collection_href
+
+    assert collection_href("levels/level_0001.txt") == "levels/level_0001.txt"
+    assert collection_href("levels/a b#c?.png") == "levels/a%20b%23c%3F.png"  # a file name, never a query
+    for name in ("javascript:alert(1)", "JavaScript:x", "http://example.com/a", "//example.com/a", "/etc/passwd",
+                 "../x", "levels/../../x", "C:/x", "levels\\x", "", None, 3):
+        assert collection_href(name) is None, name
+
+
+def test_shown_commands_run_in_the_collection_folder_wherever_it_is(tmp_path, monkeypatch, capsys):
+    """The page's commands name the level file relative to the collection folder and say to run them there:
+    moved elsewhere, the folder's first command prints the recorded numbers again."""
+    import html
+    import shlex
+    import shutil
+
+    from dsage_ray.audit.collection import audit_config, build_collection
+    from dsage_ray.cli import main
+    from dsage_ray.domains import build_domain
+    from dsage_ray.domains.maze.generator import random_valid_levels
+    from dsage_ray.qd.archives import make_archive
+
+    config = audit_config(agent="builtin:random", preset="tiny", seed=1, overrides={"maze.episodes": 2})
+    domain = build_domain(config)
+    levels = random_valid_levels(2, seed=1)
+    archive = make_archive(solution_dim=domain.solution_dim, dims=domain.archive_dims, ranges=domain.measure_ranges,
+                           solution_dtype=domain.solution_dtype)
+    archive.add(np.array([level.walls.ravel() for level in levels], dtype=np.int8), np.full(len(levels), 0.5),
+                np.array([[level.num_walls, level.optimal_path_length] for level in levels], dtype=float))
+    built = build_collection(archive, config=config, out_dir=tmp_path / "here" / "collection")
+    moved = Path(shutil.move(built, tmp_path / "there" / "received"))
+    page = write_report(moved).read_text()
+    assert "Run a level's command in the collection folder" in page
+    shown = [html.unescape(re.sub(r"</?span>", "", code)) for code in re.findall(r"<code class='cmd'>(.*?)</code>", page)]
+    assert len(shown) == 2 and not [command for command in shown if str(tmp_path) in command]
+    first = load_collection(moved)["levels"][0]
+    assert f"--layout {first['level_file']} " in shown[0]
+    monkeypatch.chdir(moved)
+    capsys.readouterr()
+    assert main(shlex.split(shown[0])[1:] + ["--json"]) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert (again["success_rate"], again["mean_path_length"]) == (first["success_rate"], first["mean_path_length"])
+
+
+def test_one_failure_number_per_level(tmp_path):
+    """The failure rate once: one column in the table, once per card (its headline), no success-rate column;
+    the picture's title (written by the collection) names the level, not its numbers."""
+    folder = make_collection(tmp_path / "c", levels=15)
+    page = write_report(folder).read_text()
+    levels_head = page.split("id='levels'", 1)[1].split("</thead>", 1)[0]
+    assert levels_head.count(">failure rate</button>") == 1 and "success" not in levels_head
+    assert "failure_<wbr>rate" not in levels_head
+    for card in page.split("<h2>Per-region")[0].split("<div class='card'>")[1:]:
+        assert card.count("failure rate") == 1 and "success" not in card
+        assert re.search(r"<h3>#\d+: failure rate \d\.\d{3}</h3>", card)
+    # An objective that is another number than the failure rate keeps its column, beside the failure rate.
+    data = json.loads((folder / "collection.json").read_text())
+    data["objective"] = "regret"
+    for lv in data["levels"]:
+        lv["objective"] = lv["id"] / 20
+    (folder / "collection.json").write_text(json.dumps(data))
+    page = write_report(folder).read_text()
+    levels_head = page.split("id='levels'", 1)[1].split("</thead>", 1)[0]
+    assert ">regret</button>" in levels_head and levels_head.count(">failure rate</button>") == 1
+
+
+def test_the_collection_draws_pictures_that_name_their_level_only(tmp_path):
+    from dsage_ray.audit.collection import audit_config, build_collection
+    from dsage_ray.domains import build_domain
+    from dsage_ray.domains.maze.generator import random_valid_levels
+    from dsage_ray.qd.archives import make_archive
+
+    from .test_pictures import drawn_figures
+
+    config = audit_config(agent="builtin:random", preset="tiny", seed=1, overrides={"maze.episodes": 2})
+    domain = build_domain(config)
+    level = random_valid_levels(1, seed=2)[0]
+    archive = make_archive(solution_dim=domain.solution_dim, dims=domain.archive_dims, ranges=domain.measure_ranges,
+                           solution_dtype=domain.solution_dtype)
+    archive.add(np.array([level.walls.ravel()], dtype=np.int8), np.full(1, 0.5),
+                np.array([[level.num_walls, level.optimal_path_length]], dtype=float))
+    _, figures = drawn_figures(lambda: build_collection(archive, config=config, out_dir=tmp_path / "c"))
+    picture = [[t.text for t in figure] for figure in figures if "level #0" in [t.text for t in figure]]
+    assert len(picture) == 1 and not [t for t in picture[0] if "success" in t or "failure" in t]
+
+
+def test_the_glossary_explains_every_term_and_the_ties(tmp_path):
+    folder = make_collection(tmp_path / "c", levels=15)
+    page = write_report(folder).read_text()
+    glossary = page.split("<dl class='glossary' id='terms'>", 1)[1].split("</dl>", 1)[0]
+    terms = re.findall(r"<dt>(.*?)</dt>", glossary)
+    assert terms == ["failure rate", "search objective", "measures", "archive cell", "elite", "coverage", "CVaR",
+                     "ties"]
+    for term in ("archive cell", "CVaR", "coverage", "search objective"):
+        assert term in page.replace(glossary, ""), term  # each is used outside the glossary too
+    assert "QD-score" not in page
+    assert "levels with the same failure rate are listed with the higher search objective first" in glossary
+    regression = write_report(make_collection(tmp_path / "r", levels=9, regression=True)).read_text()
+    assert "<dt>regression</dt>" in regression
+    assert "levels with the same regression are listed with the lower success rate first" in regression
+
+
+def test_region_ranges_are_printed_as_the_filter_takes_them(tmp_path):
+    """A region's button fills in the range its row prints (its levels' lowest and highest values), rounded
+    outward only as far as no other level is taken in."""
+    from dsage_ray.audit.report import printed_range
+
+    folder = on_bin_edges(make_collection(tmp_path / "c", levels=81))
+    page = write_report(folder).read_text()
+    table = page.split("<h2>Per-region statistics</h2>", 1)[1].split("</table>", 1)[0]
+    for row in re.findall(r"<tr>(.*?)</tr>", table.split("<tbody>", 1)[1]):
+        lo, hi = re.search(r"data-lo='([^']*)' data-hi='([^']*)'", row).groups()
+        ranges = re.findall(r"<td data-sort='[^']*'>([^<]*)</td>", row)[-2:]
+        assert [r.split(" – ") for r in ranges] == [[a] if a == b else [a, b] for a, b in zip(lo.split(), hi.split())]
+    assert printed_range(1.23456, 2.5, [1.23456, 2.5, 2.6], 3) == ("1.234", "2.500")
+    assert printed_range(1.23456, 2.5, [1.2342, 1.23456, 2.5], 3) == ("1.2345", "2.5000")

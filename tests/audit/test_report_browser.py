@@ -6,6 +6,7 @@ Skips where Chromium, its driver or the ``selenium`` package (the ``dev`` extra)
 
 from __future__ import annotations
 
+import contextlib
 import json
 import shutil
 from pathlib import Path
@@ -43,6 +44,17 @@ def browser(tmp_path):
         shutil.rmtree(tmp_path / "chromium-profile", ignore_errors=True)
 
 
+@contextlib.contextmanager
+def viewport(driver, width: int, height: int):
+    """The page as a screen ``width`` x ``height`` CSS pixels shows it (a phone's below 500 px wide)."""
+    driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
+                           {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": width < 500})
+    try:
+        yield
+    finally:
+        driver.execute_cdp_cmd("Emulation.clearDeviceMetricsOverride", {})
+
+
 def _visible_ids(driver) -> list[int]:
     return [int(v) for v in driver.execute_script(
         "return Array.from(document.querySelectorAll('#levels tbody tr'))"
@@ -75,14 +87,14 @@ def test_report_sorts_filters_and_logs_no_error(browser, tmp_path):
     # Numbers sort as numbers: 10 after 9, not after 1.
     _header(browser, "id").click()
     assert _visible_ids(browser) == list(range(15))
-    # The objective's first click puts the worst (largest failure rate) first; success rate's the lowest first.
-    objective = _header(browser, "failure_rate")
-    objective.click()
-    assert objective.get_attribute("aria-sort") == "descending"
+    # One failure column (the objective is the failure rate): its first click puts the worst first.
+    assert not [th.text for th in browser.find_elements(By.CSS_SELECTOR, "#levels thead th")
+                if "success" in th.text or "failure_rate" in th.text]
+    failure = _header(browser, "failure rate")
+    failure.click()
+    assert failure.get_attribute("aria-sort") == "descending"
     failures = [1 - [0, 0.25, 0.5, 0.75, 1][i % 5] for i in _visible_ids(browser)]
     assert failures == sorted(failures, reverse=True)
-    _header(browser, "success rate").click()
-    assert [[0, 0.25, 0.5, 0.75, 1][i % 5] for i in _visible_ids(browser)][:3] == [0, 0, 0]
     _header(browser, "id").click()
     # The text filter reads what the rows show, not their reproduce commands (every one names "maze").
     browser.find_element(By.ID, "query").send_keys("maze")
@@ -118,9 +130,14 @@ def test_report_sorts_filters_and_logs_no_error(browser, tmp_path):
                            "return Promise.resolve(); };")
     browser.find_element(By.ID, "reset").click()
     row = browser.find_elements(By.CSS_SELECTOR, "#levels tbody tr")[3]
-    row.find_element(By.CSS_SELECTOR, "button.copy").click()
-    assert browser.execute_script("return window.copied;") == row.find_element(By.CSS_SELECTOR, "code.cmd").text
-    assert "--seed 1003" in browser.execute_script("return window.copied;")
+    button = row.find_element(By.CSS_SELECTOR, "button.copy")
+    button.click()
+    assert browser.execute_script("return window.copied;") == button.get_attribute("data-cmd")
+    assert "--layout levels/level_0003.txt --episodes 4 --seed 1003" in browser.execute_script("return window.copied;")
+    # A card's copy button copies the command printed beside it.
+    card = browser.find_element(By.CSS_SELECTOR, ".card")
+    card.find_element(By.CSS_SELECTOR, "button.copy").click()
+    assert browser.execute_script("return window.copied;") == card.find_element(By.CSS_SELECTOR, "code.cmd").text
 
     errors = [entry for entry in browser.get_log("browser") if entry["level"] == "SEVERE"]
     assert errors == [], errors
@@ -152,7 +169,7 @@ def test_every_region_shows_as_many_levels_as_it_counts(browser, tmp_path):
     buttons = browser.find_elements(By.CSS_SELECTOR, "button.region")
     assert len(buttons) == 16
     for button in buttons:
-        count = int(button.find_element(By.XPATH, "./ancestor::tr/td[3]").text)
+        count = int(button.find_element(By.XPATH, "./ancestor::tr/td[1]").text)
         button.click()
         assert len(_visible_ids(browser)) == count, button.get_attribute("data-lo")
     assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
@@ -218,3 +235,96 @@ def test_page_fits_a_phone(browser, tmp_path):
             assert inner > outer and outer <= 390, box
     finally:
         browser.execute_cdp_cmd("Emulation.clearDeviceMetricsOverride", {})
+
+
+@pytest.mark.parametrize("width,height", [(1400, 1000), (390, 844)])
+def test_picture_labels_are_legible_on_the_page(browser, tmp_path, width, height):
+    """The smallest text of the level pictures and heatmaps, at the size the page shows them, is at least
+    MIN_TEXT_PX: its size in the PNG (recorded as matplotlib draws it) times the shown width over the PNG's."""
+    from dsage_ray.audit.report import PICTURE_MIN_WIDTH, write_report
+
+    from .test_pictures import MIN_TEXT_PX, heatmap_pictures, maze_picture
+
+    folder = make_collection(tmp_path / "c", levels=15)
+    level = maze_picture()
+    for png in (folder / "levels").glob("*.png"):
+        png.write_bytes(level.png)
+    heatmaps = dict(zip(("heatmap, zoomed", "heatmap, full range"), heatmap_pictures(tmp_path / "h")))
+    page = write_report(folder)
+    with viewport(browser, width, height):
+        browser.get(page.resolve().as_uri())
+        shown = browser.execute_script(
+            "return Array.from(document.querySelectorAll('.card img, .figs img'), "
+            "i => [i.alt, i.getBoundingClientRect().width, i.naturalWidth]);")
+    assert len(shown) == 2 + 12
+    for alt, shown_width, natural_width in shown:
+        picture = heatmaps.get(alt, level)
+        assert natural_width == picture.width, alt
+        assert shown_width >= PICTURE_MIN_WIDTH, alt
+        assert picture.smallest_text_on_page(shown_width) >= MIN_TEXT_PX, (alt, shown_width)
+
+
+def test_tables_show_their_counts_on_a_phone_and_say_when_they_scroll(browser, tmp_path):
+    """At 390 px: each table's first columns (a region's level count and its button; a level's id and failure
+    rate) lie inside the table's box, and a line above each table says that it scrolls sideways. At 1,400 px the
+    levels table fits, so its line is hidden."""
+    from selenium.webdriver.common.by import By
+
+    from dsage_ray.audit.report import write_report
+
+    page = write_report(make_collection(tmp_path / "c", levels=15))
+    with viewport(browser, 390, 844):
+        browser.get(page.resolve().as_uri())
+        hints = browser.find_elements(By.CSS_SELECTOR, ".scrollhint")
+        assert len(hints) == 2 and all(hint.is_displayed() for hint in hints)
+        assert "scroll it sideways" in hints[0].text
+        for box, cells in (("div.hscroll", ("levels", "")), ("div.scroll", ("id", "failure rate"))):
+            inside = browser.execute_script(
+                "var box = document.querySelector(arguments[0]), edge = box.getBoundingClientRect().right;"
+                "var row = box.querySelector('tbody tr');"
+                "return [box.querySelector('thead tr').cells[0].textContent, box.querySelector('thead tr').cells[1]"
+                ".textContent, row.cells[0].getBoundingClientRect().right <= edge,"
+                " row.cells[1].getBoundingClientRect().right <= edge];", box)
+            assert inside == [*cells, True, True], box
+    browser.get(page.resolve().as_uri())  # 1,400 px
+    assert [hint.is_displayed() for hint in browser.find_elements(By.CSS_SELECTOR, ".scrollhint")] == [False, False]
+    assert browser.execute_script("var b = document.querySelector('div.scroll'); return b.scrollWidth <= b.clientWidth")
+
+
+def test_a_region_clears_the_other_filters_and_fills_in_its_printed_range(browser, tmp_path):
+    from selenium.webdriver.common.by import By
+
+    from dsage_ray.audit.report import write_report
+
+    from .test_report import on_bin_edges
+
+    browser.get(write_report(on_bin_edges(make_collection(tmp_path / "c", levels=81))).resolve().as_uri())
+    browser.find_element(By.ID, "query").send_keys("level_")
+    browser.find_element(By.ID, "never").click()
+    row = browser.find_elements(By.CSS_SELECTOR, ".hscroll tbody tr")[3]
+    row.find_element(By.CSS_SELECTOR, "button.region").click()
+    assert browser.find_element(By.ID, "query").get_attribute("value") == ""
+    assert not browser.find_element(By.ID, "never").is_selected()
+    printed = [cell.text for cell in row.find_elements(By.CSS_SELECTOR, "td")[4:6]]
+    filled = [[box.get_attribute("value") for box in browser.find_elements(By.CSS_SELECTOR, f"input.{end}")]
+              for end in ("lo", "hi")]
+    assert [text.split(" – ") for text in printed] == [[lo] if lo == hi else [lo, hi] for lo, hi in zip(*filled)]
+    assert len(_visible_ids(browser)) == int(row.find_element(By.CSS_SELECTOR, "td").text)
+
+
+def test_a_hostile_collection_runs_no_script_and_links_nowhere_else(browser, tmp_path):
+    from dsage_ray.audit.report import write_report
+
+    from .test_report import _png, hostile_collection
+
+    outside = tmp_path / "outside.png"
+    outside.write_bytes(_png((1, 2, 3)))
+    page = write_report(hostile_collection(tmp_path / "a" / "b", outside))
+    browser.get(page.resolve().as_uri())
+    for element in browser.find_elements("css selector", "td, th, dd, code, h1, h3"):
+        browser.execute_script("arguments[0].dispatchEvent(new MouseEvent('mouseover', {bubbles: true}));", element)
+    assert browser.execute_script("return [document.scripts.length, window.hacked === undefined];") == [1, True]
+    folder = (tmp_path / "a" / "b").resolve().as_uri()
+    links = browser.execute_script("return Array.from(document.links, a => a.href);")
+    assert links and all(link.startswith(folder + "/") for link in links), links
+    assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
