@@ -39,22 +39,14 @@ import re
 from importlib import metadata
 from typing import Callable, Union
 
-from dsage_ray import plugins
+from dsage_ray import agent_registry, plugins
+# The kinds' table lives below the domains (the domain registry lists it): re-exported here.
+from dsage_ray.agent_registry import ENTRY_POINT_GROUP, agent_kinds, register_agent_kind
 from dsage_ray.agents.base import Agent, AgentError
 
 #: ``factory(target, options) -> Agent``; it reads its options through :class:`SpecOptions`.
 AgentFactory = Callable[[str, "SpecOptions"], Agent]
 
-#: Entry-point group of agent kinds: the entry point's name is the kind, its value the factory.
-ENTRY_POINT_GROUP = "dsage_ray.agents"
-#: dsage_ray's own kinds, exactly as ``pyproject.toml`` declares them; read only when the installed
-#: metadata lacks them (a source checkout on ``PYTHONPATH``, or an install older than the entry points).
-_BUILTIN_KINDS: dict[str, str] = {
-    "builtin": "dsage_ray.agents.builtin:load_builtin_agent",
-    "dcd": "dsage_ray.agents.dcd:load_dcd_agent",
-    "rllib": "dsage_ray.agents.rllib:load_rllib_agent",
-    "torchscript": "dsage_ray.agents.torchscript:load_torchscript_agent",
-}
 #: Kinds whose loading runs code the file brings: RLlib checkpoints (pickles), TorchScript programs, Stable-Baselines3
 #: zips (pickles) and ``python:`` modules. The others load data (``dcd:`` weights with ``weights_only``) or nothing
 #: (``builtin:``, ``random``, Mario's ``astar``). A plug-in kind is code the user installed.
@@ -64,8 +56,6 @@ RUNS_CODE_NOTE = ("loading rllib, torchscript, sb3 and python agents runs their 
                   "(docs/TRUST.md)")
 #: ``{path as a spec names it: the copy of it this process reads}``, filled by :mod:`dsage_ray.agents.shipping`.
 LOCAL_COPIES: dict[str, str] = {}
-#: Kinds added by :func:`register_agent_kind`, in this process only; they take precedence.
-_REGISTERED: dict[str, Union[str, AgentFactory]] = {}
 #: Agents shipped inside the package, one folder each (module docstring).
 ASSETS_DIR = pathlib.Path(__file__).resolve().parent.parent / "assets" / "agents"
 #: A shipped agent folder's checksum file, in ``sha256sum`` format (``<hex>  <file name>`` per line).
@@ -110,42 +100,11 @@ class SpecOptions:
             raise AgentError(f"agent spec {self._spec!r}: unknown option(s) {', '.join(unused)}")
 
 
-def register_agent_kind(prefix: str, factory: Union[str, AgentFactory]) -> None:
-    """Makes ``PREFIX:TARGET`` specs load through ``factory`` (a callable or a ``"module:function"`` path).
-
-    The kind exists in the calling process only: Ray's simulator actors do not see it. A kind they
-    must load is an entry point of the ``dsage_ray.agents`` group of an installed package (module
-    docstring).
-    """
-    if not prefix.isidentifier():
-        raise ValueError(f"agent kind prefix must be an identifier, got {prefix!r}")
-    _REGISTERED[prefix] = factory
-
-
-def agent_kinds() -> dict[str, str]:
-    """Every known kind and where its factory lives (``"module:function"``), importing none of them.
-
-    Kinds registered in this process with a callable show as ``"registered in this process"``.
-    """
-    kinds = dict(_BUILTIN_KINDS)
-    for name, entry in _plugins().points.items():
-        kinds[name] = entry.value
-    for prefix, factory in _REGISTERED.items():
-        kinds[prefix] = factory if isinstance(factory, str) else "registered in this process"
-    return dict(sorted(kinds.items()))
-
-
-def _plugins() -> plugins.Plugins:
-    # Read on every call (a directory scan, milliseconds): a package installed while a process runs
-    # is seen by its next load, as it is by a freshly started Ray actor.
-    return plugins.scan(ENTRY_POINT_GROUP)
-
-
 def _factory(kind: str, spec: str) -> AgentFactory | None:
     """The factory of ``kind``: registered in this process, else from an entry point, else built in."""
-    if kind in _REGISTERED:
-        return _resolve(_REGISTERED[kind])
-    found = _plugins()
+    if kind in agent_registry.REGISTERED:
+        return _resolve(agent_registry.REGISTERED[kind])
+    found = agent_registry.installed_kinds()
     if kind in found.clashes:
         providers = ", ".join(sorted(plugins.describe(entry) for entry in found.clashes[kind]))
         raise AgentError(f"agent spec {spec!r}: kind {kind!r} is provided by more than one installed package: "
@@ -161,8 +120,8 @@ def _factory(kind: str, spec: str) -> AgentFactory | None:
             raise AgentError(f"agent spec {spec!r}: kind {kind!r} ({entry.value}, from {_provider(entry)}) is not a "
                              f"callable factory(target, options)")
         return factory
-    if kind in _BUILTIN_KINDS:
-        return _resolve(_BUILTIN_KINDS[kind])
+    if kind in agent_registry.BUILTIN_KINDS:
+        return _resolve(agent_registry.BUILTIN_KINDS[kind])
     return None
 
 

@@ -20,6 +20,7 @@ import importlib
 import importlib.metadata
 from typing import Any, Callable, Mapping
 
+from dsage_ray.agent_registry import agent_kinds
 from dsage_ray.errors import InputError, did_you_mean
 from dsage_ray.plugins import Plugins
 from dsage_ray.plugins import scan as scan_plugins
@@ -74,7 +75,7 @@ class AgentKinds:
     Attributes:
         forms: Each kind the domain plays itself and the spec forms it takes, e.g.
             ``{"astar": "astar[:ITERATIONS]"}``.
-        policies: Whether the domain also plays every kind of :mod:`dsage_ray.agents` (policies on
+        policies: Whether the domain also plays every kind of :mod:`dsage_ray.agent_registry` (policies on
             MiniGrid observations, built in or from the ``dsage_ray.agents`` entry-point group).
     """
 
@@ -85,8 +86,6 @@ class AgentKinds:
         """Every kind the domain plays and its spec form, the policy kinds' (imported: none) included."""
         kinds = dict(self.forms)
         if self.policies:
-            from dsage_ray.agents.loader import agent_kinds
-
             kinds.update({kind: "builtin:NAME" if kind == "builtin" else f"{kind}:PATH" for kind in agent_kinds()})
         return kinds
 

@@ -11,6 +11,7 @@ import pytest
 import torch
 from torch import nn
 
+from dsage_ray import agent_registry
 from dsage_ray.agents import Agent, AgentError, load_agent, loader, register_agent_kind
 from dsage_ray.agents.builtin import RandomAgent, WallFollowerAgent
 from dsage_ray.agents.dcd import DCDAgent, DCDNetwork
@@ -62,7 +63,7 @@ def test_bad_specs(spec, needle):
 
 def test_register_new_kind_without_touching_others(monkeypatch):
     # The kind lives in this process's registry: gone after the test, so other tests see the usual kinds.
-    monkeypatch.setattr(loader, "_REGISTERED", {})
+    monkeypatch.setattr(agent_registry, "REGISTERED", {})
     class Constant(Agent):
         def initial_state(self, batch_size):
             return None

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dsage_ray import plugins
+from dsage_ray import agent_registry, plugins
 from dsage_ray.agents import Agent, AgentError, load_agent, loader
 from dsage_ray.agents.builtin import RandomAgent
 from dsage_ray.errors import InputError, describe
@@ -41,12 +41,12 @@ def entry(name: str, value: str) -> metadata.EntryPoint:
 
 
 def with_entry_points(monkeypatch, *entries: metadata.EntryPoint) -> None:
-    monkeypatch.setattr(loader, "_plugins", lambda: plugins.collect(entries))
+    monkeypatch.setattr(agent_registry, "installed_kinds", lambda: plugins.collect(entries))
 
 
 def test_the_built_in_kinds_are_entry_points_of_the_package():
     declared = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["entry-points"][loader.ENTRY_POINT_GROUP]
-    assert declared == loader._BUILTIN_KINDS  # the fallback table is the same list
+    assert declared == agent_registry.BUILTIN_KINDS  # the fallback table is the same list
     installed = {e.name: e.value for e in metadata.entry_points(group=loader.ENTRY_POINT_GROUP)}
     assert installed.items() >= declared.items(), "stale install metadata: run pip install -e ."
 
@@ -85,7 +85,7 @@ def test_an_entry_point_kind_loads_its_factory_only_when_used(monkeypatch):
 
 def test_a_kind_registered_in_this_process_wins(monkeypatch):
     with_entry_points(monkeypatch, entry("vendor_kind", "no_such_module:factory"))
-    monkeypatch.setitem(loader._REGISTERED, "vendor_kind", fake_factory)
+    monkeypatch.setitem(agent_registry.REGISTERED, "vendor_kind", fake_factory)
     assert isinstance(load_agent("vendor_kind:x"), Fixed)
     assert loader.agent_kinds()["vendor_kind"] == "registered in this process"
 
@@ -107,7 +107,7 @@ def test_broken_or_conflicting_plug_ins_fail_in_one_line(monkeypatch, entries, n
 def test_an_installed_package_provides_a_kind(agent_plugin):
     from tests.plugin_package import DIST_NAME, MODULE
 
-    assert agent_plugin not in loader._REGISTERED  # nothing registered by hand: found through the metadata
+    assert agent_plugin not in agent_registry.REGISTERED  # nothing registered by hand: found through the metadata
     sys.modules.pop(MODULE, None)
     assert loader.agent_kinds()[agent_plugin] == f"{MODULE}:load_constant_agent"
     assert MODULE not in sys.modules  # listing imported nothing

@@ -7,7 +7,7 @@ import os
 import numpy as np
 import pytest
 
-from dsage_ray.agents import loader
+from dsage_ray import agent_registry
 from dsage_ray.config import RunConfig
 from dsage_ray.core.evaluation import InProcessEvaluator
 from dsage_ray.domains import build_domain
@@ -23,7 +23,7 @@ def config(agent_plugin) -> RunConfig:
 def test_a_plug_in_kind_evaluates_in_the_pool_as_in_process(ray_session, agent_plugin, config):
     # Found through the installed package's metadata, never registered by hand: an actor process
     # knows it only if it reads the entry points itself.
-    assert agent_plugin not in loader._REGISTERED
+    assert agent_plugin not in agent_registry.REGISTERED
     domain = build_domain(config)
     solutions = domain.random_solutions(6, np.random.default_rng(0))
     seeds = list(range(100, 106))
