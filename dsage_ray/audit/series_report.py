@@ -22,7 +22,7 @@ import os
 from pathlib import Path
 from typing import Any, Sequence
 
-from dsage_ray.audit.report import _esc, _img, _page, _table
+from dsage_ray.audit.report import _esc, _img, _page, _table, collection_href
 from dsage_ray.io import atomic_write_text
 
 #: Page file name (also :data:`dsage_ray.audit.series.SERIES_REPORT`).
@@ -109,8 +109,9 @@ def _checkpoint_table(out_dir: Path, records: Sequence[dict[str, Any]]) -> str:
         report = None
         if r.get("audit_dir"):
             path = Path(r["audit_dir"]) / "collection" / "report.html"
-            if (out_dir / path).is_file():
-                report = path.as_posix()
+            # Only a report inside the series folder is linked (series.json may come from someone else).
+            if collection_href(path.as_posix()) and (out_dir / path).is_file():
+                report = collection_href(path.as_posix())
         row = [
             r["index"],
             f"<span title='{_esc(r['agent'])}'>{_esc(r['label'])}</span>",
@@ -123,7 +124,7 @@ def _checkpoint_table(out_dir: Path, records: Sequence[dict[str, Any]]) -> str:
             _number(summary.get("never_solved"), "{}"),
             _number(summary.get("failure_cells"), "{}"),
             f"{r['wall_time'] / 60:.1f}",
-            f"<a href='{_esc(report)}'>report</a>" if report else "",
+            f"<a href='{report}'>report</a>" if report else "",
         ]
         if errors:
             row.append(_esc(r.get("error") or ""))
@@ -158,9 +159,9 @@ def _matrix(records: Sequence[dict[str, Any]], suite: Sequence[dict[str, Any]]) 
     rows = []
     for level in suite:
         results = {int(k): v for k, v in level["results"].items()}
-        link = (f"<a href='{_esc(level['level_file'])}'>{level['id']}</a>" if level.get("level_file")
-                else str(level["id"]))
-        cells: list[Any] = [(link, level["id"]), (f"#{level['origin']}", level["origin"])]
+        href = collection_href(level.get("level_file"))
+        link = f"<a href='{href}'>{_esc(level['id'])}</a>" if href else _esc(level["id"])
+        cells: list[Any] = [(link, level["id"]), (f"#{_esc(level['origin'])}", level["origin"])]
         for r in records:
             k = r["index"]
             if k < level["origin"]:
@@ -170,8 +171,9 @@ def _matrix(records: Sequence[dict[str, Any]], suite: Sequence[dict[str, Any]]) 
             else:
                 kind = changes.get((level["id"], k), "")
                 rate = results[k]
+                note = f", {kind}" if kind else ""
                 cells.append((f"<span class='c {kind}' style='background:{success_colour(rate)}' "
-                              f"title='level {level['id']} at #{k}: success {rate:.2f}{(', ' + kind) if kind else ''}'>"
+                              f"title='level {_esc(level['id'])} at #{k}: success {rate:.2f}{note}'>"
                               f"{rate:.2f}</span>", rate))
         rows.append(cells)
     table = _table(headers, rows, numeric=[True] * len(headers), table_attrs="class='sortable matrix'",
