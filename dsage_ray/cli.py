@@ -84,9 +84,10 @@ def _add_run(subparsers) -> None:
     parser.add_argument("config", help="a TOML/JSON config, e.g. experiments/configs/maze_dsage.toml")
     add_config_arguments(parser.add_argument_group("config"))
     output = parser.add_argument_group("output")
-    output.add_argument("--out", help="--local: the run folder (default tb_logs/<name>); through Tune: the storage "
-                                      "folder or URI (default tb_logs; s3://, gs://, file://), one folder per trial "
-                                      "in <out>/<name>")
+    output.add_argument("--out", help="--local: the run folder (default tb_logs/<name>, <name> being the config's "
+                                      "name key, e.g. tb_logs/maze_dsage); through Tune: the storage folder or URI "
+                                      "(default tb_logs; s3://, gs://, file://), the run folder being "
+                                      "<out>/<name>/<trial>")
     add_ray_arguments(parser, resume="continue the run in --out from its last checkpoint")
     parser.set_defaults(handler=_run)
 
@@ -109,8 +110,9 @@ def _add_ablate(subparsers) -> None:
     grid.add_argument("--variants", help="comma-separated variants (default: the paper's comparison, or the "
                                          "config's variant when --grid names other keys)")
     output = parser.add_argument_group("output")
-    output.add_argument("--out", default="tb_logs", help="storage folder or URI (default tb_logs; s3://, gs://, "
-                                                         "file://); the experiment is <out>/<name>")
+    output.add_argument("--out", default="tb_logs", help="storage folder or URI (default %(default)s; s3://, gs://, "
+                                                         "file://); the experiment is <out>/<name> (<name> being "
+                                                         "the config's name key), one folder per trial in it")
     output.add_argument("--api", choices=["tuner", "run"], default="tuner", help="tune.Tuner (default) or tune.run")
     add_ray_arguments(parser, local=False, resume="continue the interrupted experiment <out>/<name>")
     parser.set_defaults(handler=_ablate)

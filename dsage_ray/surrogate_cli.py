@@ -24,7 +24,7 @@ examples:
 
 
 def add_subparser(subparsers) -> None:
-    from dsage_ray.cli_args import add_config_arguments, add_ray_arguments
+    from dsage_ray.cli_args import LazyHelp, add_config_arguments, add_ray_arguments, agent_kinds_help
 
     parser = subparsers.add_parser(
         "surrogate", help="pretrain a surrogate and inspect pretrained ones (warm starts, beyond the paper)",
@@ -42,7 +42,9 @@ def add_subparser(subparsers) -> None:
     source = pretrain.add_argument_group("what it trains on (one of)")
     source.add_argument("--from", dest="sources", nargs="+", metavar="PATH",
                         help="earlier surrogate runs, audits or pretrained files; their levels are pooled")
-    source.add_argument("--agent", help="run an audit search of this agent first (its spec, as `audit --agent`)")
+    source.add_argument("--agent", metavar="SPEC", action=LazyHelp,
+                        help_text=lambda: f"run an audit search of this agent first: its spec, of a kind --domain "
+                                          f"plays ({agent_kinds_help()})")
     source.add_argument("--levels", type=int, help="with --agent: real evaluations of that search")
     source.add_argument("--domain", default="maze", help="with --agent: the domain (default maze)")
     source.add_argument("--seed", type=int, default=0, help="the search's and the training's seed (default 0)")
@@ -51,7 +53,10 @@ def add_subparser(subparsers) -> None:
     config.add_argument("--epochs", type=int, help="epochs over all levels (default: the config's surrogate.epochs)")
     output = pretrain.add_argument_group("output")
     output.add_argument("--out", required=True, help="the pretrained file to write")
-    output.add_argument("--search-out", help="with --agent: the search's audit folder (default: next to --out)")
+    output.add_argument("--search-out", metavar="DIR",
+                        help="with --agent: the search's --out, as run's --out (default: beside --out, named "
+                             "after it with _search for its suffix: tb_logs/accel_search for --out "
+                             "tb_logs/accel.surrogate)")
     add_ray_arguments(pretrain, resume="with --agent: continue the interrupted search in --search-out")
     pretrain.set_defaults(handler=pretrain_command)
 
@@ -112,7 +117,7 @@ def _search(args: argparse.Namespace, overrides: dict, out: Path) -> Path:
 
     config = audit_config(domain=args.domain, agent=args.agent, preset=args.preset or default_preset(
         args.domain, agent=args.agent), budget=args.levels, seed=args.seed, overrides=overrides)
-    search_out = Path(args.search_out) if args.search_out else out.with_name(out.stem + "_search")
+    search_out = Path(args.search_out) if args.search_out else default_search_out(out)
     if search_out.exists() and not args.resume:
         raise InputError(f"{search_out} already exists: pass --resume to continue its search, or another "
                          f"--search-out")
@@ -120,6 +125,12 @@ def _search(args: argparse.Namespace, overrides: dict, out: Path) -> Path:
     result = run(config, local=args.local, out=search_out, workers=args.workers, address=args.address,
                  resume=args.resume)
     return result.path
+
+
+def default_search_out(out: Path) -> Path:
+    """Where ``pretrain --agent`` runs its search without ``--search-out``: beside ``out``, ``_search`` for its
+    suffix."""
+    return out.with_name(out.stem + "_search")
 
 
 def describe(source) -> str:

@@ -30,7 +30,7 @@ Python: dsage_ray.run_audit() takes the same arguments and returns the collectio
 
 def add_subparser(subparsers) -> None:
     """Registers ``audit`` and ``compare`` on the top-level CLI's sub-parsers."""
-    from dsage_ray.cli_args import LazyHelp, add_config_arguments, add_ray_arguments
+    from dsage_ray.cli_args import LazyHelp, add_config_arguments, add_ray_arguments, agent_kinds_help
 
     audit = subparsers.add_parser(
         "audit", help="search for levels where an agent fails (or does worse than a reference) and save them",
@@ -44,7 +44,7 @@ def add_subparser(subparsers) -> None:
                       help="maze (default), mario, gym (any Gymnasium environment: --env, --space, --param), or a "
                            "plug-in domain that declares audits")
     what.add_argument("--agent", metavar="SPEC", action=LazyHelp,
-                      help_text=lambda: f"agent spec, of a kind the domain plays ({agent_help()}). Without it: a "
+                      help_text=lambda: f"agent spec, of a kind the domain plays ({agent_kinds_help()}). Without it: a "
                                         f"demo audit of the domain's shipped agent (maze: rllib:ppo_maze) with the "
                                         f"demo preset")
     what.add_argument("--reference", metavar="SPEC",
@@ -53,9 +53,10 @@ def add_subparser(subparsers) -> None:
     add_gym_arguments(audit)
     search = audit.add_argument_group("the search")
     add_config_arguments(search)
-    search.add_argument("--variant", default="dsage",
-                        help="dsage (default) or another variant of the domain, e.g. map_elites or dr "
-                             "(experiments/audit_comparison.py compares them)")
+    search.add_argument("--variant",
+                        help="the search: dsage (default) or another variant of the domain, e.g. map_elites or dr "
+                             "(experiments/audit_comparison.py compares them). The same as --set variant=VARIANT; "
+                             "both at once must agree")
     search.add_argument("--budget", type=int, help="real evaluations of the search (default: the preset's)")
     search.add_argument("--objective",
                         help="what the search maximises on valid levels. maze: failure_rate (default), regret, "
@@ -67,7 +68,12 @@ def add_subparser(subparsers) -> None:
     collection = audit.add_argument_group("the collection")
     collection.add_argument("--episodes", type=int, help="episodes (mario: runs) per re-evaluation in the collection")
     collection.add_argument("--max-levels", type=int, help="keep only the N worst elites in the collection")
-    collection.add_argument("--out", help="audit folder (default tb_logs/audit-<agent>-<time>)")
+    collection.add_argument("--out", metavar="DIR",
+                            help="audit folder (default tb_logs/audit-<agent>-<YYYYMMDD-HHMMSS>, <agent> being the "
+                                 "spec, or its last path part, with _ for other characters than letters and digits: "
+                                 "tb_logs/audit-rllib_ppo_maze-20260101-093000 for rllib:ppo_maze, "
+                                 "tb_logs/audit-accel_tar-... for dcd:runs/accel.tar); the search goes to DIR/search, "
+                                 "the collection and its report to DIR/collection")
     collection.add_argument("--collect-only", action="store_true",
                             help="skip the search: build the collection from the last checkpoint of the search "
                                  "in --out")
@@ -81,14 +87,17 @@ def add_subparser(subparsers) -> None:
                     "HTML page.")
     compare.add_argument("--agent", action=LazyHelp, append=True, required=True, metavar="SPEC",
                          help_text=lambda: f"give twice: --agent A --agent B; kinds the collection's domain plays "
-                                           f"({agent_help()})")
+                                           f"({agent_kinds_help()})")
     compare.add_argument("--collection", required=True, metavar="DIR", help="a collection folder from dsage-ray audit")
     compare.add_argument("--threshold", type=float, default=0.1,
                          help="success-rate difference that counts as worse/better (default 0.1)")
     compare.add_argument("--episodes", type=int, help="override the recorded episodes per level")
     compare.add_argument("--workers", type=int,
                          help="evaluate on N Ray simulator actors (default: in this process)")
-    compare.add_argument("--html", help="HTML page to write (default DIR/compare-<A>-vs-<B>.html)")
+    compare.add_argument("--html", metavar="FILE",
+                         help="HTML page to write (default DIR/compare-<A>-vs-<B>.html, each agent named as in "
+                              "audit's --out: compare-rllib_ppo_maze-vs-builtin_random.html for --agent "
+                              "rllib:ppo_maze --agent builtin:random)")
     compare.set_defaults(handler=run_compare_command)
     report = subparsers.add_parser(
         "report", help="write a collection's report.html again (after an upgrade, or for a collection received)",
@@ -131,12 +140,19 @@ def gym_overrides(args: argparse.Namespace) -> dict:
     return {key: tuple(value) if isinstance(value, list) else value for key, value in given.items()}
 
 
-def agent_help() -> str:
-    """The agent spec forms of each domain, for help texts: ``maze: builtin:NAME, ...; mario: astar[:ITERATIONS]``."""
-    from dsage_ray.agents.loader import RUNS_CODE_NOTE
-    from dsage_ray.domains import agent_forms
+def with_variant(variant: str | None, overrides: dict) -> dict:
+    """``overrides`` with ``--variant``'s value as the ``variant`` key: ``--variant X`` is ``--set variant=X``,
+    checked (and refused when unknown) in the same place, with the same message.
 
-    return "; ".join(f"{domain}: {', '.join(forms)}" for domain, forms in agent_forms().items()) + ". " + RUNS_CODE_NOTE
+    Raises:
+        InputError: ``--set variant=`` gives another value than ``--variant``.
+    """
+    if variant is None:
+        return overrides
+    given = overrides.get("variant", variant)
+    if given != variant:
+        raise InputError(f"--variant {variant} and --set variant={given} disagree: give one of them")
+    return {**overrides, "variant": variant}
 
 
 def run_audit_command(args: argparse.Namespace) -> int:
@@ -153,10 +169,11 @@ def run_audit_command(args: argparse.Namespace) -> int:
         args.out = str(default_audit_folder(args.agent, domain=args.domain))
         print(f"audit folder: {args.out}", flush=True)
     measures = tuple(m.strip() for m in args.measures.split(",") if m.strip()) if args.measures else None
+    overrides = with_variant(args.variant, {**gym_overrides(args), **config_overrides(args)})
     collection = run_audit(
-        agent=args.agent, domain=args.domain, reference=args.reference, preset=args.preset, variant=args.variant,
+        agent=args.agent, domain=args.domain, reference=args.reference, preset=args.preset,
         objective=args.objective, measures=measures, budget=args.budget, seed=args.seed,
-        overrides={**gym_overrides(args), **config_overrides(args)}, out=args.out, local=args.local,
+        overrides=overrides, out=args.out, local=args.local,
         workers=args.workers, address=args.address, resume=args.resume, episodes=args.episodes,
         max_levels=args.max_levels, collect_only=args.collect_only)
     print(f"collection: {collection.path}")
@@ -202,11 +219,15 @@ def run_report_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def default_compare_page(collection: str | Path, a: str, b: str) -> Path:
+    """``DIR/compare-<A>-vs-<B>.html``: where ``compare`` without ``--html`` writes its page."""
+    from dsage_ray.audit.collection import agent_slug
+
+    return Path(collection) / f"compare-{agent_slug(a)}-vs-{agent_slug(b)}.html"
+
+
 def run_compare_command(args: argparse.Namespace) -> int:
     """Handler of ``dsage-ray compare``."""
-    from pathlib import Path
-
-    from dsage_ray.audit.collection import agent_slug
     from dsage_ray.audit.compare import compare_agents, format_comparison
 
     if len(args.agent) != 2:
@@ -215,8 +236,7 @@ def run_compare_command(args: argparse.Namespace) -> int:
         if value is not None and value < 1:
             raise InputError(f"{flag} must be positive, got {value}")
     a, b = args.agent
-    html_path = (Path(args.html) if args.html
-                 else Path(args.collection) / f"compare-{agent_slug(a)}-vs-{agent_slug(b)}.html")
+    html_path = Path(args.html) if args.html else default_compare_page(args.collection, a, b)
     comparison = compare_agents(a, b, collection_dir=args.collection, threshold=args.threshold,
                                 episodes=args.episodes, html_path=html_path, workers=args.workers)
     print(format_comparison(comparison))
@@ -243,7 +263,7 @@ until Ctrl+C (or --max-checkpoints). Python: dsage_ray.AuditSeries (docs/API.md)
 
 def add_series_subparser(subparsers) -> None:
     """Registers ``audit-series``."""
-    from dsage_ray.cli_args import LazyHelp, add_config_arguments, add_ray_arguments
+    from dsage_ray.cli_args import LazyHelp, add_config_arguments, add_ray_arguments, agent_kinds_help
 
     series = subparsers.add_parser(
         "audit-series", help="audit checkpoints in training order: a growing regression suite, a short search each",
@@ -253,9 +273,11 @@ def add_series_subparser(subparsers) -> None:
                     "checkpoint's audit\nfolder and TensorBoard scalars audit/... into --out.",
         epilog=SERIES_EXAMPLES)
     series.add_argument("specs", nargs="*", metavar="SPEC", action=LazyHelp,
-                        help_text=lambda: f"checkpoint agent specs, oldest first ({agent_help()})")
+                        help_text=lambda: f"checkpoint agent specs, oldest first ({agent_kinds_help()})")
     series.add_argument("--out", required=True, metavar="DIR",
-                        help="series folder; one that holds series.json is continued")
+                        help="series folder (DIR/series.json, DIR/series.html, each checkpoint's audit in "
+                             "DIR/checkpoints/<NNN>-<agent>, TensorBoard in DIR/tensorboard); one that holds "
+                             "series.json is continued")
     series.add_argument("--domain", default="maze", help="maze (default), mario, gym, or a plug-in domain with audits")
     search = series.add_argument_group("each checkpoint's audit")
     add_config_arguments(search, preset_default="cpu")
