@@ -37,8 +37,7 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-
-from dsage_ray.core.metrics import format_mean_se, mean_se
+from metrics import format_mean_se, mean_se  # this script's folder is on sys.path when run
 
 #: Phases a surrogate outer iteration is timed in (``time_<phase>`` metric columns).
 PHASES = ("train", "exploit", "select", "evaluate", "holdout")

@@ -290,7 +290,7 @@ def spec_of(metric: str) -> str:
 
 
 def mean_se_text(values: Sequence[float], spec: str, *, signed: bool = False) -> str:
-    from dsage_ray.core.metrics import format_mean_se, mean_se
+    from metrics import format_mean_se, mean_se
 
     if not values:
         return "-"
@@ -304,7 +304,7 @@ def mean_se_text(values: Sequence[float], spec: str, *, signed: bool = False) ->
 
 def beyond_two_se(values: Sequence[float]) -> bool | None:
     """Whether the mean of ``values`` is more than two standard errors from 0 (None when the s.e. is unknown)."""
-    from dsage_ray.core.metrics import mean_se
+    from metrics import mean_se
 
     values = [v for v in values if not math.isnan(v)]
     if len(values) < 2:

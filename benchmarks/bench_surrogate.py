@@ -281,9 +281,9 @@ def setting_table(settings: list[str], *, threads: int, batch: int, repeats: int
 
     from bench_surrogate_training import main as replay
     from bench_surrogate_training import parse_setting
+    from metrics import format_mean_se, mean_se
 
     from dsage_ray.config import RunConfig
-    from dsage_ray.core.metrics import format_mean_se, mean_se
 
     parsed = [parse_setting(text) for text in settings]
     levels = random_valid_levels(max(batch, train_samples), seed=0, density_range=(0.0, 0.9))

@@ -459,7 +459,7 @@ def throughput(fn, batch: int, repeats: int = 5) -> float:
 
 
 def summary(per_split, spec: str = ".3f") -> str:
-    from dsage_ray.core.metrics import format_mean_se, mean_se
+    from metrics import format_mean_se, mean_se
 
     return format_mean_se(*mean_se(per_split), spec)
 

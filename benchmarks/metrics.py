@@ -1,4 +1,8 @@
-"""Per-iteration metrics and the paper's summary figures."""
+"""The figures the result tables print: mean ± standard error over runs, and the paper's Table 2 metric.
+
+Shared by the benchmarks and the experiment scripts (``experiments/summarize.py``, ``experiments/audit_comparison.py``
+put this folder on ``sys.path``); research code, not part of the dsage_ray package.
+"""
 
 from __future__ import annotations
 

@@ -41,6 +41,8 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+#: benchmarks/, where the result tables' figures (``metrics.py``) live.
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 #: The columns of the table: (summary key, heading).
 COLUMNS = (("never_solved", "Never solved"), ("failure_cells", "Cells with failure rate ≥ 0.5"),
            ("with_failures", "Levels with failures"), ("levels", "Levels"), ("worst_return", "Worst return"),
@@ -160,7 +162,10 @@ def summarize(out: Path, variants: list[str], seeds: list[int]) -> str:
     """The markdown table over the finished audits in ``out`` (mean ± s.e. over seeds per arm)."""
     from dsage_ray.audit.collection_file import load_collection
     from dsage_ray.audit.summary import failure_summary
-    from dsage_ray.core.metrics import format_mean_se, mean_se
+
+    if str(BENCHMARKS) not in sys.path:  # the result tables' figures are research code kept with the benchmarks
+        sys.path.insert(0, str(BENCHMARKS))
+    from metrics import format_mean_se, mean_se
 
     per_run: dict[str, list[dict]] = {}
     for variant in variants:

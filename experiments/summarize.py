@@ -44,7 +44,12 @@ import numpy as np
 from ray import tune
 
 from dsage_ray.config import ConfigError, RunConfig
-from dsage_ray.core.metrics import evals_to_reach, format_mean_se, mean_se
+
+# The result tables' figures are research code shared with the benchmarks, kept beside them.
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+if str(BENCHMARKS) not in sys.path:
+    sys.path.insert(0, str(BENCHMARKS))
+from metrics import evals_to_reach, format_mean_se, mean_se  # noqa: E402
 
 #: The variant whose mean final QD-score is the paper's Table 2 target, per domain (other domains: --target).
 TARGET_VARIANT = {"maze": "map_elites", "mario": "dsage_basic"}
