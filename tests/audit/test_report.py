@@ -540,7 +540,7 @@ def test_the_collection_draws_pictures_that_name_their_level_only(tmp_path):
     archive.add(np.array([level.walls.ravel()], dtype=np.int8), np.full(1, 0.5),
                 np.array([[level.num_walls, level.optimal_path_length]], dtype=float))
     _, figures = drawn_figures(lambda: build_collection(archive, config=config, out_dir=tmp_path / "c"))
-    picture = [[t.text for t in figure] for figure in figures if "level #0" in [t.text for t in figure]]
+    picture = [[t.text for t in texts] for texts, _ in figures if "level #0" in [t.text for t in texts]]
     assert len(picture) == 1 and not [t for t in picture[0] if "success" in t or "failure" in t]
 
 

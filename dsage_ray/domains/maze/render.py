@@ -99,8 +99,11 @@ def render_level(level: MazeLevel, occupancy: np.ndarray | None = None, path: st
     ax.imshow(walls, cmap=ListedColormap([FLOOR_COLOUR, WALL_COLOUR]), vmin=0, vmax=1, extent=extent,
               interpolation="nearest")
     if occupancy is not None:
+        # The bar is inset from the maze's sides, so its first and last numbers, centred on its ends, fit.
+        inset = 0.25
         _draw_occupancy(fig, ax, occupancy, (height, width), occupancy_max,
-                        (left / fig_w, (bottom - 1.1 * line) / fig_h, grid_w / fig_w, 0.09 / fig_h))
+                        ((left + inset) / fig_w, (bottom - 1.1 * line) / fig_h, (grid_w - 2 * inset) / fig_w,
+                         0.09 / fig_h))
     # Thin cell lines on the floor make rows and columns countable; walls hide them.
     # Drawn as one collection rather than as minor-tick grid lines: ticks cost most of a picture's time.
     lines = [[(x, -1.5), (x, height + 0.5)] for x in np.arange(-1.5, width + 1)]
