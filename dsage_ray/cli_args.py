@@ -117,28 +117,6 @@ class LazyHelp(argparse.Action):
         setattr(namespace, self.dest, values)
 
 
-def agent_kinds_help(domain: str | None = None) -> str:
-    """The agent spec forms for every ``--agent`` help, from the domain registrations, then the note that
-    some kinds run code: ``maze: builtin:NAME, dcd:PATH, ...; mario: astar[:ITERATIONS]. loading ...``.
-
-    The one list of kinds the help texts show (:func:`dsage_ray.domains.agent_forms` and
-    :data:`~dsage_ray.agents.loader.RUNS_CODE_NOTE`), so no command lists other kinds than another.
-
-    Args:
-        domain: Only this domain's forms, without its name (``dsage-ray maze eval``); None: every domain's,
-            each after its name (commands that take ``--domain``).
-    """
-    from dsage_ray.agents.loader import RUNS_CODE_NOTE
-    from dsage_ray.domains import agent_forms
-
-    forms = agent_forms()
-    if domain is not None:
-        listed = ", ".join(forms.get(domain, ()))
-    else:
-        listed = "; ".join(f"{name}: {', '.join(kinds)}" for name, kinds in forms.items())
-    return f"{listed}. {RUNS_CODE_NOTE}"
-
-
 def preset_budgets(domain: str) -> dict[str, int]:
     """The real evaluations of each preset of ``domain``, in its registration's order."""
     from dsage_ray.config import RunConfig, presets

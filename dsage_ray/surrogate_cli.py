@@ -24,7 +24,8 @@ examples:
 
 
 def add_subparser(subparsers) -> None:
-    from dsage_ray.cli_args import LazyHelp, add_config_arguments, add_ray_arguments, agent_kinds_help
+    from dsage_ray.cli_args import LazyHelp, add_config_arguments, add_ray_arguments
+    from dsage_ray.domains.agent_help import agent_kinds_help
 
     parser = subparsers.add_parser(
         "surrogate", help="pretrain a surrogate and inspect pretrained ones (warm starts, beyond the paper)",

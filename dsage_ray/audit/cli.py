@@ -30,7 +30,8 @@ Python: dsage_ray.run_audit() takes the same arguments and returns the collectio
 
 def add_subparser(subparsers) -> None:
     """Registers ``audit`` and ``compare`` on the top-level CLI's sub-parsers."""
-    from dsage_ray.cli_args import LazyHelp, add_config_arguments, add_ray_arguments, agent_kinds_help
+    from dsage_ray.cli_args import LazyHelp, add_config_arguments, add_ray_arguments
+    from dsage_ray.domains.agent_help import agent_kinds_help
 
     audit = subparsers.add_parser(
         "audit", help="search for levels where an agent fails (or does worse than a reference) and save them",
@@ -263,7 +264,8 @@ until Ctrl+C (or --max-checkpoints). Python: dsage_ray.AuditSeries (docs/API.md)
 
 def add_series_subparser(subparsers) -> None:
     """Registers ``audit-series``."""
-    from dsage_ray.cli_args import LazyHelp, add_config_arguments, add_ray_arguments, agent_kinds_help
+    from dsage_ray.cli_args import LazyHelp, add_config_arguments, add_ray_arguments
+    from dsage_ray.domains.agent_help import agent_kinds_help
 
     series = subparsers.add_parser(
         "audit-series", help="audit checkpoints in training order: a growing regression suite, a short search each",

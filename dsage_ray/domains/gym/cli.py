@@ -5,20 +5,19 @@ from __future__ import annotations
 import argparse
 import json
 
+from dsage_ray.domains.agent_help import agent_kinds_help
 from dsage_ray.errors import InputError
 
 
 def add_subparser(subparsers) -> None:
     """Registers ``gym`` (with its ``eval`` and ``spaces`` sub-commands) on the top-level CLI's sub-parsers."""
-    from dsage_ray.cli_args import LazyHelp, agent_kinds_help
-
     gym = subparsers.add_parser("gym", help="gym domain tools (any Gymnasium environment)")
     commands = gym.add_subparsers(dest="gym_command", required=True)
     ev = commands.add_parser("eval", help="play an agent on a gym level file",
                              description="Plays an agent for N episodes of the level (a JSON file an audit wrote: "
                                          "the space and the parameter values) and prints what it did.")
-    ev.add_argument("--agent", required=True, metavar="SPEC", action=LazyHelp,
-                    help_text=lambda: f"agent spec, of a kind the gym domain plays ({agent_kinds_help('gym')})")
+    ev.add_argument("--agent", required=True, metavar="SPEC",
+                    help=f"agent spec, of a kind the gym domain plays ({agent_kinds_help('gym')})")
     ev.add_argument("--level", required=True, metavar="FILE", help="a level file of a gym collection")
     ev.add_argument("--episodes", type=int, default=10, help="episodes (default 10)")
     ev.add_argument("--seed", type=int, default=0, help="the evaluation seed (default 0)")

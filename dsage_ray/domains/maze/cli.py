@@ -4,19 +4,18 @@ from __future__ import annotations
 
 import argparse
 
+from dsage_ray.domains.agent_help import agent_kinds_help
 from dsage_ray.errors import InputError
 
 
 def add_subparser(subparsers) -> None:
     """Registers ``maze`` (with its ``eval`` sub-command) on the top-level CLI's sub-parsers."""
-    from dsage_ray.cli_args import LazyHelp, agent_kinds_help
-
     maze = subparsers.add_parser("maze", help="Maze domain tools")
     commands = maze.add_subparsers(dest="maze_command", required=True)
     ev = commands.add_parser("eval", help="evaluate an agent on a maze layout file",
                              description="Runs an agent on a layout for N episodes and prints the summary.")
-    ev.add_argument("--agent", required=True, metavar="SPEC", action=LazyHelp,
-                    help_text=lambda: f"agent spec, of a kind the maze plays ({agent_kinds_help('maze')})")
+    ev.add_argument("--agent", required=True, metavar="SPEC",
+                    help=f"agent spec, of a kind the maze plays ({agent_kinds_help('maze')})")
     ev.add_argument("--layout", required=True, metavar="FILE",
                     help="plain-text layout: '#' wall, '.' empty, optional S/G; interior only")
     ev.add_argument("--episodes", type=int, default=50, help="episodes to run (default 50)")
