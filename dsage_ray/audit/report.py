@@ -658,17 +658,10 @@ def _card(c: dict[str, Any], lv: dict[str, Any], collection_dir: Path, columns: 
         caption = f"<figcaption>{_esc(name)}</figcaption>" if len(pictures) > 1 else ""
         return f"<figure>{picture}{caption}</figure>"
 
-    rows = [(FAILURE_RATE, "failure_rate", _failure_rate(lv), reference and _failure_rate(reference))]
-    if not (reference or _shows_objective(c)):
-        rows = []  # the headline's number
-    rows += [(m, m, v, None) for m, v in lv["measures"].items()]
-    rows += [(column.name, column.key, lv[column.key], reference and reference.get(column.key)) for column in columns]
-    if reference:
-        rows += [(k.replace("_", " "), k, None, reference[k]) for k in _reference_numbers(c)
-                 if k not in lv and k != "success_rate"]
     cell = lambda key, v: "" if v is None else formats.get(key, _formatter([v]))(v)  # noqa: E731
     label = lambda name, key: (f"<td class='l' title='{_esc(notes[key])}'>{_esc(name)}</td>"  # noqa: E731
                                if key in notes else f"<td class='l'>{_esc(name)}</td>")
+    rows = _card_rows(c, lv, reference, columns)
     if reference:
         body = "".join(f"<tr>{label(name, key)}<td>{cell(key, v)}</td><td>{cell(key, ref)}</td></tr>"
                        for name, key, v, ref in rows)
@@ -689,9 +682,24 @@ def _card(c: dict[str, Any], lv: dict[str, Any], collection_dir: Path, columns: 
              _command(command)]
     reference_command = _reference_command(c, lv, command) if reference else None
     if reference_command:
-        parts += ["<div>the reference, same seed:</div>", _command(portable_command(reference_command,
-                                                                                    lv["level_file"]))]
+        parts += ["<div>the reference, same seed:</div>",
+                  _command(portable_command(reference_command, lv["level_file"]))]
     return "".join(parts) + "</div>"
+
+
+def _card_rows(c: dict[str, Any], lv: dict[str, Any], reference: dict[str, Any] | None,
+               columns: Sequence[ReportField]) -> list[tuple[str, str, Any, Any]]:
+    """A card's table: ``(label, format key, the level's value, the reference's)`` per row. The failure rate is
+    a row only where the headline shows another number (a regression, an objective of its own)."""
+    ref = reference or {}
+    rows = []
+    if reference or _shows_objective(c):
+        rows.append((FAILURE_RATE, "failure_rate", _failure_rate(lv), _failure_rate(ref) if ref else None))
+    rows += [(m, m, v, None) for m, v in lv["measures"].items()]
+    rows += [(column.name, column.key, lv[column.key], ref.get(column.key)) for column in columns]
+    rows += [(k.replace("_", " "), k, None, ref[k]) for k in (_reference_numbers(c) if ref else ())
+             if k not in lv and k != "success_rate"]
+    return rows
 
 
 def _levels_table(c: dict[str, Any], columns_shown: Sequence[ReportField], formats: dict[str, Callable[[Any], str]],

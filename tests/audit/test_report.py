@@ -491,7 +491,8 @@ def test_shown_commands_run_in_the_collection_folder_wherever_it_is(tmp_path, mo
     moved = Path(shutil.move(built, tmp_path / "there" / "received"))
     page = write_report(moved).read_text()
     assert "Run a level's command in the collection folder" in page
-    shown = [html.unescape(re.sub(r"</?span>", "", code)) for code in re.findall(r"<code class='cmd'>(.*?)</code>", page)]
+    codes = re.findall(r"<code class='cmd'>(.*?)</code>", page)
+    shown = [html.unescape(re.sub(r"</?span>", "", code)) for code in codes]
     assert len(shown) == 2 and not [command for command in shown if str(tmp_path) in command]
     first = load_collection(moved)["levels"][0]
     assert f"--layout {first['level_file']} " in shown[0]
