@@ -1,9 +1,10 @@
 """Train a Maze agent with PPO on RLlib's new API stack (CleanRL-style: one file, one config dataclass).
 
-The environment is :class:`dsage_ray.domains.maze.training.RandomMazeEnv`: a fresh random valid 16×16 maze
-every episode, built on the project's MiniGrid ``MazeEnv``. A curriculum moves the goal from a few steps
-away to the furthest cell (the evaluation setting) over ``curriculum_steps`` env steps. The policy is
-:class:`dsage_ray.agents.rllib_module.MazeRLModule` (a small CNN; ``--use-lstm`` adds an LSTM).
+The environment is :class:`maze_training_env.RandomMazeEnv` (``experiments/maze_training_env.py``, beside this
+script): a fresh random valid 16×16 maze every episode, built on the project's MiniGrid ``MazeEnv``. A curriculum
+moves the goal from a few steps away to the furthest cell (the evaluation setting) over ``curriculum_steps`` env
+steps. The policy is :class:`dsage_ray.agents.rllib_module.MazeRLModule` (a small CNN; ``--use-lstm`` adds an
+LSTM).
 
 Every ``eval_every`` iterations the current module is evaluated the way audits evaluate agents (our batched
 simulator, ``rllib:`` loader semantics) on a fixed set of random valid mazes; that success rate, the
@@ -63,6 +64,8 @@ from dsage_ray.integrations.training import (audit_callback, check_audit_flags, 
 
 
 ENV_NAME = "dsage_ray/RandomMaze-v0"
+#: This script's folder, which holds its training env (``maze_training_env.py``).
+SCRIPT_DIR = Path(__file__).resolve().parent
 
 
 @dataclasses.dataclass
@@ -163,6 +166,19 @@ def parse_args(argv: list[str] | None = None) -> Args:
     return tyro.cli(Args, args=argv, description=__doc__.split("\n\n")[0])
 
 
+def training_env_creator():
+    """``maze_training_env.make_random_maze_env``, the env creator, imported from this script's folder.
+
+    The folder is on ``sys.path`` when the script runs (and Ray adds it to its workers' path), but not when a
+    test, a benchmark or ``train_on_collection.py`` imports the script as a module: it is added then.
+    """
+    if str(SCRIPT_DIR) not in sys.path:
+        sys.path.insert(0, str(SCRIPT_DIR))
+    from maze_training_env import make_random_maze_env
+
+    return make_random_maze_env
+
+
 def build_config(args: Args, levels: list[str] | None = None):
     """The PPOConfig: our env creator, our RLModule, one local env runner, one local learner.
 
@@ -173,11 +189,10 @@ def build_config(args: Args, levels: list[str] | None = None):
     from ray.rllib.core.rl_module.rl_module import RLModuleSpec
     from ray.tune.registry import register_env
 
-    from dsage_ray.domains.maze.training import make_random_maze_env
     from dsage_ray.agents.rllib_module import MazeRLModule
 
     # Registered by name: RLlib ships the creator to every env runner through its registry.
-    register_env(ENV_NAME, make_random_maze_env)
+    register_env(ENV_NAME, training_env_creator())
     model_config = {"hidden": args.hidden, "use_lstm": args.use_lstm}
     if args.use_lstm:
         model_config["max_seq_len"] = args.max_seq_len

@@ -19,7 +19,6 @@ import pytest
 import torch
 
 from dsage_ray.agents import AgentError, load_agent
-from dsage_ray.domains.maze.training import RandomMazeEnv
 from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.agents.loader import ASSETS_DIR
 from dsage_ray.agents.rllib import MODULES_SUBDIR, RLlibAgent
@@ -27,6 +26,10 @@ from dsage_ray.agents.rllib_module import MAZE_ACTION_SPACE, MAZE_OBSERVATION_SP
 from dsage_ray.domains.maze import evaluate
 
 from tests.agents.conftest import REPO_ROOT
+
+sys.path.insert(0, str(REPO_ROOT / "experiments"))  # the training env lives beside the training script
+
+from maze_training_env import RandomMazeEnv  # noqa: E402
 
 TINY_TRAINING = ["--train-batch-size", "200", "--minibatch-size", "64", "--num-epochs", "1", "--num-envs", "2",
                  "--checkpoint-every", "1", "--eval-every", "0", "--hidden", "32", "--no-see-through-walls"]

@@ -5,15 +5,19 @@ without a CPU for them, stop the script with one clear line."""
 from __future__ import annotations
 
 import json
+import sys
 
 import numpy as np
 import pytest
 
 from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.domains.maze.layout import format_layout
-from dsage_ray.domains.maze.training import RandomMazeEnv, make_random_maze_env
 from dsage_ray.errors import InputError
-from tests.integrations.conftest import write_collection
+from tests.integrations.conftest import SCRIPT, write_collection
+
+sys.path.insert(0, str(SCRIPT.parent))  # the training env lives beside the training script
+
+from maze_training_env import RandomMazeEnv, make_random_maze_env  # noqa: E402
 
 
 @pytest.fixture

@@ -1,5 +1,8 @@
 """The gymnasium env RLlib trains maze agents on: a fresh random valid maze every episode.
 
+Research code of ``experiments/train_maze_agent.py``, kept beside it (not in the dsage_ray package): the script
+imports it from its own folder, and RLlib steps it in the driver process (no remote env runner).
+
 The mazes come from :func:`dsage_ray.domains.maze.generator.random_valid_level`, the same distribution
 the agent benchmark evaluates. ``RandomMazeEnv`` wraps the project's :class:`~dsage_ray.domains.maze.env.MazeEnv`
 (so the dynamics and observations are the ones the evaluator's simulator is tested against) and drops the

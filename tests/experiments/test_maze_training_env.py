@@ -1,6 +1,9 @@
-"""The RLlib training env (``dsage_ray.domains.maze.training``): curriculum goals and the observation it returns."""
+"""The RLlib training env (``experiments/maze_training_env.py``): curriculum goals and the observation it returns."""
 
 from __future__ import annotations
+
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -8,7 +11,10 @@ import pytest
 from dsage_ray.agents.constants import ACTION_SPACE, OBSERVATION_SPACE
 from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.domains.maze.level import MazeLevel, path_distances
-from dsage_ray.domains.maze.training import RandomMazeEnv, make_random_maze_env, with_near_goal
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "experiments"))
+
+from maze_training_env import RandomMazeEnv, make_random_maze_env, with_near_goal  # noqa: E402
 
 
 @pytest.mark.parametrize("max_distance", [1, 3, 10])
