@@ -56,7 +56,7 @@ REGIONS_PER_MEASURE = 4
 _GENERIC_KEYS = {"id", "objective", "success_rate", "seed", "episodes", "search_objective", "regression"}
 
 #: The narrowest the page shows a picture: a worst-level card on a 390 px phone. The pictures' text is sized
-#: for it (the domains' ``render`` modules): about 12 px or more there, larger wherever a card is wider.
+#: for it (the domains' ``render`` modules): about 13 px or more there, larger wherever a card is wider.
 PICTURE_MIN_WIDTH = 330
 
 _STYLE = """
@@ -516,7 +516,7 @@ def heatmap_pngs(collection: dict[str, Any]) -> dict[str, bytes]:
 
     def draw(window: list[tuple[int, int]], title: str) -> bytes:
         # Sized like the level pictures, for the page: 4.2 in wide is shown 366 px wide on a phone and at most
-        # 620 px on a wide screen; 11 pt stays 12 px or more on the page.
+        # 620 px on a wide screen; 12 pt stays 13 px or more on the page.
         fig = Figure(figsize=(4.2, 3.4), dpi=160)
         FigureCanvasAgg(fig)
         ax = fig.add_subplot()
@@ -526,13 +526,13 @@ def heatmap_pngs(collection: dict[str, Any]) -> dict[str, bytes]:
         ax.set_xlim(edges[0][window[0][0]], edges[0][window[0][1] + 1])
         ax.set_ylim(edges[1][window[1][0]], edges[1][window[1][1] + 1])
         # Names from the collection file are text, not mathtext ("$" in a name would be parsed).
-        ax.set_xlabel(measures[0], fontsize=11, parse_math=False)
-        ax.set_ylabel(measures[1], fontsize=11, parse_math=False)
-        ax.tick_params(labelsize=11)
-        ax.set_title(title, fontsize=11)
+        ax.set_xlabel(measures[0], fontsize=12, parse_math=False)
+        ax.set_ylabel(measures[1], fontsize=12, parse_math=False)
+        ax.tick_params(labelsize=12)
+        ax.set_title(title, fontsize=12)
         bar = fig.colorbar(mesh, ax=ax)
-        bar.set_label(label, fontsize=11, parse_math=False)
-        bar.ax.tick_params(labelsize=11)
+        bar.set_label(label, fontsize=12, parse_math=False)
+        bar.ax.tick_params(labelsize=12)
         fig.tight_layout(pad=0.3)
         buffer = io.BytesIO()
         fig.savefig(buffer, format="png")

@@ -17,7 +17,7 @@ from dsage_ray.types import EvaluationResult
 #: the page, and the resolution that keeps it sharp on a high-density screen.
 FIGURE_WIDTH = 3.6
 DPI = 200
-#: Points of the titles and axis labels; the tick labels are 1 and 2 points smaller, still 12 px or more on the page.
+#: Points of the titles and axis labels; the tick labels are a point smaller, still 14 px or more on the page.
 FONT_SIZE = 12
 
 
@@ -84,7 +84,7 @@ def level_picture(space: EnvSpace, values: Mapping[str, Any], *, occupancy: np.n
             ax.tick_params(labelsize=FONT_SIZE - 1)
             ax.set_title("share of the time spent", fontsize=FONT_SIZE)
             colorbar = fig.colorbar(image, ax=ax, fraction=0.08)
-            colorbar.ax.tick_params(labelsize=FONT_SIZE - 2)
+            colorbar.ax.tick_params(labelsize=FONT_SIZE - 1)
         else:
             ax.set_axis_off()
             ax.text(0.0, 1.0, "\n".join(f"{name} = {_short(value)}" for name, value in values.items()), va="top",

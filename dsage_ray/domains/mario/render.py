@@ -38,7 +38,7 @@ TILE_PX = 16  # the framework's tile size in pixels; agent events are in these u
 #: points of its text.
 FIGURE_WIDTH = 3.6
 DPI = 200
-FONT_SIZE = 10
+FONT_SIZE = 11
 
 
 def render_level(level: np.ndarray | str | Sequence[str], *, scale: int = 8, path: np.ndarray | None = None,
@@ -92,7 +92,7 @@ def _titled_png(image: np.ndarray, *, scale: int, title: str) -> bytes:
     """``image`` in a figure with a title and row/column ticks in tiles (the level text's coordinates).
 
     Drawn for the width a report shows it at (:data:`FIGURE_WIDTH` inches, about 330 to 410 px on the page),
-    with :data:`FONT_SIZE`-point text: every label stays at about 12 px or more on the page.
+    with :data:`FONT_SIZE`-point text: every label stays at about 14 px or more on the page.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure

@@ -2,7 +2,7 @@
 
 Drawn for the size a report shows them at: :data:`FIGURE_WIDTH` inches wide (about 330 to 410 px on the page,
 so an inch is about 100 screen pixels) at :data:`DPI` dots per inch (sharp on a high-density screen), with text
-of at least :data:`FONT_SIZE` points, which keeps every label at about 12 px or more on the page.
+of at least :data:`FONT_SIZE` points, which keeps every label at about 14 px or more on the page.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ VISIT_CMAP_RANGE = (0.12, 0.82)
 FIGURE_WIDTH = 3.6
 DPI = 200
 #: Points of the labels (ticks, colour bar, title); the S and G marks shrink to fit a cell of a large maze.
-FONT_SIZE = 10
+FONT_SIZE = 11
 #: Rows and columns are numbered every this many cells: every cell's number would not fit at this size.
 TICK_EVERY = 5
 
@@ -112,7 +112,7 @@ def render_level(level: MazeLevel, occupancy: np.ndarray | None = None, path: st
     ax.set_xticks(range(0, width, TICK_EVERY))
     ax.set_yticks(range(0, height, TICK_EVERY))
     ax.tick_params(labelsize=FONT_SIZE, length=2, pad=1, top=True, labeltop=True, bottom=False, labelbottom=False)
-    # The marks fill most of a cell (10 pt in the Maze's 16 x 16 levels), smaller in larger mazes.
+    # The marks fill most of a cell (about 10 pt in the Maze's 16 x 16 levels), smaller in larger mazes.
     mark_size = min(FONT_SIZE, 0.75 * cell * 72)
     for cell_pos, mark, colour in ((level.start, "S", "#1f5fbf"), (level.goal, "G", "#138a36")):
         if cell_pos is not None:
