@@ -19,19 +19,16 @@ import time
 from typing import TYPE_CHECKING, Any, Callable, Protocol
 
 import numpy as np
-import torch
 
-from dsage_ray.config import ConfigError, RunConfig
+from dsage_ray.config import RunConfig
 from dsage_ray.core.holdout import HeldOutLevels, head_label
+from dsage_ray.core.screening import ScreenStep
 from dsage_ray.qd.archives import make_archive
-from dsage_ray.qd.gain import EvaluationCost, PickErrors
 from dsage_ray.qd.mutants import elite_mutants
 from dsage_ray.qd.emitters import RandomEmitter
 from dsage_ray.qd.optimizer import MAP_ELITES_RANDOM_BATCHES, make_scheduler, run_inner_loop
-from dsage_ray.qd.screen import Screen, keep_screened, screen_picks
 from dsage_ray.qd.selection import gather_elites, select_solutions
 from dsage_ray.surrogate.models import encode_solutions
-from dsage_ray.surrogate.surrogate import resolve_precision
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
 
 if TYPE_CHECKING:
@@ -128,15 +125,6 @@ class EvaluatedBatch:
             complete=len(ok) == len(proposal.solutions), outer_iteration=outer_iteration, predicted=predicted,
             screened=None if proposal.screened is None else proposal.screened[:n])
 
-    def add_screen_errors(self, errors: PickErrors) -> None:
-        """Adds what the screen estimated for the successful, screened solutions, against their real results."""
-        if self.screened is None or not self.ok:
-            return
-        estimates = self.screened[self.ok]
-        screened = np.isfinite(estimates).all(axis=1)
-        errors.add(predicted_objective=estimates[screened, 0], predicted_measures=estimates[screened, 1:],
-                   objective=self.objective[screened], measures=self.measures[screened])
-
 
 class Proposer(Protocol):
     """A strategy of the outer loop: propose solutions, then learn from their real results."""
@@ -180,10 +168,8 @@ class DirectQD:
         self.scheduler = make_scheduler(archive, config=config.qd, solution_dim=domain.solution_dim,
                                         random_solutions=domain.random_solutions, seed=seeds.next_qd_seed(),
                                         bounds=self.solution_bounds)
-        self.screen = domain_screen(config, domain, seeds)
-        #: The screen's errors on evaluated levels (``selection.screen_gain`` ranks by them; None: off).
-        self.screen_errors = _screen_errors(config)
-        self.evaluation_cost = _evaluation_cost(config, domain)
+        #: Chooses each batch after the random start-up among screened mutants (None: no screen).
+        self.screen = ScreenStep.for_run(config=config, domain=domain, seeds=seeds)
         #: Whether the batch under evaluation came from the scheduler (then it is told), not from a screen.
         self.asked = True
 
@@ -199,22 +185,17 @@ class DirectQD:
         batch = qd.num_emitters * qd.batch_size
         mutants = elite_mutants(self.archive, count=int(round(self.config.experimental.screen_pool * batch)),
                                 share=1.0, qd=qd, rng=self.seeds.rng, bounds=self.solution_bounds)
-        screened = keep_screened(mutants, self.archive, screen=self.screen, limit=batch, errors=self.screen_errors,
-                                 neighbours=self.config.experimental.gain_neighbours, cost=self.evaluation_cost)
-        fallback = len(screened.kept) == 0
-        kept = np.arange(min(batch, len(mutants))) if fallback else screened.kept
+        kept, estimates, metrics = self.screen.keep(mutants, self.archive, limit=batch)
         seconds = time.perf_counter() - tic
-        return Proposal(mutants[kept], metrics=_screen_metrics(len(mutants), screened.new, fallback,
-                                                               screened.expected_new),
-                        times={"select": seconds, "screen": seconds}, screened=screened.estimates[kept])
+        return Proposal(mutants[kept], metrics=metrics, times={"select": seconds, "screen": seconds},
+                        screened=estimates)
 
     def learn(self, batch: EvaluatedBatch) -> dict[str, float]:
         if not self.asked:
             if batch.ok:
                 self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures,
                                  occupancy=batch.occupancy)
-            if self.screen_errors is not None:
-                batch.add_screen_errors(self.screen_errors)
+            self.screen.learn(batch)
             return {}
         if batch.complete:
             # The emitters need the whole batch they asked for; tell() also adds to the archive.
@@ -232,7 +213,7 @@ class DirectQD:
 
     def state_dict(self) -> dict[str, Any]:
         return {"scheduler": self.scheduler, "surrogate": None, "dataset": None, "holdout": None, "holdout_evals": 0,
-                "screen_errors": None if self.screen_errors is None else self.screen_errors.state_dict()}
+                "screen_errors": None if self.screen is None else self.screen.state_dict()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.scheduler = state["scheduler"]
@@ -240,66 +221,8 @@ class DirectQD:
             if isinstance(emitter, RandomEmitter):  # its sampler is the domain's code, not in the checkpoint
                 emitter.attach(self.random_solutions)
         self.archive = state["archive"]
-        self.screen_errors = _load_screen_errors(self.config, state)
-
-
-def _screen_errors(config: RunConfig) -> PickErrors | None:
-    """An empty record of the screen's errors where ``selection.screen_gain`` ranks by them (None: it does not)."""
-    return PickErrors(window=config.experimental.gain_window) if config.selection.screen_gain else None
-
-
-def _load_screen_errors(config: RunConfig, state: dict[str, Any]) -> PickErrors | None:
-    """The checkpoint's record of the screen's errors (a fresh one where the checkpoint holds none)."""
-    saved = state.get("screen_errors")
-    if saved is None or not config.selection.screen_gain:
-        return _screen_errors(config)
-    return PickErrors.from_state_dict(saved)
-
-
-def _screen_metrics(screened: int, new: int, fallback: bool, expected_new: float) -> dict[str, float]:
-    """The ``selection_screen*`` metrics of one screened selection."""
-    metrics = {"selection_screened": float(screened), "selection_screened_new": float(new),
-               "selection_screen_fallback": float(fallback)}
-    if np.isfinite(expected_new):
-        metrics["selection_screen_expected_new"] = expected_new
-    return metrics
-
-
-def domain_screen(config: RunConfig, domain: Domain, seeds: "RunSeeds") -> Screen | None:
-    """``selection.screen_episodes`` as a :data:`~dsage_ray.qd.screen.Screen` over ``domain.screen`` (None: off).
-
-    Each call draws its seed from the run's stream, so a screened run is as reproducible as any other.
-
-    Raises:
-        ConfigError: The domain has no ``screen`` (a domain passed in may not be the config's own).
-    """
-    episodes = config.selection.screen_episodes
-    if not episodes:
-        return None
-    if not callable(getattr(domain, "screen", None)):
-        raise ConfigError(f"selection.screen_episodes: the {domain.name!r} domain cannot screen levels (it has no "
-                          "screen method; Maze has); set selection.screen_episodes = 0")
-    precision = resolve_precision(config.experimental.screen_precision, torch.device("cpu"))
-
-    def screen(solutions: Solutions) -> tuple[np.ndarray, np.ndarray]:
-        seed = int(seeds.rng.integers(2**31 - 1))
-        results = domain.screen(solutions, episodes=episodes, seed=seed, precision=precision)
-        return (np.array([result.objective for result in results], dtype=np.float64),
-                np.array([result.measures for result in results], dtype=np.float64).reshape(
-                    len(results), len(domain.measure_names)))
-
-    return screen
-
-
-def _evaluation_cost(config: RunConfig, domain: Domain) -> EvaluationCost | None:
-    """The domain's cost model (its ``evaluation_cost``: a measure an evaluation's cost grows with, and the cost
-    at 0 in that measure's units), where ``selection.screen_gain`` ranks by it; None: every evaluation costs the
-    same (no ranking, no cost model, or the run does not measure the model's measure)."""
-    model = getattr(domain, "evaluation_cost", None)
-    if not config.selection.screen_gain or model is None or model[0] not in domain.measure_names:
-        return None
-    measure, offset = model
-    return EvaluationCost(measure=list(domain.measure_names).index(measure), offset=offset)
+        if self.screen is not None:
+            self.screen.load_state_dict(state.get("screen_errors"))
 
 
 class SurrogateAssisted:
@@ -334,10 +257,8 @@ class SurrogateAssisted:
         self.last_predictions: tuple[np.ndarray, np.ndarray] | None = None
         #: Samples of the dataset that came from ``surrogate.init`` (the oldest ones), not from this run.
         self.prior_samples = 0
-        self.evaluation_cost = _evaluation_cost(config, domain)
-        self.screen = domain_screen(config, domain, seeds)
-        #: The screen's errors on evaluated picks (``selection.screen_gain`` ranks by them; None: off).
-        self.screen_errors = _screen_errors(config)
+        #: Screens the picks and more surrogate elites before their evaluation (None: no screen).
+        self.screen = ScreenStep.for_run(config=config, domain=domain, seeds=seeds)
 
     def propose(self, *, outer_iteration: int) -> Proposal:
         proposal = Proposal(np.empty(0))
@@ -366,14 +287,7 @@ class SurrogateAssisted:
         tic = time.perf_counter()
         proposal.solutions, proposal.screened = self._select(surrogate_archive, proposal.metrics, proposal.times)
         if self.config.selection.elite_mutants:
-            mutants = elite_mutants(self.archive, count=self.config.selection.elite_mutants,
-                                    share=self.config.experimental.elite_share, qd=self.config.qd, rng=self.seeds.rng,
-                                    bounds=getattr(self.domain, "solution_bounds", None))
-            proposal.solutions = np.concatenate([proposal.solutions, mutants])
-            if proposal.screened is not None:
-                proposal.screened = np.concatenate([proposal.screened,
-                                                    np.full((len(mutants), proposal.screened.shape[1]), np.nan)])
-            proposal.metrics["selection_elite_mutants"] = float(len(mutants))
+            self._add_elite_mutants(proposal)
         proposal.predicted = self.surrogate.predict(encode_solutions(self.domain, proposal.solutions))
         proposal.times["select"] = time.perf_counter() - tic
         proposal.metrics["surrogate_archive_size"] = float(len(surrogate_archive))
@@ -382,8 +296,8 @@ class SurrogateAssisted:
     def learn(self, batch: EvaluatedBatch) -> dict[str, float]:
         metrics: dict[str, float] = {}
         encoded = encode_solutions(self.domain, batch.solutions)
-        if self.screen_errors is not None:
-            batch.add_screen_errors(self.screen_errors)
+        if self.screen is not None:
+            self.screen.learn(batch)
         if batch.ok:
             self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures, occupancy=batch.occupancy)
             self.dataset.append(encoded=encoded, results=batch.results)
@@ -446,15 +360,20 @@ class SurrogateAssisted:
                                  count=selection.count, rng=self.seeds.rng)
         estimates = None
         if self.screen is not None:
-            tic = time.perf_counter()
-            screened = screen_picks(surrogate_archive, picks, self.archive, screen=self.screen,
-                                    pool=self.config.experimental.screen_pool, rng=self.seeds.rng,
-                                    errors=self.screen_errors, neighbours=self.config.experimental.gain_neighbours,
-                                    cost=self.evaluation_cost)
-            times["screen"] = time.perf_counter() - tic
-            picks, estimates = screened.kept, screened.estimates
-            metrics.update(_screen_metrics(screened.screened, screened.new, screened.fallback, screened.expected_new))
+            picks, estimates = self.screen.screen_picks(surrogate_archive, picks, self.archive, rng=self.seeds.rng,
+                                                        metrics=metrics, times=times)
         return gather_elites(surrogate_archive, picks)["solution"], estimates
+
+    def _add_elite_mutants(self, proposal: Proposal) -> None:
+        """Mutants of the ground truth's best elites beside the picks (``selection.elite_mutants``), unscreened."""
+        mutants = elite_mutants(self.archive, count=self.config.selection.elite_mutants,
+                                share=self.config.experimental.elite_share, qd=self.config.qd, rng=self.seeds.rng,
+                                bounds=getattr(self.domain, "solution_bounds", None))
+        proposal.solutions = np.concatenate([proposal.solutions, mutants])
+        if proposal.screened is not None:
+            proposal.screened = np.concatenate([proposal.screened,
+                                                np.full((len(mutants), proposal.screened.shape[1]), np.nan)])
+        proposal.metrics["selection_elite_mutants"] = float(len(mutants))
 
     def _label(self, head: str) -> str:
         return head_label(head, self.domain.measure_names)
@@ -464,7 +383,7 @@ class SurrogateAssisted:
     def state_dict(self) -> dict[str, Any]:
         return {"scheduler": None, "surrogate": self.surrogate.state_dict(), "dataset": self.dataset.state_dict(),
                 "prior_samples": self.prior_samples,
-                "screen_errors": None if self.screen_errors is None else self.screen_errors.state_dict(),
+                "screen_errors": None if self.screen is None else self.screen.state_dict(),
                 **self.holdout.state_dict()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -472,6 +391,7 @@ class SurrogateAssisted:
         self.surrogate.load_state_dict(state["surrogate"])
         self.dataset.load_state_dict(state["dataset"])
         self.prior_samples = state.get("prior_samples", 0)
-        self.screen_errors = _load_screen_errors(self.config, state)
+        if self.screen is not None:
+            self.screen.load_state_dict(state.get("screen_errors"))
         self.holdout.load_state_dict(state)
         self.last_predictions = state["last_predictions"]

@@ -111,7 +111,7 @@ def test_a_screen_ranked_by_its_errors_learns_each_batch_against_its_own_screen_
     assert archive_snapshot(elsewhere.archive) == archive_snapshot(in_process.archive)
     assert untimed(elsewhere.history) == untimed(in_process.history)
     # The screen is exact here: had a batch been paired with the next proposal's screen, errors would show.
-    errors = in_process.proposer.screen_errors
+    errors = in_process.proposer.screen.errors
     assert len(errors) > 0 and (errors.actual == errors.predicted).all()
     interrupted = screening()
     interrupted.step()

@@ -1,4 +1,4 @@
-"""The screen a run builds from its config (``dsage_ray.core.proposers.domain_screen``)."""
+"""The screen a run builds from its config (``dsage_ray.core.screening.domain_screen``)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dsage_ray.config import RunConfig
-from dsage_ray.core.proposers import domain_screen
+from dsage_ray.core.screening import domain_screen
 from dsage_ray.core.seeds import RunSeeds
 from tests.fakes import ScreeningBitmapDomain
 

@@ -252,7 +252,7 @@ def test_ranked_by_the_screens_errors_a_run_records_them_fills_new_cells_and_res
     ranked = {"variant": variant, "selection.screen_gain": True}
     reference = _screening_runner(**ranked)
     history = reference.run()
-    errors = reference.proposer.screen_errors
+    errors = reference.proposer.screen.errors
     # Every evaluated level was screened (none failed): each is one recorded error, and an exact screen errs by 0.
     screened = [h for h in history if "selection_screened" in h]
     assert len(errors) == min(sum(h["evaluated_this_iteration"] for h in screened), errors.window) > 0
@@ -261,7 +261,7 @@ def test_ranked_by_the_screens_errors_a_run_records_them_fills_new_cells_and_res
     assert all(h["selection_screen_expected_new"] <= h["evaluated_this_iteration"] for h in screened)
     resumed = resumed_after(lambda: _screening_runner(**ranked), 5)
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
-    np.testing.assert_array_equal(resumed.proposer.screen_errors.predicted, errors.predicted)
+    np.testing.assert_array_equal(resumed.proposer.screen.errors.predicted, errors.predicted)
 
 
 @pytest.mark.parametrize("overrides, needle", [
@@ -287,11 +287,11 @@ def test_a_domain_that_cannot_screen_is_refused_by_name():
     (None, True, None)])
 def test_a_ranked_screen_prices_levels_by_the_domains_cost_model_where_the_run_measures_it(model, screen_gain,
                                                                                             expected):
-    from dsage_ray.core.proposers import _evaluation_cost
+    from dsage_ray.core.screening import evaluation_cost
     from dsage_ray.qd.gain import EvaluationCost
     from tests.fakes import ScreeningBitmapDomain
 
     domain = ScreeningBitmapDomain()
     domain.evaluation_cost = model
     config = RunConfig.build({**SMALL, "selection.screen_episodes": 1, "selection.screen_gain": screen_gain})
-    assert _evaluation_cost(config, domain) == (None if expected is None else EvaluationCost(*expected))
+    assert evaluation_cost(config, domain) == (None if expected is None else EvaluationCost(*expected))
