@@ -66,6 +66,7 @@ from dsage_ray.core.proposers import (DirectQD, EvaluatedBatch, ProgressCallback
                                       SurrogateAssisted, domain_archive)
 from dsage_ray.core.seeds import RunSeeds
 from dsage_ray.core.snapshot import RunSnapshot
+from dsage_ray.core.tensorboard_log import GrowthPoint, growth_curve
 from dsage_ray.core.threads import torch_threads
 from dsage_ray.domains import build_domain
 from dsage_ray.errors import DsageError
@@ -123,6 +124,8 @@ class DSAGE:
         self.failures: list[dict[str, Any]] = []
         #: A pipelined run's next proposal, chosen while the last batch was evaluated.
         self.pending: Proposal | None = None
+        #: The archive's numbers within the last outer iteration (for TensorBoard; not part of the run's state).
+        self.growth: tuple[GrowthPoint, ...] = ()
         self.proposer: Proposer
         if config.uses_surrogate:
             self.proposer = SurrogateAssisted(config=config, domain=self.domain, archive=self.archive, seeds=self.seeds,
@@ -199,6 +202,9 @@ class DSAGE:
             raise EvaluationsFailed(f"every evaluation of outer iteration {self.outer_iteration} failed "
                                     f"({len(results)} of {len(results)}, after retries); the first: {results[0].error}")
         new_cells = self._count_new_cells(batch.measures)
+        # Read before the batch enters the archive; it changes nothing the search computes.
+        self.growth = growth_curve(self.archive, measures=batch.measures, objective=batch.objective,
+                                   evals_at=[self.evals + i + 1 for i in batch.ok], budget=self.config.budget)
         metrics = {**proposal.metrics, **self.proposer.learn(batch)}
 
         self.evals += len(solutions)
@@ -285,7 +291,8 @@ class DSAGE:
         """What outputs and callbacks read after an outer iteration (:class:`~dsage_ray.core.snapshot.RunSnapshot`)."""
         return RunSnapshot(config=self.config, domain=self.domain, archive=self.archive, history=tuple(self.history),
                            failures=tuple(self.failures), evals=self.evals, outer_iteration=self.outer_iteration,
-                           wall_time=self.wall_time, done=self.done, last_predictions=self.last_predictions)
+                           wall_time=self.wall_time, done=self.done, last_predictions=self.last_predictions,
+                           growth=self.growth)
 
     def write_outputs(self, run_dir) -> None:
         """Writes metrics.json, archive.csv, heatmap.png and a few elites into ``run_dir``."""

@@ -13,6 +13,8 @@ from dsage_ray.types import Domain
 if TYPE_CHECKING:
     from ribs.archives import GridArchive
 
+    from dsage_ray.core.tensorboard_log import GrowthPoint
+
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class RunSnapshot:
@@ -33,6 +35,8 @@ class RunSnapshot:
         wall_time: Seconds spent stepping, over the run including resumes.
         done: The evaluation or the time budget is spent.
         last_predictions: ``(predicted, true)`` measures of the last batch a surrogate predicted, or None.
+        growth: The archive's numbers within the last outer iteration, as its results arrived
+            (:func:`~dsage_ray.core.tensorboard_log.growth_curve`; empty before the first).
     """
 
     config: RunConfig
@@ -45,3 +49,4 @@ class RunSnapshot:
     wall_time: float
     done: bool
     last_predictions: tuple[np.ndarray, np.ndarray] | None
+    growth: tuple["GrowthPoint", ...] = ()

@@ -1,9 +1,21 @@
 """Our TensorBoard events for one run, and the command that opens them.
 
-Scalars go under ``dsage/`` with the number of real evaluations as the step, so runs with
-different batch sizes (DSAGE, MAP-Elites, a resumed run) line up on the same axis; images
-(``archive/heatmap``, ``levels/elite_K``, ``surrogate/predicted_vs_true_measures``) use the same
-step. Under Tune these events are the trial folder's only TensorBoard files (Tune's own logger is off).
+What is logged when, always with the number of real evaluations as the step, so runs with different
+batch sizes (DSAGE, MAP-Elites, a resumed run) line up on the same axis:
+
+* after every outer iteration, every metric of the iteration as a scalar ``dsage/<metric>``
+  (``qd_score``, ``coverage``, ``objective_max``, the surrogate's errors, the phases' times, ...);
+* within an iteration, ``dsage/qd_score``, ``dsage/coverage`` and ``dsage/objective_max`` also every
+  ``ceil(budget / GROWTH_POINTS)`` evaluations (every evaluation up to a 500-evaluation budget): the
+  ground-truth archive's values had the batch's results entered it one at a time, in evaluation order
+  (:func:`growth_curve`). An outer iteration evaluates its whole batch before the archive takes it, so
+  without these a 300-evaluation demo's curves would have 2 or 3 points; with them they have about
+  300, and the last point of each iteration is the archive's own value. They are written when the
+  iteration ends, not as the levels are evaluated;
+* every ``image_every`` outer iterations, and once the budget is spent, images: ``archive/heatmap``,
+  ``levels/elite_K`` and ``surrogate/predicted_vs_true_measures``.
+
+Under Tune these events are the trial folder's only TensorBoard files (Tune's own logger is off).
 
 One scalar has another axis: ``dsage/qd_score_vs_wall_time`` is the QD-score with the run's wall time
 in whole seconds as the step (``wall_time``, cumulative across resumes), to compare searches at equal
@@ -14,18 +26,24 @@ the same second share a step.
 
 from __future__ import annotations
 
+import dataclasses
 import io
+import math
 import numbers
 import os
 import shlex
 import shutil
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Mapping
+from typing import TYPE_CHECKING, Mapping, Sequence
 
 import numpy as np
 
+from dsage_ray.qd.archives import archive_stats
+
 if TYPE_CHECKING:
+    from ribs.archives import GridArchive
+
     from dsage_ray.core.snapshot import RunSnapshot
 
 #: Group of our scalars in TensorBoard (``dsage/qd_score``, ``dsage/coverage``, ...).
@@ -36,10 +54,67 @@ QD_SCORE_VS_WALL_TIME = f"{SCALAR_GROUP}/qd_score_vs_wall_time"
 
 #: Elite levels drawn per image step, spread along the first measure.
 ELITE_LEVELS = 4
+#: Points of the within-iteration curves over a whole run's budget (TensorBoard shows up to 1,000 per tag).
+GROWTH_POINTS = 500
+#: The scalars the within-iteration curves add points to (``dsage/<name>``).
+GROWTH_SCALARS = ("qd_score", "coverage", "objective_max")
+
+
+@dataclasses.dataclass(frozen=True)
+class GrowthPoint:
+    """The ground-truth archive's numbers after ``evals`` real evaluations, within an outer iteration."""
+
+    evals: int
+    qd_score: float
+    coverage: float
+    objective_max: float
+
+
+def growth_curve(archive: "GridArchive", *, measures: np.ndarray, objective: np.ndarray, evals_at: Sequence[int],
+                 budget: int) -> tuple[GrowthPoint, ...]:
+    """What ``archive`` would read as a batch's results entered it one at a time, every
+    ``ceil(budget / GROWTH_POINTS)`` evaluations.
+
+    Call it before the batch is added: it reads the archive (its numbers, and the elites of the cells the
+    batch falls in) and changes nothing, so the search is the same with or without it. A cell keeps its
+    best objective, as the ground-truth archive does, so after the whole batch the numbers are the ones
+    the archive then holds.
+
+    Args:
+        archive: The ground-truth archive, before the batch.
+        measures, objective: The batch's successful results, in evaluation order.
+        evals_at: The run's evaluation count once each of them was evaluated (failed ones are counted, not listed).
+        budget: The run's evaluation budget, which spaces the points.
+
+    Returns:
+        A point at each evaluation count in ``evals_at`` that is a multiple of the spacing.
+    """
+    if len(objective) == 0:
+        return ()
+    every = max(1, math.ceil(budget / GROWTH_POINTS))
+    stats = archive_stats(archive)
+    qd_score, elites, best = stats["qd_score"], stats["num_elites"], stats["objective_max"]
+    occupied, elites_data = archive.retrieve(measures)
+    cells = archive.index_of(measures)
+    # Only the cells the batch falls in can change: their current elites' objectives, then the batch's.
+    cell_objective = {int(c): float(o) for c, o, held in zip(cells, elites_data["objective"], occupied) if held}
+    points = []
+    for cell, value, at in zip(cells.tolist(), np.asarray(objective, dtype=np.float64).tolist(), evals_at):
+        old = cell_objective.get(cell)
+        if old is None or value > old:
+            qd_score += value - (old or 0.0)
+            elites += int(old is None)
+            cell_objective[cell] = value
+        best = value if math.isnan(best) else max(best, value)
+        if at % every == 0:
+            points.append(GrowthPoint(evals=int(at), qd_score=qd_score, coverage=elites / archive.cells,
+                                      objective_max=best))
+    return tuple(points)
 
 
 class RunTensorBoard:
-    """Writes one run's scalars every outer iteration and its images every ``image_every``.
+    """Writes one run's scalars every outer iteration (with the points of its :func:`growth_curve` before them)
+    and its images every ``image_every``.
 
     The event file is created on the first :meth:`log`, so a run that never steps leaves none.
 
@@ -61,6 +136,7 @@ class RunTensorBoard:
             self.logdir.mkdir(parents=True, exist_ok=True)
             self._writer = SummaryWriter(logdir=str(self.logdir), filename_suffix=".dsage")
         step = int(metrics["evals"])
+        self._log_growth(run, until=step)
         for key, value in metrics.items():
             if isinstance(value, numbers.Real) and not isinstance(value, bool):
                 self._writer.add_scalar(f"{SCALAR_GROUP}/{key}", float(value), step)
@@ -70,6 +146,13 @@ class RunTensorBoard:
         if self.image_every and (iteration % self.image_every == 0 or run.done):
             self._log_images(run, iteration=iteration, step=step)
         self._writer.flush()
+
+    def _log_growth(self, run: "RunSnapshot", *, until: int) -> None:
+        """The iteration's within-batch points, but the last: at ``until`` the iteration's own metrics are logged."""
+        for point in run.growth:
+            if point.evals < until:
+                for name in GROWTH_SCALARS:
+                    self._writer.add_scalar(f"{SCALAR_GROUP}/{name}", getattr(point, name), point.evals)
 
     def on_step(self, run: "RunSnapshot", metrics: Mapping[str, float]) -> None:
         """:class:`~dsage_ray.core.loop.RunLoop` callback: :meth:`log`."""

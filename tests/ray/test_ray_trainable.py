@@ -112,13 +112,16 @@ def test_tune_run_grid_writes_tensorboard_scalars_and_images(tmp_path, capsys):
             assert "dsage/qd_score" in scalars and not any(tag.startswith("ray/tune/") for tag in scalars)
             assert {"archive/heatmap", "surrogate/predicted_vs_true_measures", "levels/elite_0"} <= images
             assert (trial_dir / "archive.csv").exists() and (trial_dir / "metrics.json").exists()
-            # Ours: the runner's metrics under dsage/, one point per outer iteration at its evaluation count.
+            # Ours: the runner's metrics under dsage/, one point per outer iteration at its evaluation count
+            # (the QD-score also within each iteration: core.tensorboard_log.growth_curve).
             history = json.loads((trial_dir / "metrics.json").read_text())
             ours = tensorboard_scalars(trial_dir, prefix="dsage/")
             assert {"dsage/qd_score", "dsage/coverage", "dsage/archive_size", "dsage/surrogate_loss",
                     "dsage/time_total", "dsage/new_cell_share"} <= set(ours)
-            assert [step for step, _ in ours["dsage/qd_score"]] == [int(m["evals"]) for m in history]
-            assert [value for _, value in ours["dsage/qd_score"]] == pytest.approx([m["qd_score"] for m in history])
+            assert [step for step, _ in ours["dsage/archive_size"]] == [int(m["evals"]) for m in history]
+            qd_score = dict(ours["dsage/qd_score"])
+            assert len(qd_score) > len(history)
+            assert [qd_score[int(m["evals"])] for m in history] == pytest.approx([m["qd_score"] for m in history])
             assert ours["dsage/qd_score"][-1][0] == config.budget
             # One progress line per result of each trial, labelled with its grid value.
             seed = json.loads((trial_dir / "params.json").read_text())["seed"]
