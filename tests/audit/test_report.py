@@ -351,12 +351,9 @@ def test_a_narrow_screen_scrolls_wide_tables_in_their_own_box(tmp_path):
     assert not re.search(r"minmax\(\d+px", style) and style.count("minmax(min(") == 3
 
 
-def test_reproduce_commands_run_from_any_directory(tmp_path, monkeypatch, capsys):
-    """A collection written to a relative folder names its level files by absolute path."""
-    import shlex
-
-    from dsage_ray.audit.collection import audit_config, build_collection
-    from dsage_ray.cli import main
+def _two_random_mazes():
+    """An archive of two random valid mazes (objective 0.5) and the tiny audit config of a random agent."""
+    from dsage_ray.audit.collection import audit_config
     from dsage_ray.domains import build_domain
     from dsage_ray.domains.maze.generator import random_valid_levels
     from dsage_ray.qd.archives import make_archive
@@ -368,6 +365,17 @@ def test_reproduce_commands_run_from_any_directory(tmp_path, monkeypatch, capsys
                            solution_dtype=domain.solution_dtype)
     archive.add(np.array([level.walls.ravel() for level in levels], dtype=np.int8), np.full(len(levels), 0.5),
                 np.array([[level.num_walls, level.optimal_path_length] for level in levels], dtype=float))
+    return archive, config
+
+
+def test_reproduce_commands_run_from_any_directory(tmp_path, monkeypatch, capsys):
+    """A collection written to a relative folder names its level files by absolute path."""
+    import shlex
+
+    from dsage_ray.audit.collection import build_collection
+    from dsage_ray.cli import main
+
+    archive, config = _two_random_mazes()
     (tmp_path / "project").mkdir()
     monkeypatch.chdir(tmp_path / "project")
     build_collection(archive, config=config, out_dir=Path("audits") / "collection")
@@ -474,19 +482,10 @@ def test_shown_commands_run_in_the_collection_folder_wherever_it_is(tmp_path, mo
     import shlex
     import shutil
 
-    from dsage_ray.audit.collection import audit_config, build_collection
+    from dsage_ray.audit.collection import build_collection
     from dsage_ray.cli import main
-    from dsage_ray.domains import build_domain
-    from dsage_ray.domains.maze.generator import random_valid_levels
-    from dsage_ray.qd.archives import make_archive
 
-    config = audit_config(agent="builtin:random", preset="tiny", seed=1, overrides={"maze.episodes": 2})
-    domain = build_domain(config)
-    levels = random_valid_levels(2, seed=1)
-    archive = make_archive(solution_dim=domain.solution_dim, dims=domain.archive_dims, ranges=domain.measure_ranges,
-                           solution_dtype=domain.solution_dtype)
-    archive.add(np.array([level.walls.ravel() for level in levels], dtype=np.int8), np.full(len(levels), 0.5),
-                np.array([[level.num_walls, level.optimal_path_length] for level in levels], dtype=float))
+    archive, config = _two_random_mazes()
     built = build_collection(archive, config=config, out_dir=tmp_path / "here" / "collection")
     moved = Path(shutil.move(built, tmp_path / "there" / "received"))
     page = write_report(moved).read_text()
