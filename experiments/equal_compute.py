@@ -62,7 +62,7 @@ def run_one(label: str, keys: list[str], seed: int, args: argparse.Namespace) ->
     where = ["--local"] if args.workers is None else ["--workers", str(args.workers)]
     command = [sys.executable, "-m", "dsage_ray.cli", "run", str(args.config), *where, "--preset", args.preset,
                "--out", str(folder), "--set", f"name={label}", "--set", f"seed={seed}",
-               "--set", f"budget={args.budget}", *(f"--set={key}" for key in keys)]
+               *([f"--set=budget={args.budget}"] if args.budget else []), *(f"--set={key}" for key in keys)]
     if args.time_budget:
         command += ["--time-budget", str(args.time_budget)]
     if args.workers is not None:
@@ -90,7 +90,7 @@ def main() -> int:
                                                             "seeds no tuning saw)")
     parser.add_argument("--config", type=Path, default=CONFIG)
     parser.add_argument("--preset", default="cpu")
-    parser.add_argument("--budget", type=int, default=2000, help="evaluations per run")
+    parser.add_argument("--budget", type=int, help="evaluations per run (default: the preset's)")
     parser.add_argument("--time-budget", help="also stop each run after this long (e.g. 10m)")
     parser.add_argument("--parallel", type=int, default=1, help="runs at a time (each uses one core)")
     parser.add_argument("--baseline", default="map_elites", help="label every other setting is compared with")

@@ -27,7 +27,7 @@ def test_run_ablate_and_audit_help_show_groups_and_examples(command, groups, cap
 
 def test_the_preset_help_lists_every_preset_with_its_evaluations(capsys):
     text = " ".join(help_text("run", capsys=capsys).split())
-    assert "maze: paper 100,000, cpu 2,000, demo 500, tiny 150" in text, text
+    assert "maze: paper 100,000, cpu 4,000, demo 500, tiny 150" in text, text
 
 
 def test_maze_eval_help_names_every_agent_kind(capsys):

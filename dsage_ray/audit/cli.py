@@ -23,7 +23,7 @@ examples:
   dsage-ray audit --agent dcd:accel --out tb_logs/audit_accel --resume        # after Ctrl+C
 
 Without --agent the audit is a short demo on the domain's shipped agent (Maze: rllib:ppo_maze) with the
-domain's demo preset, and says so; a named agent gets the cpu preset (Maze: 2,000 evaluations).
+domain's demo preset, and says so; a named agent gets the cpu preset (Maze: 4,000 evaluations).
 Python: dsage_ray.run_audit() takes the same arguments and returns the collection (docs/API.md).
 """
 
