@@ -31,7 +31,7 @@ def test_prints_the_resolved_flat_config(capsys):
     expected = RunConfig.from_file(path, {"preset": "cpu", "surrogate.epochs": 50, "selection.block": [8, 6]})
     assert printed == expected.to_flat()
     # Defaults, then the cpu preset, then the variant, then --set: each layer shows.
-    assert printed["budget"] == 2_000 and printed["qd.exploit_iterations"] == 300
+    assert printed["budget"] == 4_000 and printed["qd.exploit_iterations"] == 300
     assert printed["surrogate.kind"] == "two_stage" and printed["selection.method"] == "downsample"
     assert printed["surrogate.epochs"] == 50 and printed["selection.block"] == [8, 6]
     assert all("." in key or key in RunConfig.__dataclass_fields__ for key in printed)

@@ -26,7 +26,7 @@ single warning line in the log; the series goes on. A checkpoint already recorde
 ``agent``) is not audited again: running the same command again continues the series where it stopped.
 
 The default ``budget`` is a quarter of the preset's, and at least ``n_rand + selection.count`` (the random
-start and one outer iteration of a cold search): ``cpu`` 500, ``demo`` 150, ``tiny`` 70 (Maze).
+start and one outer iteration of a cold search): ``cpu`` 1,000, ``demo`` 150, ``tiny`` 70 (Maze).
 
 Series folder::
 

@@ -85,7 +85,7 @@ def test_fixed_and_regressed_on_a_constructed_case():
 def test_the_default_budget_is_a_quarter_of_the_preset_and_one_iteration_at_least():
     from dsage_ray.audit.collection import audit_config
 
-    assert default_budget(audit_config(preset="cpu")) == 500
+    assert default_budget(audit_config(preset="cpu")) == 1000
     assert default_budget(audit_config(preset="tiny")) == 70  # n_rand 50 + selection.count 20 > 150 / 4
     assert AuditSeries(out_dir="/nonexistent/never/written", preset="demo").budget == 150
 
