@@ -57,8 +57,9 @@ PRESETS: dict[str, dict[str, Any]] = {
     # surrogate predictions on 2 cores). A shorter inner loop fills a smaller surrogate archive,
     # so blocks are smaller to keep a useful number of picks per outer iteration, and a smaller
     # batch gives the surrogate enough Adam steps on the few samples it has early on.
-    # 4,000 evaluations: the length at which section 17 measured the design below (about 10 CPU minutes a search);
-    # its lead over MAP-Elites at equal CPU time grows with the run (1.06× at 2,000 evaluations, fresh seeds 60-62).
+    # 4,000 evaluations: the length at which section 17 measured the design below (about 11 CPU minutes a search);
+    # its lead over MAP-Elites at equal CPU time grows with the run (1.06× at 2,000 evaluations, fresh seeds 60-62,
+    # docs/results/equal_compute §19).
     "cpu": {
         "budget": 4_000,
         "n_rand": 100,
@@ -68,8 +69,9 @@ PRESETS: dict[str, dict[str, Any]] = {
         "surrogate.train_window": 1_000,
         "qd.exploit_iterations": 300,
         "selection.count": 100,
-        # The best equal-time design measured (docs/results/equal_compute §16-17, fresh seeds 45-50: 1.31 ± 0.03×
-        # MAP-Elites at equal CPU time, 1.59× per evaluation): a 16-channel network (the surrogate's share of the
+        # The best equal-time design measured (docs/results/equal_compute §17, fresh seeds 48-50: 1.31 ± 0.03×
+        # MAP-Elites at equal CPU time, 1.59× per evaluation; as this preset on fresh seeds 60-62, §19, less at equal
+        # time, the same per evaluation): a 16-channel network (the surrogate's share of the
         # run from about 50% to 17%), a one-episode screen of each pick and of more candidates, ranked by the QD-score
         # each is expected to add per expected cost (the Maze's evaluation_cost), and 2 × 3 blocks (more picks per
         # outer iteration, so the surrogate trains and exploits less often per evaluation). No held-out levels: they
