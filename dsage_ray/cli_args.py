@@ -29,6 +29,11 @@ def add_config_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGro
     parser.add_argument("--time-budget", type=parse_duration, metavar="DURATION",
                         help="also stop once the run has stepped this long (sets time_budget): 90, 90s, 10m or "
                              "1.5h; the evaluation budget still applies, whichever comes first ends the run")
+    parser.add_argument("--search", choices=("fixed", "auto"),
+                        help="auto: run DSAGE, and after its first surrogate iteration continue with the domain's "
+                             "direct search (maze MAP-Elites, mario CMA-ME, gym cross-entropy) on the same archive "
+                             "if a level DSAGE picks costs over 3x a random one, surrogate time included; the choice "
+                             "and why are printed. The same as --set search=...")
     parser.add_argument("--surrogate-init", metavar="PATH",
                         help="warm-start the surrogate (sets surrogate.init): a file of `dsage-ray surrogate "
                              "pretrain`, or an earlier run or audit folder of the same network and encoding")
@@ -48,10 +53,14 @@ def parse_duration(text: str) -> float:
 
 
 def config_overrides(args: argparse.Namespace) -> dict:
-    """The dotted config keys that ``--set``, ``--time-budget`` and ``--surrogate-init`` give (not ``--preset``)."""
-    from dsage_ray.config import parse_override
+    """The dotted config keys that ``--set``, ``--search``, ``--time-budget`` and ``--surrogate-init`` give (not
+    ``--preset``)."""
+    from dsage_ray.config import ConfigError, parse_override
 
     overrides = dict(parse_override(item) for item in args.overrides)
+    if args.search is not None:
+        if overrides.setdefault("search", args.search) != args.search:
+            raise ConfigError(f"--search {args.search} and --set search={overrides['search']} disagree: give one")
     if args.time_budget is not None:
         overrides["time_budget"] = args.time_budget
     if args.surrogate_init is not None:

@@ -48,6 +48,9 @@ SelectionMethod = Literal["downsample", "random", "full"]
 SurrogateKind = Literal["two_stage", "one_stage", "none"]
 #: Surrogate prediction arithmetic.
 Precision = Literal["auto", "fp32", "bf16"]
+#: ``fixed``: the variant runs as set; ``auto``: DSAGE, then the domain's direct search if the surrogate costs more
+#: than it buys (:mod:`dsage_ray.core.auto_search`).
+SearchMode = Literal["fixed", "auto"]
 
 
 def key(default: Any, *, status: str, values: str = "", note: str = "") -> Any:
@@ -165,8 +168,8 @@ class SelectionConfig:
     #: (``evaluation_cost`` of its config section: Maze's grows with the mean path length), instead of those whose
     #: screened cell alone would add, in the order screened (not in the paper; :func:`dsage_ray.qd.screen.keep_screened`).
     screen_gain: bool = key(False, status="opt-in",
-                            note="rank screened candidates by expected gain per cost (with 16 channels and 2×3 blocks: "
-                                 "1.31× MAP-Elites at equal CPU time, equal_compute §16-17)")
+                            note="rank screened candidates by expected gain per cost (on in the Maze cpu preset: "
+                                 "1.15× MAP-Elites at equal CPU time, equal_compute §19)")
 
 
 @dataclasses.dataclass
@@ -232,6 +235,12 @@ class RunConfig:
     domain: str = key("maze", status="tool", values="a registered domain", note="maze, mario, gym, or a plug-in's")
     variant: str = key("dsage", status="paper", values="a variant of the domain",
                        note="the search: dsage, its ablations, or a baseline (sets other keys)")
+    #: ``auto``: after DSAGE's first surrogate iteration, continue with the domain's direct search
+    #: (``DomainSpec.direct_search``) on the same archive when a level DSAGE picked cost more than
+    #: :data:`~dsage_ray.core.auto_search.BREAK_EVEN_COST_RATIO` times a random one, surrogate time included.
+    search: SearchMode = key("fixed", status="opt-in",
+                             note="auto: DSAGE, or the domain's direct search where the surrogate costs more than it "
+                                  "buys (equal_compute §21)")
     preset: str = key("paper", status="tool", values="a preset of the domain",
                       note="the scale: paper, cpu, demo or tiny (sets other keys)")
     seed: int = key(0, status="tool", note="the run's seed; the same seed and config give the same archive")
@@ -424,6 +433,14 @@ class RunConfig:
         need(self.selection.count >= 1, "selection.count", "must be positive")
         need(self.uses_surrogate or not self.pipeline, "pipeline",
              "pipelines the surrogate's phases with the evaluations; this variant has no surrogate")
+        if self.search == "auto":
+            need(self.uses_surrogate, "search", f"auto starts as DSAGE; variant {self.variant!r} has no surrogate")
+            need(bool(get_domain(self.domain).direct_search), "search",
+                 f"auto needs the domain's direct search; domain {self.domain!r} declares none")
+            need(not self.pipeline, "search", "auto reads the surrogate's cost from an iteration that did not overlap "
+                                              "the evaluations; set pipeline = false")
+            need(not self.surrogate.init, "search", "auto compares the surrogate's levels with the random first "
+                                                    "ones, which a warm start (surrogate.init) skips")
         need(self.selection.elite_mutants >= 0, "selection.elite_mutants", "must be >= 0 (0: none)")
         need(self.uses_surrogate or not self.selection.elite_mutants, "selection.elite_mutants",
              "adds mutants to a surrogate's picks; this variant's QD search mutates its elites already")

@@ -60,6 +60,7 @@ from typing import Any
 import numpy as np
 
 from dsage_ray.config import RunConfig, changed_keys
+from dsage_ray.core.auto_search import SearchChoice, choose_search, direct_config, direct_variant
 from dsage_ray.core.evaluation import InProcessEvaluator, PendingEvaluation
 from dsage_ray.core.outputs import write_outputs
 from dsage_ray.core.proposers import (DirectQD, EvaluatedBatch, ProgressCallback, Proposal, Proposer,
@@ -126,6 +127,8 @@ class DSAGE:
         self.pending: Proposal | None = None
         #: The archive's numbers within the last outer iteration (for TensorBoard; not part of the run's state).
         self.growth: tuple[GrowthPoint, ...] = ()
+        #: What ``search = "auto"`` chose, once it has (None: not yet, or a fixed search).
+        self.search_choice: SearchChoice | None = None
         self.proposer: Proposer
         if config.uses_surrogate:
             self.proposer = SurrogateAssisted(config=config, domain=self.domain, archive=self.archive, seeds=self.seeds,
@@ -169,7 +172,23 @@ class DSAGE:
         self.cpu_time += time.process_time() - cpu
         metrics.update(wall_time=self.wall_time, cpu_time=self.cpu_time)
         self.history.append(metrics)
+        if self.config.search == "auto" and self.search_choice is None:
+            self._choose_search(metrics)
         return metrics
+
+    def _choose_search(self, metrics: dict[str, float]) -> None:
+        """``search = "auto"``: once a surrogate iteration is done, keep DSAGE or continue with the direct search."""
+        self.search_choice = choose_search(self.history, direct_variant=direct_variant(self.config))
+        if self.search_choice is None:
+            return
+        metrics.update(self.search_choice.metrics())
+        if self.search_choice.direct:
+            self._continue_direct()
+
+    def _continue_direct(self) -> None:
+        """The domain's direct search takes over the archive (the surrogate's proposer is dropped with its data)."""
+        self.proposer = DirectQD(config=direct_config(self.config), domain=self.domain, archive=self.archive,
+                                 seeds=self.seeds)
 
     def _step(self) -> dict[str, float]:
         started = time.perf_counter()
@@ -316,6 +335,7 @@ class DSAGE:
             "archive": self.archive,
             **self.proposer.state_dict(),
             "last_predictions": self.last_predictions,
+            "search_choice": None if self.search_choice is None else self.search_choice.state_dict(),
             "pending_proposal": None if self.pending is None else self.pending.state_dict(),
         })
 
@@ -337,6 +357,10 @@ class DSAGE:
         self.cpu_time = state.get("cpu_time", 0.0)
         self.history = state["history"]
         self.failures = state["failures"]
+        # Before the seeds load: the direct search's construction draws a seed the stored streams already account for.
+        self.search_choice = SearchChoice.from_state_dict(state.get("search_choice"))
+        if self.search_choice is not None and self.search_choice.direct:
+            self._continue_direct()
         self.seeds.load_state_dict(state)
         self.archive = state["archive"]
         self.proposer.load_state_dict(state)

@@ -147,6 +147,8 @@ class DomainSpec:
         variants: Keys per variant, merged over the DSAGE variants every domain has
             (:data:`dsage_ray.config.COMMON_VARIANTS`): typically the domain's QD baselines.
         comparison: The variants ``dsage-ray ablate`` runs by default.
+        direct_search: The variant without a surrogate that ``search = "auto"`` continues with when the surrogate
+            costs more than it buys (``""``: none; ``auto`` is then refused).
         audit: What an audit needs (``None``: the domain cannot be audited).
         agents: The agent specs the domain plays (``None``: its agent is fixed, there is none to name).
         cli: A module with ``add_subparser(subparsers)`` adding ``dsage-ray NAME ...`` commands.
@@ -160,6 +162,7 @@ class DomainSpec:
     presets: Mapping[str, Mapping[str, Any]]
     variants: Mapping[str, Mapping[str, Any]] = dataclasses.field(default_factory=dict)
     comparison: tuple[str, ...] = ("dsage",)
+    direct_search: str = ""
     audit: AuditSpec | None = None
     agents: AgentKinds | None = None
     cli: str | None = None
@@ -168,6 +171,8 @@ class DomainSpec:
     def __post_init__(self) -> None:
         if not self.name.isidentifier():
             raise InputError(f"domain name {self.name!r} must be a Python identifier (it names a config section)")
+        if self.direct_search and self.direct_search not in {*self.variants, "dr"}:
+            raise InputError(f"domain {self.name!r}: direct_search {self.direct_search!r} is not one of its variants")
         if not dataclasses.is_dataclass(self.config):
             raise InputError(f"domain {self.name!r}: config must be a dataclass, got {self.config!r}")
         missing = {"measures", "archive_dims", "measure_ranges"} - {f.name for f in dataclasses.fields(self.config)}

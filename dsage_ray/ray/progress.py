@@ -17,7 +17,9 @@ from typing import Any, Iterator
 
 from ray import tune
 
+from dsage_ray.core.auto_search import SearchChoice
 from dsage_ray.core.progress import EvaluationRate, progress_line
+from dsage_ray.domains.registry import get_domain
 
 #: Set for the duration of a Tune run unless the user set them: the legacy console engine (no
 #: misleading TensorBoard hint), no warning about frequent experiment snapshots, which
@@ -85,12 +87,21 @@ class ProgressLines(tune.Callback):
             finished = len(self._finished | {other.trial_id for other in trials if other.status == "TERMINATED"})
             line = f"{_label(trial)}  {line}  trials done {finished}/{len(trials)}"
         _print(line)
+        choice = SearchChoice.from_metrics(result, variant=_direct_search(trial))
+        if choice is not None:
+            _print(f"{_label(trial)}: {choice.reason}" if len(trials) > 1 else choice.reason)
 
     def on_trial_recover(self, iteration: int, trials: list, trial, **info: Any) -> None:
         _print(f"{_label(trial)}: failed; Tune restarts it from its last checkpoint")
 
     def on_trial_error(self, iteration: int, trials: list, trial, **info: Any) -> None:
         _print(f"{_label(trial)}: failed for good; details in {trial.error_file}")
+
+
+def _direct_search(trial) -> str:
+    """The direct search of the trial's domain (what ``search = "auto"`` may continue with)."""
+    config = getattr(trial, "config", None) or {}
+    return get_domain(config.get("domain", "maze")).direct_search
 
 
 def _label(trial) -> str:
