@@ -2,21 +2,24 @@
 
 DSAGE buys better levels per evaluation with surrogate time: training, the inner loop and the selection. Where a
 real evaluation is cheap next to that time, a direct QD search (MAP-Elites, CMA-ME, a falsifier) evaluates many
-more levels in the same time and finds more. The benchmarks put the break-even on the cost of a level:
+more levels in the same time and finds more. What decides is the surrogate's seconds per level it picks, next to
+the seconds a level's evaluation takes. The benchmarks put the break-even there:
 
-* Maze (ACCEL or PPO, the ``cpu`` preset): a level DSAGE picked cost 1.3-1.7× a random level, surrogate
-  included, and DSAGE led MAP-Elites at equal CPU time (1.15×, docs/results/equal_compute §19);
-* CartPole: about 1.9×, and DSAGE was level with the best falsifier at equal CPU time (docs/results/gym_audit);
-* Mario (A*): more than 10×, and CMA-ME found twice DSAGE's QD-score at equal CPU time (equal_compute §6, §18).
+* Maze (the ``cpu`` preset, ACCEL or PPO): the first picks cost 1.8-1.9× a random level's evaluation, surrogate
+  time added, and DSAGE led MAP-Elites at equal CPU time (1.15×, docs/results/equal_compute §19);
+* CartPole (the ``demo`` audit): about 2.2×, and DSAGE was level with the best falsifier at equal CPU time
+  (docs/results/gym_audit);
+* Mario (A*, the ``cpu`` preset): CMA-ME found twice DSAGE's QD-score at equal CPU time (equal_compute §6, §18),
+  and the ratio is measured in §21.
 
-So after the first outer iteration that used the surrogate, :func:`choose_search` compares that iteration's
-seconds per evaluated level (every phase: training, inner loop, selection, evaluation) with the first, random
-iteration's seconds per level, and the run continues with the domain's direct search
-(:attr:`dsage_ray.domains.registry.DomainSpec.direct_search`) on the same archive when the ratio exceeds
-:data:`BREAK_EVEN_COST_RATIO`. The seconds are wall seconds, so a run with more simulators (a Ray pool: each level
-cheaper in wall time, the surrogate not) leans to the direct search, as it should at equal wall time.
-
-The choice reads only the run's metrics rows, is made once, and is part of the run's state.
+So once the random first iteration is evaluated and the surrogate has made its first picks, and before they are
+evaluated, :func:`choose_search` sets ``1 + (surrogate seconds per pick) / (seconds per random level)`` against
+:data:`BREAK_EVEN_COST_RATIO`. Above it the picks are dropped unevaluated and the run continues with the domain's
+direct search (:attr:`dsage_ray.domains.registry.DomainSpec.direct_search`) on the same archive, so a domain where
+the surrogate does not pay loses only that one surrogate iteration. The seconds are wall seconds, so a run with
+more simulators (a Ray pool: each level cheaper in wall time, the surrogate not) leans to the direct search, as it
+should at equal wall time. Like a time budget, the choice depends on the machine: an ``auto`` run is reproducible
+given its choice (it is part of the run's state and of its metrics), not across machines.
 """
 
 from __future__ import annotations
@@ -27,13 +30,13 @@ from typing import Any, Mapping, Sequence
 from dsage_ray.config import RunConfig, variants
 from dsage_ray.domains.registry import get_domain
 
-#: Above this ratio (seconds per level DSAGE picked, surrogate included / seconds per random level) the run
-#: continues with the direct search. Between the ratios where DSAGE won or was level at equal CPU time (Maze
-#: 1.3-1.7, CartPole 1.9) and where it lost by half (Mario, above 10).
+#: Above this ratio (1 + surrogate seconds per pick / seconds per random level) the run continues with the direct
+#: search. Above the ratios where DSAGE won or was level at equal CPU time (Maze 1.8-1.9, CartPole 2.2), below
+#: Mario's, where it lost by half.
 BREAK_EVEN_COST_RATIO = 3.0
 
-#: The phases of an outer iteration that run in the driver and count towards a level's cost (``time_<phase>``).
-_COUNTED_PHASES = ("train", "exploit", "select", "evaluate")
+#: The phases of a surrogate proposal that its cost counts (``Proposal.times``; held-out levels are not the search's).
+SURROGATE_PHASES = ("train", "exploit", "select")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -43,10 +46,12 @@ class SearchChoice:
     Attributes:
         direct: The run continues with :attr:`variant` (the domain's direct search); else it stays DSAGE.
         variant: The direct search's variant name (whether or not it was chosen).
-        cost_ratio: Seconds per level of the first surrogate iteration / of the random first iteration.
-        random_level_seconds: Wall seconds per level of the random first iteration (its evaluation).
-        surrogate_level_seconds: Wall seconds per level of the first surrogate iteration, every phase counted.
-        outer_iteration: The outer iterations done when the choice was made.
+        cost_ratio: ``1 + surrogate_level_seconds / random_level_seconds``: what a picked level costs, surrogate
+            included, over what a random level costs, were both as quick to play.
+        random_level_seconds: Wall seconds per level of the random first iteration's evaluation.
+        surrogate_level_seconds: Wall seconds of the surrogate's first proposal (training, inner loop, selection)
+            per level it picked.
+        outer_iteration: The outer iteration the choice was made in (before its levels were evaluated).
     """
 
     direct: bool
@@ -59,11 +64,11 @@ class SearchChoice:
     @property
     def reason(self) -> str:
         """One line for the log: the choice and the numbers it was made on."""
-        numbers = (f"a level DSAGE picked cost {self.surrogate_level_seconds:.3g} s with the surrogate's time, "
-                   f"{self.cost_ratio:.2f}× a random level's {self.random_level_seconds:.3g} s; "
+        numbers = (f"the surrogate spent {self.surrogate_level_seconds:.3g} s per level it picked, a random level's "
+                   f"evaluation {self.random_level_seconds:.3g} s: a pick costs {self.cost_ratio:.2f}× a random level; "
                    f"break-even {BREAK_EVEN_COST_RATIO:g}×")
         if self.direct:
-            return f"search auto: continuing with {self.variant} on the same archive ({numbers})"
+            return f"search auto: continuing with {self.variant} on the same archive, picks dropped ({numbers})"
         return f"search auto: staying with DSAGE ({numbers})"
 
     def metrics(self) -> dict[str, float]:
@@ -89,29 +94,23 @@ class SearchChoice:
         return None if state is None else cls(**state)
 
 
-def level_seconds(row: Mapping[str, float]) -> float:
-    """Wall seconds per evaluated level of one outer iteration's metrics row (held-out levels not counted)."""
-    seconds = sum(row.get(f"time_{phase}", 0.0) for phase in _COUNTED_PHASES)
-    return seconds / max(row.get("evaluated_this_iteration", 0.0), 1.0)
-
-
-def choose_search(history: Sequence[Mapping[str, float]], *, direct_variant: str) -> SearchChoice | None:
-    """The choice, once the run has a random iteration and a surrogate iteration behind it (else None).
+def choose_search(history: Sequence[Mapping[str, float]], *, surrogate_seconds: float, picks: int,
+                  direct_variant: str) -> SearchChoice:
+    """The choice, made when the surrogate's first picks are ready and before they are evaluated.
 
     Args:
-        history: The run's metrics rows, oldest first.
+        history: The run's metrics rows, oldest first; the first is the random iteration.
+        surrogate_seconds: Seconds the first proposal spent in :data:`SURROGATE_PHASES`.
+        picks: Levels it proposes.
         direct_variant: The domain's direct search.
     """
-    surrogate_rows = [i for i, row in enumerate(history) if row.get("time_exploit", 0.0) > 0]
-    if not surrogate_rows or surrogate_rows[0] == 0:
-        return None  # a warm-started run exploits from its first iteration: no random level to compare with
-    random_row, surrogate_row = history[0], history[surrogate_rows[0]]
-    random_seconds = random_row.get("time_evaluate", 0.0) / max(random_row.get("evaluated_this_iteration", 0.0), 1.0)
-    picked_seconds = level_seconds(surrogate_row)
-    ratio = picked_seconds / random_seconds if random_seconds > 0 else float("inf")
+    first = history[0]
+    random_seconds = first.get("time_evaluate", 0.0) / max(first.get("evaluated_this_iteration", 0.0), 1.0)
+    per_pick = surrogate_seconds / max(picks, 1)
+    ratio = 1.0 + per_pick / random_seconds if random_seconds > 0 else float("inf")
     return SearchChoice(direct=ratio > BREAK_EVEN_COST_RATIO, variant=direct_variant, cost_ratio=ratio,
-                        random_level_seconds=random_seconds, surrogate_level_seconds=picked_seconds,
-                        outer_iteration=surrogate_rows[0] + 1)
+                        random_level_seconds=random_seconds, surrogate_level_seconds=per_pick,
+                        outer_iteration=len(history))
 
 
 def direct_variant(config: RunConfig) -> str:

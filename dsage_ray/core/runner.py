@@ -60,7 +60,8 @@ from typing import Any
 import numpy as np
 
 from dsage_ray.config import RunConfig, changed_keys
-from dsage_ray.core.auto_search import SearchChoice, choose_search, direct_config, direct_variant
+from dsage_ray.core.auto_search import (SURROGATE_PHASES, SearchChoice, choose_search, direct_config,
+                                        direct_variant)
 from dsage_ray.core.evaluation import InProcessEvaluator, PendingEvaluation
 from dsage_ray.core.outputs import write_outputs
 from dsage_ray.core.proposers import (DirectQD, EvaluatedBatch, ProgressCallback, Proposal, Proposer,
@@ -172,18 +173,19 @@ class DSAGE:
         self.cpu_time += time.process_time() - cpu
         metrics.update(wall_time=self.wall_time, cpu_time=self.cpu_time)
         self.history.append(metrics)
-        if self.config.search == "auto" and self.search_choice is None:
-            self._choose_search(metrics)
         return metrics
 
-    def _choose_search(self, metrics: dict[str, float]) -> None:
-        """``search = "auto"``: once a surrogate iteration is done, keep DSAGE or continue with the direct search."""
-        self.search_choice = choose_search(self.history, direct_variant=direct_variant(self.config))
-        if self.search_choice is None:
-            return
-        metrics.update(self.search_choice.metrics())
+    def _choose_search(self, proposal: Proposal, times: dict[str, float]) -> Proposal:
+        """``search = "auto"``, at the surrogate's first picks: keep them, or drop them and continue with the direct
+        search (whose first proposal is returned; the surrogate's seconds stay in this step's ``times``)."""
+        seconds = sum(proposal.times.get(phase, 0.0) for phase in SURROGATE_PHASES)
+        self.search_choice = choose_search(self.history, surrogate_seconds=seconds, picks=len(proposal.solutions),
+                                           direct_variant=direct_variant(self.config))
         if self.search_choice.direct:
             self._continue_direct()
+            proposal = self._propose(self.outer_iteration, times)
+        proposal.metrics.update(self.search_choice.metrics())
+        return proposal
 
     def _continue_direct(self) -> None:
         """The domain's direct search takes over the archive (the surrogate's proposer is dropped with its data)."""
@@ -198,6 +200,8 @@ class DSAGE:
         else:
             proposal = self.proposer.propose(outer_iteration=self.outer_iteration)
             times = dict(proposal.times)
+            if self.config.search == "auto" and self.search_choice is None and self.outer_iteration > 0:
+                proposal = self._choose_search(proposal, times)
         solutions = proposal.solutions[: self.config.budget - self.evals]
         seeds = [self.seeds.evaluation(self.evals + i) for i in range(len(solutions))]
 

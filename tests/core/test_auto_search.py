@@ -10,8 +10,8 @@ from dsage_ray.core.runner import DSAGE
 from tests.core.test_runner import archive_snapshot
 from tests.fakes import SMALL_RUN, BitmapDomain
 
-#: Long enough for the direct search to run several iterations after the choice (iterations 0 and 1: 40 + 25).
-AUTO = {**SMALL_RUN, "budget": 160, "search": "auto"}
+#: Long enough for the direct search to run after the choice (iteration 0: 40 random levels; MAP-Elites: 150 a batch).
+AUTO = {**SMALL_RUN, "budget": 200, "search": "auto"}
 
 
 def make_runner(**overrides) -> DSAGE:
@@ -22,38 +22,29 @@ def random_row(seconds=2.0, levels=40):
     return {"time_evaluate": seconds, "evaluated_this_iteration": float(levels)}
 
 
-def surrogate_row(*, train=1.0, exploit=3.0, select=0.5, evaluate=1.5, levels=25, holdout=9.0):
-    return {"time_train": train, "time_exploit": exploit, "time_select": select, "time_evaluate": evaluate,
-            "time_holdout": holdout, "evaluated_this_iteration": float(levels)}
-
-
-def test_no_choice_before_a_surrogate_iteration():
-    assert choose_search([], direct_variant="map_elites") is None
-    assert choose_search([random_row()], direct_variant="map_elites") is None
-
-
-def test_the_ratio_counts_every_phase_of_the_surrogate_iteration_but_held_out_levels():
-    choice = choose_search([random_row(2.0, 40), surrogate_row()], direct_variant="map_elites")
+def test_the_ratio_is_what_a_pick_costs_with_the_surrogates_time_over_a_random_level():
+    choice = choose_search([random_row(2.0, 40)], surrogate_seconds=5.0, picks=25, direct_variant="map_elites")
     assert choice.random_level_seconds == pytest.approx(0.05)
-    assert choice.surrogate_level_seconds == pytest.approx(6.0 / 25)
-    assert choice.cost_ratio == pytest.approx(0.24 / 0.05)
+    assert choice.surrogate_level_seconds == pytest.approx(0.2)
+    assert choice.cost_ratio == pytest.approx(1 + 0.2 / 0.05)
     assert choice.direct is (choice.cost_ratio > auto_search.BREAK_EVEN_COST_RATIO)
-    assert choice.outer_iteration == 2
+    assert choice.outer_iteration == 1
 
 
-@pytest.mark.parametrize("exploit, direct", [(0.1, False), (100.0, True)])
-def test_the_break_even_decides(exploit, direct):
-    choice = choose_search([random_row(2.0, 40), surrogate_row(exploit=exploit)], direct_variant="cma_me")
+@pytest.mark.parametrize("surrogate_seconds, direct", [(0.5, False), (100.0, True)])
+def test_the_break_even_decides(surrogate_seconds, direct):
+    choice = choose_search([random_row(2.0, 40)], surrogate_seconds=surrogate_seconds, picks=25,
+                           direct_variant="cma_me")
     assert choice.direct is direct
     assert ("continuing with cma_me" in choice.reason) is direct
     assert f"{choice.cost_ratio:.2f}×" in choice.reason
 
 
 def test_a_choice_round_trips_through_its_metrics_and_state():
-    choice = choose_search([random_row(), surrogate_row(exploit=100.0)], direct_variant="map_elites")
-    row = {"outer_iteration": 2.0, **choice.metrics()}
+    choice = choose_search([random_row()], surrogate_seconds=100.0, picks=25, direct_variant="map_elites")
+    row = {"outer_iteration": 1.0, **choice.metrics()}
     assert SearchChoice.from_metrics(row, variant="map_elites") == choice
-    assert SearchChoice.from_metrics({"outer_iteration": 2.0}, variant="map_elites") is None
+    assert SearchChoice.from_metrics({"outer_iteration": 1.0}, variant="map_elites") is None
     assert SearchChoice.from_state_dict(pickle.loads(pickle.dumps(choice.state_dict()))) == choice
 
 
@@ -62,7 +53,7 @@ def test_the_direct_config_is_the_domains_direct_variant_over_the_run():
     direct = direct_config(config)
     assert (direct.variant, direct.search, direct.surrogate.kind, direct.qd.emitter) == (
         "map_elites", "fixed", "none", "map_elites")
-    assert (direct.budget, direct.seed, direct.time_budget, direct.maze.archive_dims) == (160, 7, 30.0, (16, 8))
+    assert (direct.budget, direct.seed, direct.time_budget, direct.maze.archive_dims) == (200, 7, 30.0, (16, 8))
 
 
 @pytest.mark.parametrize("overrides, message", [
@@ -76,26 +67,29 @@ def test_auto_refuses_what_it_cannot_measure(overrides, message):
         RunConfig.build({**AUTO, **overrides}).validate()
 
 
-def test_above_the_break_even_the_direct_search_takes_over_the_same_archive(monkeypatch):
+def test_above_the_break_even_the_picks_are_dropped_and_the_direct_search_takes_over_the_archive(monkeypatch):
     monkeypatch.setattr(auto_search, "BREAK_EVEN_COST_RATIO", 0.0)
     runner = make_runner()
-    first, second = runner.step(), runner.step()
-    assert "auto_direct" not in first
-    assert second["auto_direct"] == 1.0 and second["auto_cost_ratio"] > 0
-    assert isinstance(runner.proposer, DirectQD) and runner.search_choice.direct
+    first = runner.step()
     size = len(runner.archive)
-    assert runner.proposer.archive is runner.archive and size > 0
+    second = runner.step()
+    assert "auto_direct" not in first
+    assert second["auto_direct"] == 1.0 and second["auto_cost_ratio"] > 1
+    # The surrogate trained and exploited in this step, then MAP-Elites' first batch (5 x 30) was evaluated.
+    assert second["time_exploit"] > 0 and second["evaluated_this_iteration"] == 150
+    assert isinstance(runner.proposer, DirectQD) and runner.search_choice.direct
+    assert runner.proposer.archive is runner.archive and len(runner.archive) > size
     runner.run()
     assert runner.evals == AUTO["budget"]
-    assert len(runner.archive) > size  # MAP-Elites' mutants of the same elites
     assert sum("auto_direct" in row for row in runner.history) == 1
+    assert all("time_exploit" not in row for row in runner.history[2:])
 
 
 def test_below_the_break_even_the_run_is_dsages_bit_for_bit(monkeypatch):
     monkeypatch.setattr(auto_search, "BREAK_EVEN_COST_RATIO", float("inf"))
-    auto = make_runner()
+    auto = make_runner(budget=SMALL_RUN["budget"])
     auto.run()
-    fixed = make_runner(search="fixed")
+    fixed = make_runner(budget=SMALL_RUN["budget"], search="fixed")
     fixed.run()
     assert isinstance(auto.proposer, SurrogateAssisted) and not auto.search_choice.direct
     assert archive_snapshot(auto.archive) == archive_snapshot(fixed.archive)
