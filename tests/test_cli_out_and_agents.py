@@ -248,3 +248,21 @@ def test_every_agent_help_lists_the_kinds_of_the_one_source(command):
     else:
         listed = ", ".join(forms[domain])
     assert f"({listed}. {RUNS_CODE_NOTE}" in text, text
+
+
+def test_audit_series_kind_lists_the_kinds_that_name_a_checkpoint_file():
+    from dsage_ray.domains.agent_help import checkpoint_kinds
+
+    kinds = checkpoint_kinds()
+    assert {"rllib", "dcd", "torchscript", "sb3"} <= set(kinds)
+    assert not {"builtin", "astar[", "python", "random"} & set(kinds)  # named, generated or code, not a checkpoint
+    assert f"one of {', '.join(kinds)}:" in " ".join(option_help(("audit-series",), "--kind").split())
+
+
+def test_search_auto_is_the_same_as_set_search_and_both_must_agree(capsys):
+    from dsage_ray.cli import main
+
+    assert main(["run", "experiments/configs/maze_dsage.toml", "--search", "auto", "--set", "search=fixed",
+                 "--local"]) == 2
+    assert capsys.readouterr().err == "dsage-ray run: error: --search auto and --set search=fixed disagree: give one\n"
+    assert "--set search=" in " ".join(option_help(("run",), "--search").split())

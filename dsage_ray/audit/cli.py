@@ -265,7 +265,7 @@ until Ctrl+C (or --max-checkpoints). Python: dsage_ray.AuditSeries (docs/API.md)
 def add_series_subparser(subparsers) -> None:
     """Registers ``audit-series``."""
     from dsage_ray.cli_args import LazyHelp, add_config_arguments, add_ray_arguments
-    from dsage_ray.domains.agent_help import agent_kinds_help
+    from dsage_ray.domains.agent_help import agent_kinds_help, checkpoint_kinds
 
     series = subparsers.add_parser(
         "audit-series", help="audit checkpoints in training order: a growing regression suite, a short search each",
@@ -294,8 +294,9 @@ def add_series_subparser(subparsers) -> None:
                              "--surrogate-init FILE overrides both: every search then starts from FILE")
     watch = series.add_argument_group("watching a folder")
     watch.add_argument("--watch", metavar="DIR", help="audit new checkpoints of DIR as they appear (after the SPECs)")
-    watch.add_argument("--kind", default="rllib",
-                       help="agent kind of the watched checkpoints: each entry is audited as KIND:PATH (default rllib)")
+    watch.add_argument("--kind", default="rllib", action=LazyHelp,
+                       help_text=lambda: f"agent kind of the watched checkpoints, one of {', '.join(checkpoint_kinds())}"
+                                         f": each entry is audited as KIND:PATH (default rllib)")
     watch.add_argument("--pattern", default="*",
                        help="glob of the entries of DIR that are checkpoints (default *, hidden entries never), "
                             "e.g. 'checkpoint_*' or '*.tar'")

@@ -25,3 +25,9 @@ def agent_kinds_help(domain: str | None = None) -> str:
     else:
         listed = "; ".join(f"{name}: {', '.join(forms)}" for name, forms in agent_forms().items())
     return f"{listed}. {RUNS_CODE_NOTE}"
+
+
+def checkpoint_kinds() -> list[str]:
+    """The agent kinds that name a file or folder (``rllib``, ``sb3``, ...): what ``audit-series --kind`` takes."""
+    return sorted({form.split(":")[0] for forms in agent_forms().values() for form in forms
+                   if form.split(":", 1)[-1].startswith("PATH")})
