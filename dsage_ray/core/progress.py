@@ -141,8 +141,10 @@ class ConsoleProgress:
         evals_per_s = self._rate.update(evals=run.evals - self._evals_at_start, running_s=elapsed)
         tqdm.write(progress_line(metrics, budget=self.budget, elapsed_s=elapsed, evals_per_s=evals_per_s,
                                  time_budget=self.time_budget))
-        choice = getattr(run, "search_choice", None)
-        if choice is not None and "auto_cost_ratio" in metrics:  # the row the choice was made after
+        from dsage_ray.core.auto_search import SearchChoice, direct_variant
+
+        choice = SearchChoice.from_metrics(metrics, variant=direct_variant(run.config))
+        if choice is not None:  # ``search = "auto"`` chose in this iteration
             tqdm.write(choice.reason)
 
     def close(self) -> None:
