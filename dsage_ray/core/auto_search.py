@@ -1,25 +1,28 @@
 """``search = "auto"``: keep DSAGE, or continue with the domain's direct QD search, by what the surrogate costs.
 
-DSAGE buys better levels per evaluation with surrogate time: training, the inner loop and the selection. Where a
-real evaluation is cheap next to that time, a direct QD search (MAP-Elites, CMA-ME, a falsifier) evaluates many
-more levels in the same time and finds more. What decides is the surrogate's seconds per level it picks, next to
-the seconds a level's evaluation takes. The benchmarks put the break-even there:
+DSAGE buys better levels per evaluation with time: the surrogate's training, inner loop and selection, and, where its
+picks are harder levels than random ones, their slower evaluation (Mario's A* plays DSAGE's picks 5× slower than
+random levels). Where that time is large next to what a level costs, a direct QD search (MAP-Elites, CMA-ME, a
+falsifier) evaluates many more levels in the same time and finds more. The benchmarks put the break-even on what a
+pick costs, all of that included, over what a random level's evaluation costs:
 
-* Maze (the ``cpu`` preset, ACCEL or PPO): the first picks cost 1.8-1.9× a random level's evaluation, surrogate
-  time added, and DSAGE led MAP-Elites at equal CPU time (1.15×, docs/results/equal_compute §19);
-* CartPole (the ``demo`` audit): about 2.2×, and DSAGE was level with the best falsifier at equal CPU time
+* Maze (the ``cpu`` preset, ACCEL): 1.7-1.9×, and DSAGE led MAP-Elites at equal CPU time (1.15×,
+  docs/results/equal_compute §19, §21);
+* CartPole (the ``demo`` audit): about 1.9×, and DSAGE was level with the best falsifier at equal CPU time
   (docs/results/gym_audit);
-* Mario (A*, the ``cpu`` preset): CMA-ME found twice DSAGE's QD-score at equal CPU time (equal_compute §6, §18),
-  and the ratio is measured in §21.
+* Mario (A*, the ``cpu`` preset): about 6×, and CMA-ME found twice DSAGE's QD-score at equal CPU time
+  (equal_compute §6, §18).
 
-So once the random first iteration is evaluated and the surrogate has made its first picks, and before they are
-evaluated, :func:`choose_search` sets ``1 + (surrogate seconds per pick) / (seconds per random level)`` against
-:data:`BREAK_EVEN_COST_RATIO`. Above it the picks are dropped unevaluated and the run continues with the domain's
-direct search (:attr:`dsage_ray.domains.registry.DomainSpec.direct_search`) on the same archive, so a domain where
-the surrogate does not pay loses only that one surrogate iteration. The seconds are wall seconds, so a run with
-more simulators (a Ray pool: each level cheaper in wall time, the surrogate not) leans to the direct search, as it
-should at equal wall time. Like a time budget, the choice depends on the machine: an ``auto`` run is reproducible
-given its choice (it is part of the run's state and of its metrics), not across machines.
+So the first outer iteration that uses the surrogate is measured as it runs. Its picks may take, surrogate time
+included, :data:`BREAK_EVEN_COST_RATIO` times what as many random levels took in the first iteration
+(:func:`pick_allowance`). If the surrogate alone spent that, the picks are dropped unevaluated; if their evaluation
+runs past it, the batch stops there (the levels evaluated are kept and learned from, as when a time budget stops a
+batch). Either way the run then continues with the domain's direct search
+(:attr:`dsage_ray.domains.registry.DomainSpec.direct_search`) on the same archive; if the picks are all evaluated
+within it, the run stays DSAGE. So a domain where DSAGE does not pay loses at most that allowance. The seconds are
+wall seconds, so a run with more simulators (a Ray pool: each level cheaper in wall time, the surrogate not) leans to
+the direct search, as it should at equal wall time. Like a time budget, the choice depends on the machine: an
+``auto`` run is reproducible given its choice (part of the run's state and of its metrics), not across machines.
 """
 
 from __future__ import annotations
@@ -30,9 +33,9 @@ from typing import Any, Mapping, Sequence
 from dsage_ray.config import RunConfig, variants
 from dsage_ray.domains.registry import get_domain
 
-#: Above this ratio (1 + surrogate seconds per pick / seconds per random level) the run continues with the direct
-#: search. Above the ratios where DSAGE won or was level at equal CPU time (Maze 1.8-1.9, CartPole 2.2), below
-#: Mario's, where it lost by half.
+#: Above this ratio (seconds per pick, surrogate and evaluation included / seconds per random level) the run
+#: continues with the direct search. Above the ratios where DSAGE won or was level at equal CPU time (Maze 1.7-1.9,
+#: CartPole 1.9), below Mario's (about 6), where it lost by half.
 BREAK_EVEN_COST_RATIO = 3.0
 
 #: The phases of a surrogate proposal that its cost counts (``Proposal.times``; held-out levels are not the search's).
@@ -46,12 +49,11 @@ class SearchChoice:
     Attributes:
         direct: The run continues with :attr:`variant` (the domain's direct search); else it stays DSAGE.
         variant: The direct search's variant name (whether or not it was chosen).
-        cost_ratio: ``1 + surrogate_level_seconds / random_level_seconds``: what a picked level costs, surrogate
-            included, over what a random level costs, were both as quick to play.
+        cost_ratio: ``surrogate_level_seconds / random_level_seconds``.
         random_level_seconds: Wall seconds per level of the random first iteration's evaluation.
-        surrogate_level_seconds: Wall seconds of the surrogate's first proposal (training, inner loop, selection)
-            per level it picked.
-        outer_iteration: The outer iteration the choice was made in (before its levels were evaluated).
+        surrogate_level_seconds: Wall seconds per pick evaluated in the first surrogate iteration: the surrogate's
+            proposal (training, inner loop, selection) and the picks' evaluation, over the picks evaluated.
+        outer_iteration: The outer iteration the choice was made in.
     """
 
     direct: bool
@@ -64,11 +66,10 @@ class SearchChoice:
     @property
     def reason(self) -> str:
         """One line for the log: the choice and the numbers it was made on."""
-        numbers = (f"the surrogate spent {self.surrogate_level_seconds:.3g} s per level it picked, a random level's "
-                   f"evaluation {self.random_level_seconds:.3g} s: a pick costs {self.cost_ratio:.2f}× a random level; "
-                   f"break-even {BREAK_EVEN_COST_RATIO:g}×")
+        numbers = (f"a pick cost {self.surrogate_level_seconds:.3g} s with the surrogate's time, a random level "
+                   f"{self.random_level_seconds:.3g} s: {self.cost_ratio:.2f}×; break-even {BREAK_EVEN_COST_RATIO:g}×")
         if self.direct:
-            return f"search auto: continuing with {self.variant} on the same archive, picks dropped ({numbers})"
+            return f"search auto: continuing with {self.variant} on the same archive ({numbers})"
         return f"search auto: staying with DSAGE ({numbers})"
 
     def metrics(self) -> dict[str, float]:
@@ -94,20 +95,31 @@ class SearchChoice:
         return None if state is None else cls(**state)
 
 
-def choose_search(history: Sequence[Mapping[str, float]], *, surrogate_seconds: float, picks: int,
-                  direct_variant: str) -> SearchChoice:
-    """The choice, made when the surrogate's first picks are ready and before they are evaluated.
+def random_level_seconds(history: Sequence[Mapping[str, float]]) -> float:
+    """Wall seconds per level of the random first iteration's evaluation (``history[0]``)."""
+    first = history[0]
+    return first.get("time_evaluate", 0.0) / max(first.get("evaluated_this_iteration", 0.0), 1.0)
+
+
+def pick_allowance(history: Sequence[Mapping[str, float]], *, surrogate_seconds: float, picks: int) -> float:
+    """Seconds the first picks' evaluation may take before DSAGE has cost more than the break-even (<= 0: none)."""
+    return BREAK_EVEN_COST_RATIO * random_level_seconds(history) * picks - surrogate_seconds
+
+
+def choose_search(history: Sequence[Mapping[str, float]], *, surrogate_seconds: float, evaluate_seconds: float,
+                  evaluated: int, direct_variant: str) -> SearchChoice:
+    """The choice after the surrogate's first picks: their cost, surrogate included, against a random level's.
 
     Args:
         history: The run's metrics rows, oldest first; the first is the random iteration.
         surrogate_seconds: Seconds the first proposal spent in :data:`SURROGATE_PHASES`.
-        picks: Levels it proposes.
+        evaluate_seconds: Seconds its picks' evaluation took (0 where they were dropped unevaluated).
+        evaluated: Picks evaluated (stopped at :func:`pick_allowance`: fewer than proposed; dropped: 0).
         direct_variant: The domain's direct search.
     """
-    first = history[0]
-    random_seconds = first.get("time_evaluate", 0.0) / max(first.get("evaluated_this_iteration", 0.0), 1.0)
-    per_pick = surrogate_seconds / max(picks, 1)
-    ratio = 1.0 + per_pick / random_seconds if random_seconds > 0 else float("inf")
+    random_seconds = random_level_seconds(history)
+    per_pick = (surrogate_seconds + evaluate_seconds) / max(evaluated, 1)
+    ratio = per_pick / random_seconds if random_seconds > 0 else float("inf")
     return SearchChoice(direct=ratio > BREAK_EVEN_COST_RATIO, variant=direct_variant, cost_ratio=ratio,
                         random_level_seconds=random_seconds, surrogate_level_seconds=per_pick,
                         outer_iteration=len(history))

@@ -61,7 +61,7 @@ import numpy as np
 
 from dsage_ray.config import RunConfig, changed_keys
 from dsage_ray.core.auto_search import (SURROGATE_PHASES, SearchChoice, choose_search, direct_config,
-                                        direct_variant)
+                                        direct_variant, pick_allowance)
 from dsage_ray.core.evaluation import InProcessEvaluator, PendingEvaluation
 from dsage_ray.core.outputs import write_outputs
 from dsage_ray.core.proposers import (DirectQD, EvaluatedBatch, ProgressCallback, Proposal, Proposer,
@@ -76,6 +76,11 @@ from dsage_ray.qd.archives import archive_stats
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
 
 __all__ = ["DSAGE", "EvaluationsFailed", "ProgressCallback", "torch_threads"]
+
+
+def _surrogate_seconds(proposal: Proposal) -> float:
+    """Seconds a surrogate proposal spent training, exploiting and selecting."""
+    return sum(proposal.times.get(phase, 0.0) for phase in SURROGATE_PHASES)
 
 
 class EvaluationsFailed(DsageError, RuntimeError):
@@ -175,17 +180,28 @@ class DSAGE:
         self.history.append(metrics)
         return metrics
 
-    def _choose_search(self, proposal: Proposal, times: dict[str, float]) -> Proposal:
-        """``search = "auto"``, at the surrogate's first picks: keep them, or drop them and continue with the direct
-        search (whose first proposal is returned; the surrogate's seconds stay in this step's ``times``)."""
-        seconds = sum(proposal.times.get(phase, 0.0) for phase in SURROGATE_PHASES)
-        self.search_choice = choose_search(self.history, surrogate_seconds=seconds, picks=len(proposal.solutions),
-                                           direct_variant=direct_variant(self.config))
-        if self.search_choice.direct:
+    def _first_picks(self, proposal: Proposal, times: dict[str, float]) -> tuple[Proposal, float | None]:
+        """``search = "auto"``, at the surrogate's first picks: the seconds their evaluation may take. Where the
+        surrogate alone spent them, the picks are dropped and the direct search's first proposal comes instead
+        (the surrogate's seconds stay in this step's ``times``)."""
+        picks = min(len(proposal.solutions), self.config.budget - self.evals)
+        allowance = pick_allowance(self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=picks)
+        if allowance > 0:
+            return proposal, allowance
+        choice = choose_search(self.history, surrogate_seconds=_surrogate_seconds(proposal), evaluate_seconds=0.0,
+                               evaluated=picks, direct_variant=direct_variant(self.config))
+        self._choose_search(choice, proposal.metrics)
+        if not choice.direct:  # exactly at the break-even: the picks are evaluated, none beyond it
+            return proposal, 0.0
+        direct = self._propose(self.outer_iteration, times)
+        direct.metrics.update(choice.metrics())
+        return direct, None
+
+    def _choose_search(self, choice: SearchChoice, metrics: dict[str, float]) -> None:
+        self.search_choice = choice
+        metrics.update(choice.metrics())
+        if choice.direct:
             self._continue_direct()
-            proposal = self._propose(self.outer_iteration, times)
-        proposal.metrics.update(self.search_choice.metrics())
-        return proposal
 
     def _continue_direct(self) -> None:
         """The domain's direct search takes over the archive (the surrogate's proposer is dropped with its data)."""
@@ -200,13 +216,18 @@ class DSAGE:
         else:
             proposal = self.proposer.propose(outer_iteration=self.outer_iteration)
             times = dict(proposal.times)
-            if self.config.search == "auto" and self.search_choice is None and self.outer_iteration > 0:
-                proposal = self._choose_search(proposal, times)
+        # search = "auto": the surrogate's first picks are measured: seconds they may still take (None: no measuring).
+        allowance = None
+        if self.config.search == "auto" and self.search_choice is None and self.outer_iteration > 0:
+            proposal, allowance = self._first_picks(proposal, times)
         solutions = proposal.solutions[: self.config.budget - self.evals]
         seeds = [self.seeds.evaluation(self.evals + i) for i in range(len(solutions))]
 
         tic = time.perf_counter()
-        evaluation = PendingEvaluation(self.evaluator, solutions, seeds, deadline=self._deadline(started),
+        deadline = self._deadline(started)
+        if allowance is not None:
+            deadline = tic + allowance if deadline is None else min(deadline, tic + allowance)
+        evaluation = PendingEvaluation(self.evaluator, solutions, seeds, deadline=deadline,
                                        progress=self._evaluation_progress())
         # The next iteration's picks, chosen while this batch is evaluated, by a surrogate that has not
         # seen it. Not in the first iteration: the surrogate has nothing to train on until its random batch is back.
@@ -229,6 +250,10 @@ class DSAGE:
         self.growth = growth_curve(self.archive, measures=batch.measures, objective=batch.objective,
                                    evals_at=[self.evals + i + 1 for i in batch.ok], budget=self.config.budget)
         metrics = {**proposal.metrics, **self.proposer.learn(batch)}
+        if allowance is not None:
+            self._choose_search(choose_search(
+                self.history, surrogate_seconds=_surrogate_seconds(proposal), evaluate_seconds=times["evaluate"],
+                evaluated=len(results), direct_variant=direct_variant(self.config)), metrics)
 
         self.evals += len(solutions)
         self.outer_iteration += 1

@@ -4,7 +4,8 @@ import pytest
 
 from dsage_ray.config import ConfigError, RunConfig
 from dsage_ray.core import auto_search
-from dsage_ray.core.auto_search import SearchChoice, choose_search, direct_config
+from dsage_ray.core import runner as runner_module
+from dsage_ray.core.auto_search import SearchChoice, choose_search, direct_config, pick_allowance
 from dsage_ray.core.proposers import DirectQD, SurrogateAssisted
 from dsage_ray.core.runner import DSAGE
 from tests.core.test_runner import archive_snapshot
@@ -22,26 +23,37 @@ def random_row(seconds=2.0, levels=40):
     return {"time_evaluate": seconds, "evaluated_this_iteration": float(levels)}
 
 
-def test_the_ratio_is_what_a_pick_costs_with_the_surrogates_time_over_a_random_level():
-    choice = choose_search([random_row(2.0, 40)], surrogate_seconds=5.0, picks=25, direct_variant="map_elites")
+def test_the_ratio_is_what_a_pick_cost_surrogate_and_evaluation_included_over_a_random_level():
+    choice = choose_search([random_row(2.0, 40)], surrogate_seconds=5.0, evaluate_seconds=3.0, evaluated=25,
+                           direct_variant="map_elites")
     assert choice.random_level_seconds == pytest.approx(0.05)
-    assert choice.surrogate_level_seconds == pytest.approx(0.2)
-    assert choice.cost_ratio == pytest.approx(1 + 0.2 / 0.05)
+    assert choice.surrogate_level_seconds == pytest.approx(8.0 / 25)
+    assert choice.cost_ratio == pytest.approx(0.32 / 0.05)
     assert choice.direct is (choice.cost_ratio > auto_search.BREAK_EVEN_COST_RATIO)
     assert choice.outer_iteration == 1
 
 
-@pytest.mark.parametrize("surrogate_seconds, direct", [(0.5, False), (100.0, True)])
-def test_the_break_even_decides(surrogate_seconds, direct):
-    choice = choose_search([random_row(2.0, 40)], surrogate_seconds=surrogate_seconds, picks=25,
-                           direct_variant="cma_me")
+def test_the_picks_may_take_what_keeps_them_under_the_break_even():
+    allowance = pick_allowance([random_row(2.0, 40)], surrogate_seconds=1.0, picks=25)
+    assert allowance == pytest.approx(auto_search.BREAK_EVEN_COST_RATIO * 0.05 * 25 - 1.0)
+    # Evaluated in exactly that time, the picks cost the break-even.
+    at = choose_search([random_row(2.0, 40)], surrogate_seconds=1.0, evaluate_seconds=allowance, evaluated=25,
+                       direct_variant="map_elites")
+    assert at.cost_ratio == pytest.approx(auto_search.BREAK_EVEN_COST_RATIO)
+
+
+@pytest.mark.parametrize("evaluate_seconds, direct", [(0.5, False), (100.0, True)])
+def test_the_break_even_decides(evaluate_seconds, direct):
+    choice = choose_search([random_row(2.0, 40)], surrogate_seconds=0.5, evaluate_seconds=evaluate_seconds,
+                           evaluated=25, direct_variant="cma_me")
     assert choice.direct is direct
     assert ("continuing with cma_me" in choice.reason) is direct
     assert f"{choice.cost_ratio:.2f}×" in choice.reason
 
 
 def test_a_choice_round_trips_through_its_metrics_and_state():
-    choice = choose_search([random_row()], surrogate_seconds=100.0, picks=25, direct_variant="map_elites")
+    choice = choose_search([random_row()], surrogate_seconds=100.0, evaluate_seconds=0.0, evaluated=25,
+                           direct_variant="map_elites")
     row = {"outer_iteration": 1.0, **choice.metrics()}
     assert SearchChoice.from_metrics(row, variant="map_elites") == choice
     assert SearchChoice.from_metrics({"outer_iteration": 1.0}, variant="map_elites") is None
@@ -83,6 +95,20 @@ def test_above_the_break_even_the_picks_are_dropped_and_the_direct_search_takes_
     assert runner.evals == AUTO["budget"]
     assert sum("auto_direct" in row for row in runner.history) == 1
     assert all("time_exploit" not in row for row in runner.history[2:])
+
+
+def test_picks_that_take_longer_than_their_allowance_stop_there_and_the_direct_search_takes_over(monkeypatch):
+    monkeypatch.setattr(runner_module, "pick_allowance", lambda *args, **kwargs: 1e-9)
+    runner = make_runner()
+    runner.step()
+    second = runner.step()
+    # The picks' evaluation stopped at once: the levels begun were evaluated, kept and learned from.
+    assert 1 <= second["evaluated_this_iteration"] < SMALL_RUN["selection.count"]
+    assert second["auto_direct"] == 1.0 and second["auto_cost_ratio"] > auto_search.BREAK_EVEN_COST_RATIO
+    assert isinstance(runner.proposer, DirectQD)
+    assert runner.evals == SMALL_RUN["n_rand"] + second["evaluated_this_iteration"]
+    runner.run()
+    assert runner.evals == AUTO["budget"]
 
 
 def test_below_the_break_even_the_run_is_dsages_bit_for_bit(monkeypatch):
