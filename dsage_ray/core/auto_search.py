@@ -133,7 +133,13 @@ def direct_variant(config: RunConfig) -> str:
 def direct_config(config: RunConfig) -> RunConfig:
     """``config`` with the domain's direct search's keys over it: what the run continues with.
 
-    Everything else (budget, time budget, seed, the domain's section) stays the run's.
+    Everything else (budget, time budget, seed, the domain's section) stays the run's, but the keys that add to a
+    surrogate's picks (elite mutants, the screen), which the variant sets where it takes them.
     """
     name = direct_variant(config)
-    return config.replace(**variants(config.domain)[name], variant=name, search="fixed")
+    return config.replace(**{**_PICKS_ONLY, **variants(config.domain)[name]}, variant=name, search="fixed")
+
+
+#: Keys that add to or filter a surrogate's picks: off in the direct search unless its variant sets them (an audit
+#: gives DSAGE elite mutants; a direct search mutates its elites already).
+_PICKS_ONLY = {"selection.elite_mutants": 0, "selection.screen_episodes": 0, "selection.screen_gain": False}

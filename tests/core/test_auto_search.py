@@ -68,6 +68,20 @@ def test_the_direct_config_is_the_domains_direct_variant_over_the_run():
     assert (direct.budget, direct.seed, direct.time_budget, direct.maze.archive_dims) == (200, 7, 30.0, (16, 8))
 
 
+@pytest.mark.parametrize("domain, keys", [
+    ("maze", {"selection.elite_mutants": 150, "selection.screen_episodes": 1, "selection.screen_gain": True}),
+    ("gym", {"selection.elite_mutants": 15, "gym.space": "cartpole"}),
+    ("mario", {"preset": "cpu"}),
+])
+def test_the_direct_search_of_every_domain_is_a_valid_run_without_the_keys_of_a_surrogates_picks(domain, keys):
+    config = RunConfig.build({"domain": domain, "search": "auto", **keys})
+    config.validate()
+    direct = direct_config(config)
+    direct.validate()
+    assert (direct.surrogate.kind, direct.selection.elite_mutants, direct.selection.screen_episodes) == ("none", 0, 0)
+    assert direct.variant == {"maze": "map_elites", "mario": "cma_me", "gym": "cross_entropy"}[domain]
+
+
 @pytest.mark.parametrize("overrides, message", [
     ({"variant": "map_elites"}, "auto starts as DSAGE"),
     ({"pipeline": True}, "set pipeline = false"),
