@@ -13,13 +13,13 @@ pick costs, all of that included, over what a random level's evaluation costs:
 * Mario (A*, the ``cpu`` preset): about 6×, and CMA-ME found twice DSAGE's QD-score at equal CPU time
   (equal_compute §6, §18).
 
-So the first outer iteration that uses the surrogate is measured as it runs. Its picks may take, surrogate time
-included, :data:`BREAK_EVEN_COST_RATIO` times what as many random levels took in the first iteration
-(:func:`pick_allowance`). If the surrogate alone spent that, the picks are dropped unevaluated; if their evaluation
-runs past it, the batch stops there (the levels evaluated are kept and learned from, as when a time budget stops a
-batch). Either way the run then continues with the domain's direct search
-(:attr:`dsage_ray.domains.registry.DomainSpec.direct_search`) on the same archive; if the picks are all evaluated
-within it, the run stays DSAGE. So a domain where DSAGE does not pay loses at most that allowance. The seconds are
+So the first outer iteration that uses the surrogate is measured as it runs: its first :data:`PROBE_PICKS` picks
+are evaluated, and a pick's cost is projected as the surrogate's seconds spread over all the picks plus the probe's
+mean evaluation seconds (:func:`choose_search`). Above :data:`BREAK_EVEN_COST_RATIO` times a random level's
+evaluation, the rest of the picks are dropped (the probe's levels are kept and learned from) and the run continues
+with the domain's direct search (:attr:`dsage_ray.domains.registry.DomainSpec.direct_search`) on the same archive;
+otherwise the rest are evaluated and the run stays DSAGE, bit for bit the fixed run. So a domain where DSAGE does
+not pay loses one surrogate proposal and a few picks. The seconds are
 wall seconds, so a run with more simulators (a Ray pool: each level cheaper in wall time, the surrogate not) leans to
 the direct search, as it should at equal wall time. Like a time budget, the choice depends on the machine: an
 ``auto`` run is reproducible given its choice (part of the run's state and of its metrics), not across machines.
@@ -38,6 +38,9 @@ from dsage_ray.domains.registry import get_domain
 #: CartPole 1.9), below Mario's (about 6), where it lost by half.
 BREAK_EVEN_COST_RATIO = 3.0
 
+#: Picks evaluated before the choice: enough to average a pick's evaluation, few where each is slow (Mario).
+PROBE_PICKS = 8
+
 #: The phases of a surrogate proposal that its cost counts (``Proposal.times``; held-out levels are not the search's).
 SURROGATE_PHASES = ("train", "exploit", "select")
 
@@ -51,8 +54,8 @@ class SearchChoice:
         variant: The direct search's variant name (whether or not it was chosen).
         cost_ratio: ``surrogate_level_seconds / random_level_seconds``.
         random_level_seconds: Wall seconds per level of the random first iteration's evaluation.
-        surrogate_level_seconds: Wall seconds per pick evaluated in the first surrogate iteration: the surrogate's
-            proposal (training, inner loop, selection) and the picks' evaluation, over the picks evaluated.
+        surrogate_level_seconds: A pick's projected wall seconds in the first surrogate iteration: the surrogate's
+            proposal (training, inner loop, selection) over all its picks, plus the probe picks' mean evaluation.
         outer_iteration: The outer iteration the choice was made in.
     """
 
@@ -66,7 +69,7 @@ class SearchChoice:
     @property
     def reason(self) -> str:
         """One line for the log: the choice and the numbers it was made on."""
-        numbers = (f"a pick cost {self.surrogate_level_seconds:.3g} s with the surrogate's time, a random level "
+        numbers = (f"a pick costs {self.surrogate_level_seconds:.3g} s with the surrogate's time, a random level "
                    f"{self.random_level_seconds:.3g} s: {self.cost_ratio:.2f}×; break-even {BREAK_EVEN_COST_RATIO:g}×")
         if self.direct:
             return f"search auto: continuing with {self.variant} on the same archive ({numbers})"
@@ -101,24 +104,20 @@ def random_level_seconds(history: Sequence[Mapping[str, float]]) -> float:
     return first.get("time_evaluate", 0.0) / max(first.get("evaluated_this_iteration", 0.0), 1.0)
 
 
-def pick_allowance(history: Sequence[Mapping[str, float]], *, surrogate_seconds: float, picks: int) -> float:
-    """Seconds the first picks' evaluation may take before DSAGE has cost more than the break-even (<= 0: none)."""
-    return BREAK_EVEN_COST_RATIO * random_level_seconds(history) * picks - surrogate_seconds
-
-
-def choose_search(history: Sequence[Mapping[str, float]], *, surrogate_seconds: float, evaluate_seconds: float,
-                  evaluated: int, direct_variant: str) -> SearchChoice:
-    """The choice after the surrogate's first picks: their cost, surrogate included, against a random level's.
+def choose_search(history: Sequence[Mapping[str, float]], *, surrogate_seconds: float, picks: int,
+                  probe_seconds: float, probed: int, direct_variant: str) -> SearchChoice:
+    """The choice once the surrogate's first picks are probed: a pick's projected cost against a random level's.
 
     Args:
         history: The run's metrics rows, oldest first; the first is the random iteration.
         surrogate_seconds: Seconds the first proposal spent in :data:`SURROGATE_PHASES`.
-        evaluate_seconds: Seconds its picks' evaluation took (0 where they were dropped unevaluated).
-        evaluated: Picks evaluated (stopped at :func:`pick_allowance`: fewer than proposed; dropped: 0).
+        picks: Levels it proposed (within the budget).
+        probe_seconds: Seconds the evaluation of the first ``probed`` of them took.
+        probed: Picks evaluated for the choice (:data:`PROBE_PICKS`, fewer where fewer were proposed).
         direct_variant: The domain's direct search.
     """
     random_seconds = random_level_seconds(history)
-    per_pick = (surrogate_seconds + evaluate_seconds) / max(evaluated, 1)
+    per_pick = surrogate_seconds / max(picks, 1) + probe_seconds / max(probed, 1)
     ratio = per_pick / random_seconds if random_seconds > 0 else float("inf")
     return SearchChoice(direct=ratio > BREAK_EVEN_COST_RATIO, variant=direct_variant, cost_ratio=ratio,
                         random_level_seconds=random_seconds, surrogate_level_seconds=per_pick,

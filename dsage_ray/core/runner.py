@@ -60,8 +60,8 @@ from typing import Any
 import numpy as np
 
 from dsage_ray.config import RunConfig, changed_keys
-from dsage_ray.core.auto_search import (SURROGATE_PHASES, SearchChoice, choose_search, direct_config,
-                                        direct_variant, pick_allowance)
+from dsage_ray.core.auto_search import (PROBE_PICKS, SURROGATE_PHASES, SearchChoice, choose_search, direct_config,
+                                        direct_variant)
 from dsage_ray.core.evaluation import InProcessEvaluator, PendingEvaluation
 from dsage_ray.core.outputs import write_outputs
 from dsage_ray.core.proposers import (DirectQD, EvaluatedBatch, ProgressCallback, Proposal, Proposer,
@@ -180,29 +180,6 @@ class DSAGE:
         self.history.append(metrics)
         return metrics
 
-    def _first_picks(self, proposal: Proposal, times: dict[str, float]) -> tuple[Proposal, float | None]:
-        """``search = "auto"``, at the surrogate's first picks: the seconds their evaluation may take. Where the
-        surrogate alone spent them, the picks are dropped and the direct search's first proposal comes instead
-        (the surrogate's seconds stay in this step's ``times``)."""
-        picks = min(len(proposal.solutions), self.config.budget - self.evals)
-        allowance = pick_allowance(self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=picks)
-        if allowance > 0:
-            return proposal, allowance
-        choice = choose_search(self.history, surrogate_seconds=_surrogate_seconds(proposal), evaluate_seconds=0.0,
-                               evaluated=picks, direct_variant=direct_variant(self.config))
-        self._choose_search(choice, proposal.metrics)
-        if not choice.direct:  # exactly at the break-even: the picks are evaluated, none beyond it
-            return proposal, 0.0
-        direct = self._propose(self.outer_iteration, times)
-        direct.metrics.update(choice.metrics())
-        return direct, None
-
-    def _choose_search(self, choice: SearchChoice, metrics: dict[str, float]) -> None:
-        self.search_choice = choice
-        metrics.update(choice.metrics())
-        if choice.direct:
-            self._continue_direct()
-
     def _continue_direct(self) -> None:
         """The domain's direct search takes over the archive (the surrogate's proposer is dropped with its data)."""
         self.proposer = DirectQD(config=direct_config(self.config), domain=self.domain, archive=self.archive,
@@ -216,19 +193,15 @@ class DSAGE:
         else:
             proposal = self.proposer.propose(outer_iteration=self.outer_iteration)
             times = dict(proposal.times)
-        # search = "auto": the surrogate's first picks are measured: seconds they may still take (None: no measuring).
-        allowance = None
-        if self.config.search == "auto" and self.search_choice is None and self.outer_iteration > 0:
-            proposal, allowance = self._first_picks(proposal, times)
         solutions = proposal.solutions[: self.config.budget - self.evals]
         seeds = [self.seeds.evaluation(self.evals + i) for i in range(len(solutions))]
 
         tic = time.perf_counter()
-        deadline = self._deadline(started)
-        if allowance is not None:
-            deadline = tic + allowance if deadline is None else min(deadline, tic + allowance)
-        evaluation = PendingEvaluation(self.evaluator, solutions, seeds, deadline=deadline,
-                                       progress=self._evaluation_progress())
+        # search = "auto": the surrogate's first picks are probed, then the rest evaluated or dropped.
+        probing = self.config.search == "auto" and self.search_choice is None and self.outer_iteration > 0
+        probe = min(PROBE_PICKS, len(solutions)) if probing else len(solutions)
+        evaluation = PendingEvaluation(self.evaluator, solutions[:probe], seeds[:probe],
+                                       deadline=self._deadline(started), progress=self._evaluation_progress())
         # The next iteration's picks, chosen while this batch is evaluated, by a surrogate that has not
         # seen it. Not in the first iteration: the surrogate has nothing to train on until its random batch is back.
         if self.config.pipeline and self.outer_iteration > 0 and self.evals + len(solutions) < self.config.budget:
@@ -237,6 +210,15 @@ class DSAGE:
             if evaluation.overlapped:
                 times["overlapped"] = time.perf_counter() - overlap
         results = evaluation.result()
+        if probing:
+            self.search_choice = choose_search(
+                self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=len(solutions),
+                probe_seconds=time.perf_counter() - tic, probed=len(results), direct_variant=direct_variant(self.config))
+            proposal.metrics.update(self.search_choice.metrics())
+            if not self.search_choice.direct and len(results) == probe < len(solutions):
+                results += PendingEvaluation(self.evaluator, solutions[probe:], seeds[probe:],
+                                             deadline=self._deadline(started),
+                                             progress=self._evaluation_progress(offset=probe)).result()
         times["evaluate"] = time.perf_counter() - tic
         solutions = solutions[:len(results)]  # a time budget may have stopped the batch early
         self._record_failures(solutions, seeds, results)
@@ -250,10 +232,8 @@ class DSAGE:
         self.growth = growth_curve(self.archive, measures=batch.measures, objective=batch.objective,
                                    evals_at=[self.evals + i + 1 for i in batch.ok], budget=self.config.budget)
         metrics = {**proposal.metrics, **self.proposer.learn(batch)}
-        if allowance is not None:
-            self._choose_search(choose_search(
-                self.history, surrogate_seconds=_surrogate_seconds(proposal), evaluate_seconds=times["evaluate"],
-                evaluated=len(results), direct_variant=direct_variant(self.config)), metrics)
+        if probing and self.search_choice.direct:
+            self._continue_direct()
 
         self.evals += len(solutions)
         self.outer_iteration += 1
@@ -280,10 +260,11 @@ class DSAGE:
             return None
         return step_started + self.config.time_budget - self.wall_time
 
-    def _evaluation_progress(self):
+    def _evaluation_progress(self, offset: int = 0):
+        """The evaluation bar's callback for a batch (``offset``: the part of it already evaluated this step)."""
         if self.progress is None:
             return None
-        start, budget, progress = self.evals, self.config.budget, self.progress
+        start, budget, progress = self.evals + offset, self.config.budget, self.progress
         return lambda done: progress("evaluate", start + done, budget)
 
     def _propose(self, outer_iteration: int, times: dict[str, float]) -> Proposal:

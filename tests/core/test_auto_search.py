@@ -5,7 +5,7 @@ import pytest
 from dsage_ray.config import ConfigError, RunConfig
 from dsage_ray.core import auto_search
 from dsage_ray.core import runner as runner_module
-from dsage_ray.core.auto_search import SearchChoice, choose_search, direct_config, pick_allowance
+from dsage_ray.core.auto_search import SearchChoice, choose_search, direct_config
 from dsage_ray.core.proposers import DirectQD, SurrogateAssisted
 from dsage_ray.core.runner import DSAGE
 from tests.core.test_runner import archive_snapshot
@@ -15,44 +15,44 @@ from tests.fakes import SMALL_RUN, BitmapDomain
 AUTO = {**SMALL_RUN, "budget": 200, "search": "auto"}
 
 
+#: A surrogate that picks 5 levels in its first iteration on the fake domain, so that a probe of 2 leaves a rest.
+PICKING = {"variant": "dsage_only_anc", "surrogate.epochs": 20, "qd.exploit_iterations": 20}
+
+
 def make_runner(**overrides) -> DSAGE:
     return DSAGE(config=RunConfig.build({**AUTO, **overrides}), domain=BitmapDomain())
+
+
+@pytest.fixture
+def probe_two(monkeypatch):
+    monkeypatch.setattr(runner_module, "PROBE_PICKS", 2)
 
 
 def random_row(seconds=2.0, levels=40):
     return {"time_evaluate": seconds, "evaluated_this_iteration": float(levels)}
 
 
-def test_the_ratio_is_what_a_pick_cost_surrogate_and_evaluation_included_over_a_random_level():
-    choice = choose_search([random_row(2.0, 40)], surrogate_seconds=5.0, evaluate_seconds=3.0, evaluated=25,
+def test_a_picks_cost_is_the_surrogates_seconds_spread_over_the_picks_plus_the_probes_mean_evaluation():
+    choice = choose_search([random_row(2.0, 40)], surrogate_seconds=5.0, picks=25, probe_seconds=2.4, probed=8,
                            direct_variant="map_elites")
     assert choice.random_level_seconds == pytest.approx(0.05)
-    assert choice.surrogate_level_seconds == pytest.approx(8.0 / 25)
-    assert choice.cost_ratio == pytest.approx(0.32 / 0.05)
+    assert choice.surrogate_level_seconds == pytest.approx(5.0 / 25 + 2.4 / 8)
+    assert choice.cost_ratio == pytest.approx(0.5 / 0.05)
     assert choice.direct is (choice.cost_ratio > auto_search.BREAK_EVEN_COST_RATIO)
     assert choice.outer_iteration == 1
 
 
-def test_the_picks_may_take_what_keeps_them_under_the_break_even():
-    allowance = pick_allowance([random_row(2.0, 40)], surrogate_seconds=1.0, picks=25)
-    assert allowance == pytest.approx(auto_search.BREAK_EVEN_COST_RATIO * 0.05 * 25 - 1.0)
-    # Evaluated in exactly that time, the picks cost the break-even.
-    at = choose_search([random_row(2.0, 40)], surrogate_seconds=1.0, evaluate_seconds=allowance, evaluated=25,
-                       direct_variant="map_elites")
-    assert at.cost_ratio == pytest.approx(auto_search.BREAK_EVEN_COST_RATIO)
-
-
-@pytest.mark.parametrize("evaluate_seconds, direct", [(0.5, False), (100.0, True)])
-def test_the_break_even_decides(evaluate_seconds, direct):
-    choice = choose_search([random_row(2.0, 40)], surrogate_seconds=0.5, evaluate_seconds=evaluate_seconds,
-                           evaluated=25, direct_variant="cma_me")
+@pytest.mark.parametrize("probe_seconds, direct", [(0.1, False), (100.0, True)])
+def test_the_break_even_decides(probe_seconds, direct):
+    choice = choose_search([random_row(2.0, 40)], surrogate_seconds=0.5, picks=25, probe_seconds=probe_seconds,
+                           probed=8, direct_variant="cma_me")
     assert choice.direct is direct
     assert ("continuing with cma_me" in choice.reason) is direct
     assert f"{choice.cost_ratio:.2f}×" in choice.reason
 
 
 def test_a_choice_round_trips_through_its_metrics_and_state():
-    choice = choose_search([random_row()], surrogate_seconds=100.0, evaluate_seconds=0.0, evaluated=25,
+    choice = choose_search([random_row()], surrogate_seconds=100.0, picks=25, probe_seconds=1.0, probed=8,
                            direct_variant="map_elites")
     row = {"outer_iteration": 1.0, **choice.metrics()}
     assert SearchChoice.from_metrics(row, variant="map_elites") == choice
@@ -93,58 +93,47 @@ def test_auto_refuses_what_it_cannot_measure(overrides, message):
         RunConfig.build({**AUTO, **overrides}).validate()
 
 
-def test_above_the_break_even_the_picks_are_dropped_and_the_direct_search_takes_over_the_archive(monkeypatch):
+def test_above_the_break_even_the_probed_picks_are_kept_the_rest_dropped_and_the_direct_search_continues(
+        monkeypatch, probe_two):
     monkeypatch.setattr(auto_search, "BREAK_EVEN_COST_RATIO", 0.0)
-    runner = make_runner()
+    runner = make_runner(**PICKING)
     first = runner.step()
-    size = len(runner.archive)
     second = runner.step()
     assert "auto_direct" not in first
-    assert second["auto_direct"] == 1.0 and second["auto_cost_ratio"] > 1
-    # The surrogate trained and exploited in this step, then MAP-Elites' first batch (5 x 30) was evaluated.
-    assert second["time_exploit"] > 0 and second["evaluated_this_iteration"] == 150
+    assert second["auto_direct"] == 1.0 and second["auto_cost_ratio"] > 0
+    # The surrogate trained and picked 5 levels; the probe's 2 were evaluated and learned from, the rest dropped.
+    assert second["time_exploit"] > 0 and second["surrogate_archive_size"] >= 5
+    assert second["evaluated_this_iteration"] == 2 and runner.evals == SMALL_RUN["n_rand"] + 2
     assert isinstance(runner.proposer, DirectQD) and runner.search_choice.direct
-    assert runner.proposer.archive is runner.archive and len(runner.archive) > size
+    assert runner.proposer.archive is runner.archive
+    third = runner.step()
+    assert third["evaluated_this_iteration"] == 150 and "time_exploit" not in third  # MAP-Elites' 5 x 30
     runner.run()
     assert runner.evals == AUTO["budget"]
     assert sum("auto_direct" in row for row in runner.history) == 1
-    assert all("time_exploit" not in row for row in runner.history[2:])
 
 
-def test_picks_that_take_longer_than_their_allowance_stop_there_and_the_direct_search_takes_over(monkeypatch):
-    monkeypatch.setattr(runner_module, "pick_allowance", lambda *args, **kwargs: 1e-9)
-    runner = make_runner()
-    runner.step()
-    second = runner.step()
-    # The picks' evaluation stopped at once: the levels begun were evaluated, kept and learned from.
-    assert 1 <= second["evaluated_this_iteration"] < SMALL_RUN["selection.count"]
-    assert second["auto_direct"] == 1.0 and second["auto_cost_ratio"] > auto_search.BREAK_EVEN_COST_RATIO
-    assert isinstance(runner.proposer, DirectQD)
-    assert runner.evals == SMALL_RUN["n_rand"] + second["evaluated_this_iteration"]
-    runner.run()
-    assert runner.evals == AUTO["budget"]
-
-
-def test_below_the_break_even_the_run_is_dsages_bit_for_bit(monkeypatch):
+def test_below_the_break_even_the_probe_and_the_rest_make_dsages_run_bit_for_bit(monkeypatch, probe_two):
     monkeypatch.setattr(auto_search, "BREAK_EVEN_COST_RATIO", float("inf"))
-    auto = make_runner(budget=SMALL_RUN["budget"])
+    auto = make_runner(budget=SMALL_RUN["n_rand"] + 10, **PICKING)
     auto.run()
-    fixed = make_runner(budget=SMALL_RUN["budget"], search="fixed")
+    fixed = make_runner(budget=SMALL_RUN["n_rand"] + 10, search="fixed", **PICKING)
     fixed.run()
     assert isinstance(auto.proposer, SurrogateAssisted) and not auto.search_choice.direct
+    assert auto.history[1]["evaluated_this_iteration"] == fixed.history[1]["evaluated_this_iteration"] == 5
     assert archive_snapshot(auto.archive) == archive_snapshot(fixed.archive)
 
 
 @pytest.mark.parametrize("steps", [1, 2, 3])
-def test_a_run_resumes_exactly_before_at_and_after_the_switch(monkeypatch, steps):
+def test_a_run_resumes_exactly_before_at_and_after_the_switch(monkeypatch, probe_two, steps):
     monkeypatch.setattr(auto_search, "BREAK_EVEN_COST_RATIO", 0.0)
-    reference = make_runner()
+    reference = make_runner(**PICKING)
     reference.run()
-    interrupted = make_runner()
+    interrupted = make_runner(**PICKING)
     for _ in range(steps):
         interrupted.step()
     state = pickle.loads(pickle.dumps(interrupted.state_dict()))
-    resumed = make_runner()
+    resumed = make_runner(**PICKING)
     resumed.load_state_dict(state)
     resumed.run()
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)

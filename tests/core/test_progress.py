@@ -102,11 +102,11 @@ def test_the_console_prints_what_search_auto_chose_once_with_its_numbers(capsys)
     run = SimpleNamespace(config=RunConfig.build({"domain": "maze"}), evals=0)
     row = {"outer_iteration": 2.0, "evals": 300.0, "evaluated_this_iteration": 150.0, "qd_score": 1.0, "coverage": 0.1}
     choice = choose_search([{"time_evaluate": 1.0, "evaluated_this_iteration": 100.0}], surrogate_seconds=50.0,
-                           evaluate_seconds=0.0, evaluated=20, direct_variant="map_elites")
+                           picks=20, probe_seconds=0.0, probed=8, direct_variant="map_elites")
     console = ConsoleProgress(budget=1000)
     console.on_step(run, row)
     console.on_step(run, {**row, **choice.metrics()})
     lines = capsys.readouterr().out.splitlines()
     assert [line for line in lines if line.startswith("search auto")] == [
-        "search auto: continuing with map_elites on the same archive (a pick cost 2.5 s with the surrogate's time, "
+        "search auto: continuing with map_elites on the same archive (a pick costs 2.5 s with the surrogate's time, "
         "a random level 0.01 s: 250.00×; break-even 3×)"]
