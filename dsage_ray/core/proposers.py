@@ -65,6 +65,15 @@ class Proposal:
     #: What the screen errs by on them is learnt once they are evaluated (``selection.screen_gain``).
     screened: np.ndarray | None = None
 
+    def take(self, indices: list[int]) -> "Proposal":
+        """The proposal of these solutions only, in this order (their predictions and screened results with them)."""
+        predicted = self.predicted
+        if predicted is not None:
+            predicted = dataclasses.replace(predicted, **{
+                name: None if value is None else value[indices] for name, value in dataclasses.asdict(predicted).items()})
+        return dataclasses.replace(self, solutions=self.solutions[indices], predicted=predicted,
+                                   screened=None if self.screened is None else self.screened[indices])
+
     def state_dict(self) -> dict[str, Any]:
         """Plain arrays and dicts, for a checkpoint."""
         return dataclasses.asdict(self)

@@ -180,6 +180,31 @@ class DSAGE:
         self.history.append(metrics)
         return metrics
 
+    def _probe_first_picks(self, proposal: Proposal, solutions: Solutions, seeds: list[int], started: float
+                           ) -> tuple[Proposal, list[EvaluationResult], list[int]]:
+        """``search = "auto"``: evaluates :data:`PROBE_PICKS` of the surrogate's first picks, spread over its order
+        (the picks come in archive order, where a region of cheap levels may come first), chooses, then evaluates
+        the rest or drops it. Returns the proposal of what was evaluated, its results and seeds, in the picks'
+        order: with every pick evaluated, the fixed run's batch exactly."""
+        tic, count = time.perf_counter(), len(solutions)
+        probe = sorted({int(i) for i in np.linspace(0, count - 1, min(PROBE_PICKS, count)).round()})
+        results = dict(zip(probe, PendingEvaluation(
+            self.evaluator, solutions[probe], [seeds[i] for i in probe], deadline=self._deadline(started),
+            progress=self._evaluation_progress()).result()))
+        self.search_choice = choose_search(
+            self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=count,
+            probe_seconds=time.perf_counter() - tic, probed=len(results), direct_variant=direct_variant(self.config))
+        proposal.metrics.update(self.search_choice.metrics())
+        rest = [i for i in range(count) if i not in results]
+        if not self.search_choice.direct and len(results) == len(probe) and rest:
+            results.update(zip(rest, PendingEvaluation(
+                self.evaluator, solutions[rest], [seeds[i] for i in rest], deadline=self._deadline(started),
+                progress=self._evaluation_progress(offset=len(probe))).result()))
+        evaluated = sorted(results)
+        if len(evaluated) < len(proposal.solutions):
+            proposal = proposal.take(evaluated)
+        return proposal, [results[i] for i in evaluated], [seeds[i] for i in evaluated]
+
     def _continue_direct(self) -> None:
         """The domain's direct search takes over the archive (the surrogate's proposer is dropped with its data)."""
         self.proposer = DirectQD(config=direct_config(self.config), domain=self.domain, archive=self.archive,
@@ -199,26 +224,21 @@ class DSAGE:
         tic = time.perf_counter()
         # search = "auto": the surrogate's first picks are probed, then the rest evaluated or dropped.
         probing = self.config.search == "auto" and self.search_choice is None and self.outer_iteration > 0
-        probe = min(PROBE_PICKS, len(solutions)) if probing else len(solutions)
-        evaluation = PendingEvaluation(self.evaluator, solutions[:probe], seeds[:probe],
-                                       deadline=self._deadline(started), progress=self._evaluation_progress())
+        evaluation = PendingEvaluation(self.evaluator, solutions, seeds, deadline=self._deadline(started),
+                                       progress=self._evaluation_progress()) if not probing else None
         # The next iteration's picks, chosen while this batch is evaluated, by a surrogate that has not
         # seen it. Not in the first iteration: the surrogate has nothing to train on until its random batch is back.
-        if self.config.pipeline and self.outer_iteration > 0 and self.evals + len(solutions) < self.config.budget:
+        if evaluation is not None and self.config.pipeline and self.outer_iteration > 0 \
+                and self.evals + len(solutions) < self.config.budget:
             overlap = time.perf_counter()
             self.pending = self._propose(self.outer_iteration + 1, times)
             if evaluation.overlapped:
                 times["overlapped"] = time.perf_counter() - overlap
-        results = evaluation.result()
         if probing:
-            self.search_choice = choose_search(
-                self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=len(solutions),
-                probe_seconds=time.perf_counter() - tic, probed=len(results), direct_variant=direct_variant(self.config))
-            proposal.metrics.update(self.search_choice.metrics())
-            if not self.search_choice.direct and len(results) == probe < len(solutions):
-                results += PendingEvaluation(self.evaluator, solutions[probe:], seeds[probe:],
-                                             deadline=self._deadline(started),
-                                             progress=self._evaluation_progress(offset=probe)).result()
+            proposal, results, seeds = self._probe_first_picks(proposal, solutions, seeds, started)
+            solutions = proposal.solutions[:len(results)]
+        else:
+            results = evaluation.result()
         times["evaluate"] = time.perf_counter() - tic
         solutions = solutions[:len(results)]  # a time budget may have stopped the batch early
         self._record_failures(solutions, seeds, results)
