@@ -14,8 +14,9 @@ pick costs, all of that included, over what a random level's evaluation costs:
   (equal_compute §6, §18).
 
 So the first outer iteration that uses the surrogate is measured as it runs: its first :data:`PROBE_PICKS` picks
-are evaluated, and a pick's cost is projected as the surrogate's seconds spread over all the picks plus the probe's
-mean evaluation seconds (:func:`choose_search`). Above :data:`BREAK_EVEN_COST_RATIO` times a random level's
+are evaluated (stopped once they alone cost past the break-even, :func:`probe_allowance`), and a pick's cost is
+projected as the surrogate's seconds spread over all the picks plus the probe's mean evaluation seconds
+(:func:`choose_search`). Above :data:`BREAK_EVEN_COST_RATIO` times a random level's
 evaluation, the rest of the picks are dropped (the probe's levels are kept and learned from) and the run continues
 with the domain's direct search (:attr:`dsage_ray.domains.registry.DomainSpec.direct_search`) on the same archive;
 otherwise the rest are evaluated and the run stays DSAGE, bit for bit the fixed run. So a domain where DSAGE does
@@ -102,6 +103,14 @@ def random_level_seconds(history: Sequence[Mapping[str, float]]) -> float:
     """Wall seconds per level of the random first iteration's evaluation (``history[0]``)."""
     first = history[0]
     return first.get("time_evaluate", 0.0) / max(first.get("evaluated_this_iteration", 0.0), 1.0)
+
+
+def probe_allowance(history: Sequence[Mapping[str, float]], *, surrogate_seconds: float, picks: int,
+                    probed: int) -> float:
+    """Seconds the probe's ``probed`` picks may take before a pick's projected cost is past the break-even (the
+    probe is then stopped: at least one pick is evaluated whatever this is)."""
+    per_pick = BREAK_EVEN_COST_RATIO * random_level_seconds(history) - surrogate_seconds / max(picks, 1)
+    return max(per_pick, 0.0) * probed
 
 
 def choose_search(history: Sequence[Mapping[str, float]], *, surrogate_seconds: float, picks: int,

@@ -61,7 +61,7 @@ import numpy as np
 
 from dsage_ray.config import RunConfig, changed_keys
 from dsage_ray.core.auto_search import (PROBE_PICKS, SURROGATE_PHASES, SearchChoice, choose_search, direct_config,
-                                        direct_variant)
+                                        direct_variant, probe_allowance)
 from dsage_ray.core.evaluation import InProcessEvaluator, PendingEvaluation
 from dsage_ray.core.outputs import write_outputs
 from dsage_ray.core.proposers import (DirectQD, EvaluatedBatch, ProgressCallback, Proposal, Proposer,
@@ -188,8 +188,14 @@ class DSAGE:
         order: with every pick evaluated, the fixed run's batch exactly."""
         tic, count = time.perf_counter(), len(solutions)
         probe = sorted({int(i) for i in np.linspace(0, count - 1, min(PROBE_PICKS, count)).round()})
+        # The probe stops once its picks alone have cost more than the break-even allows (Mario's A* may play a
+        # pick for half a minute): the choice is then made already.
+        allowance = probe_allowance(self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=count,
+                                    probed=len(probe))
+        deadline = self._deadline(started)
+        deadline = tic + allowance if deadline is None else min(deadline, tic + allowance)
         results = dict(zip(probe, PendingEvaluation(
-            self.evaluator, solutions[probe], [seeds[i] for i in probe], deadline=self._deadline(started),
+            self.evaluator, solutions[probe], [seeds[i] for i in probe], deadline=deadline,
             progress=self._evaluation_progress()).result()))
         self.search_choice = choose_search(
             self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=count,

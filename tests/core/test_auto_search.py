@@ -5,7 +5,7 @@ import pytest
 from dsage_ray.config import ConfigError, RunConfig
 from dsage_ray.core import auto_search
 from dsage_ray.core import runner as runner_module
-from dsage_ray.core.auto_search import SearchChoice, choose_search, direct_config
+from dsage_ray.core.auto_search import SearchChoice, choose_search, direct_config, probe_allowance
 from dsage_ray.core.proposers import DirectQD, SurrogateAssisted
 from dsage_ray.core.runner import DSAGE
 from tests.core.test_runner import archive_snapshot
@@ -40,6 +40,18 @@ def test_a_picks_cost_is_the_surrogates_seconds_spread_over_the_picks_plus_the_p
     assert choice.cost_ratio == pytest.approx(0.5 / 0.05)
     assert choice.direct is (choice.cost_ratio > auto_search.BREAK_EVEN_COST_RATIO)
     assert choice.outer_iteration == 1
+
+
+def test_a_probe_cut_at_its_allowance_has_its_picks_at_the_break_even_or_past_it():
+    history = [random_row(2.0, 40)]
+    allowance = probe_allowance(history, surrogate_seconds=1.0, picks=25, probed=8)
+    assert allowance == pytest.approx((auto_search.BREAK_EVEN_COST_RATIO * 0.05 - 0.04) * 8) and allowance > 0
+    for probed in (1, 3, 8):  # the probe stopped after these picks, having taken its allowance
+        choice = choose_search(history, surrogate_seconds=1.0, picks=25, probe_seconds=allowance, probed=probed,
+                               direct_variant="map_elites")
+        assert choice.cost_ratio >= auto_search.BREAK_EVEN_COST_RATIO - 1e-9
+    # A surrogate that alone costs past the break-even leaves the probe no time: one pick, then the choice.
+    assert probe_allowance(history, surrogate_seconds=500.0, picks=25, probed=8) == 0.0
 
 
 @pytest.mark.parametrize("probe_seconds, direct", [(0.1, False), (100.0, True)])
@@ -101,9 +113,10 @@ def test_above_the_break_even_the_probed_picks_are_kept_the_rest_dropped_and_the
     second = runner.step()
     assert "auto_direct" not in first
     assert second["auto_direct"] == 1.0 and second["auto_cost_ratio"] > 0
-    # The surrogate trained and picked 5 levels; the probe's 2 were evaluated and learned from, the rest dropped.
+    # The surrogate trained and picked 5 levels. A break-even of 0 leaves the probe no time: its first pick was
+    # evaluated (and learned from), the rest dropped.
     assert second["time_exploit"] > 0 and second["surrogate_archive_size"] >= 5
-    assert second["evaluated_this_iteration"] == 2 and runner.evals == SMALL_RUN["n_rand"] + 2
+    assert second["evaluated_this_iteration"] == 1 and runner.evals == SMALL_RUN["n_rand"] + 1
     assert isinstance(runner.proposer, DirectQD) and runner.search_choice.direct
     assert runner.proposer.archive is runner.archive
     third = runner.step()
