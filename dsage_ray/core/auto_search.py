@@ -6,11 +6,11 @@ random levels). Where that time is large next to what a level costs, a direct QD
 falsifier) evaluates many more levels in the same time and finds more. The benchmarks put the break-even on what a
 pick costs, all of that included, over what a random level's evaluation costs:
 
-* Maze (the ``cpu`` preset, ACCEL): 1.7-1.9×, and DSAGE led MAP-Elites at equal CPU time (1.15×,
+* Maze (the ``cpu`` preset, ACCEL): 1.7-2.4×, and DSAGE led MAP-Elites at equal CPU time (1.15×,
   docs/results/equal_compute §19, §21);
-* CartPole (the ``demo`` audit): about 1.9×, and DSAGE was level with the best falsifier at equal CPU time
+* CartPole and LunarLander (the published audits): 1.5-2.0×, and DSAGE was the better search at equal CPU time
   (docs/results/gym_audit);
-* Mario (A*, the ``cpu`` preset): about 6×, and CMA-ME found twice DSAGE's QD-score at equal CPU time
+* Mario (A*, the ``cpu`` preset): about 16×, and CMA-ME found twice DSAGE's QD-score at equal CPU time
   (equal_compute §6, §18).
 
 So the first outer iteration that uses the surrogate is measured as it runs: its first :data:`PROBE_PICKS` picks
@@ -35,8 +35,8 @@ from dsage_ray.config import RunConfig, variants
 from dsage_ray.domains.registry import get_domain
 
 #: Above this ratio (seconds per pick, surrogate and evaluation included / seconds per random level) the run
-#: continues with the direct search. Above the ratios where DSAGE won or was level at equal CPU time (Maze 1.7-1.9,
-#: CartPole 1.9), below Mario's (about 6), where it lost by half.
+#: continues with the direct search. Above the ratios where DSAGE won at equal CPU time (Maze up to 2.4, CartPole
+#: and LunarLander up to 2.0), below Mario's (about 16), where it lost by half.
 BREAK_EVEN_COST_RATIO = 3.0
 
 #: Picks evaluated before the choice: enough to average a pick's evaluation, few where each is slow (Mario).

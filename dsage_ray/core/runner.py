@@ -35,6 +35,10 @@ iteration cannot overlap: nothing is known until its random batch is back. A ste
 entries are the phases that ran during it, so a pipelined step's ``time_train`` is the next picks'
 training; ``time_overlapped`` is how long the driver worked while the batch was being evaluated.
 
+*Search auto* (``search = "auto"``): the first surrogate iteration's picks are probed before the rest are
+evaluated (:meth:`DSAGE._probe_first_picks`); where a pick costs more than the break-even, the rest are dropped and
+the domain's direct search takes over the same archive (:mod:`dsage_ray.core.auto_search`).
+
 *Budgets and cost*: a run ends when ``budget`` evaluations are spent or, with ``time_budget > 0``,
 when its wall time reaches ``time_budget`` seconds, whichever comes first. A time budget that runs out
 while a batch is being evaluated stops the batch there: the levels under way finish, the rest are
