@@ -30,10 +30,10 @@ def add_config_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGro
                         help="also stop once the run has stepped this long (sets time_budget): 90, 90s, 10m or "
                              "1.5h; the evaluation budget still applies, whichever comes first ends the run")
     parser.add_argument("--search", choices=("fixed", "auto"),
-                        help="auto: run DSAGE, and after its first surrogate iteration continue with the domain's "
+                        help="auto: run DSAGE; at its first picks, play 8 of them and continue with the domain's "
                              "direct search (maze MAP-Elites, mario CMA-ME, gym cross-entropy) on the same archive "
-                             "if a level DSAGE picks costs over 3x a random one, surrogate time included; the choice "
-                             "and why are printed. The same as --set search=...")
+                             "if a pick costs over 3x a random level, surrogate time included; the choice and why "
+                             "are printed. The same as --set search=...")
     parser.add_argument("--surrogate-init", metavar="PATH",
                         help="warm-start the surrogate (sets surrogate.init): a file of `dsage-ray surrogate "
                              "pretrain`, or an earlier run or audit folder of the same network and encoding")

@@ -57,7 +57,6 @@ class SearchChoice:
         random_level_seconds: Wall seconds per level of the random first iteration's evaluation.
         surrogate_level_seconds: A pick's projected wall seconds in the first surrogate iteration: the surrogate's
             proposal (training, inner loop, selection) over all its picks, plus the probe picks' mean evaluation.
-        outer_iteration: The outer iteration the choice was made in.
     """
 
     direct: bool
@@ -65,7 +64,6 @@ class SearchChoice:
     cost_ratio: float
     random_level_seconds: float
     surrogate_level_seconds: float
-    outer_iteration: int
 
     @property
     def reason(self) -> str:
@@ -88,8 +86,7 @@ class SearchChoice:
             return None
         return cls(direct=bool(row["auto_direct"]), variant=variant, cost_ratio=float(row["auto_cost_ratio"]),
                    random_level_seconds=float(row["auto_random_level_s"]),
-                   surrogate_level_seconds=float(row["auto_picked_level_s"]),
-                   outer_iteration=int(row.get("outer_iteration", 0)))
+                   surrogate_level_seconds=float(row["auto_picked_level_s"]))
 
     def state_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -129,8 +126,12 @@ def choose_search(history: Sequence[Mapping[str, float]], *, surrogate_seconds: 
     per_pick = surrogate_seconds / max(picks, 1) + probe_seconds / max(probed, 1)
     ratio = per_pick / random_seconds if random_seconds > 0 else float("inf")
     return SearchChoice(direct=ratio > BREAK_EVEN_COST_RATIO, variant=direct_variant, cost_ratio=ratio,
-                        random_level_seconds=random_seconds, surrogate_level_seconds=per_pick,
-                        outer_iteration=len(history))
+                        random_level_seconds=random_seconds, surrogate_level_seconds=per_pick)
+
+
+#: Keys that add to or filter a surrogate's picks: off in the direct search unless its variant sets them (an audit
+#: gives DSAGE elite mutants; a direct search mutates its elites already).
+_PICKS_ONLY = {"selection.elite_mutants": 0, "selection.screen_episodes": 0, "selection.screen_gain": False}
 
 
 def direct_variant(config: RunConfig) -> str:
@@ -146,8 +147,3 @@ def direct_config(config: RunConfig) -> RunConfig:
     """
     name = direct_variant(config)
     return config.replace(**{**_PICKS_ONLY, **variants(config.domain)[name]}, variant=name, search="fixed")
-
-
-#: Keys that add to or filter a surrogate's picks: off in the direct search unless its variant sets them (an audit
-#: gives DSAGE elite mutants; a direct search mutates its elites already).
-_PICKS_ONLY = {"selection.elite_mutants": 0, "selection.screen_episodes": 0, "selection.screen_gain": False}

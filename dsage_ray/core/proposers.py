@@ -65,7 +65,7 @@ class Proposal:
     #: What the screen errs by on them is learnt once they are evaluated (``selection.screen_gain``).
     screened: np.ndarray | None = None
 
-    def take(self, indices: list[int]) -> "Proposal":
+    def take(self, indices: "list[int] | slice") -> "Proposal":
         """The proposal of these solutions only, in this order (their predictions and screened results with them)."""
         predicted = self.predicted
         if predicted is not None:
@@ -117,12 +117,8 @@ class EvaluatedBatch:
     def collect(cls, proposal: Proposal, results: list[EvaluationResult], *, domain: Domain,
                 outer_iteration: int) -> "EvaluatedBatch":
         """The evaluated part of ``proposal``: its first ``len(results)`` solutions (a budget may cut it)."""
-        n = len(results)
-        solutions = proposal.solutions[:n]
-        predicted = proposal.predicted
-        if predicted is not None:
-            predicted = dataclasses.replace(predicted, **{
-                name: None if value is None else value[:n] for name, value in dataclasses.asdict(predicted).items()})
+        evaluated = proposal.take(slice(0, len(results)))
+        solutions, predicted = evaluated.solutions, evaluated.predicted
         ok = [i for i, r in enumerate(results) if not r.failed]
         return cls(
             solutions=solutions, results=results, ok=ok,
@@ -132,7 +128,7 @@ class EvaluatedBatch:
             occupancy=np.array([results[i].occupancy for i in ok], dtype=np.float32).reshape(
                 (len(ok),) + tuple(domain.occupancy_shape)),
             complete=len(ok) == len(proposal.solutions), outer_iteration=outer_iteration, predicted=predicted,
-            screened=None if proposal.screened is None else proposal.screened[:n])
+            screened=evaluated.screened)
 
 
 class Proposer(Protocol):

@@ -234,23 +234,21 @@ class DSAGE:
         tic = time.perf_counter()
         # search = "auto": the surrogate's first picks are probed, then the rest evaluated or dropped.
         probing = self.config.search == "auto" and self.search_choice is None and self.outer_iteration > 0
-        evaluation = PendingEvaluation(self.evaluator, solutions, seeds, deadline=self._deadline(started),
-                                       progress=self._evaluation_progress()) if not probing else None
-        # The next iteration's picks, chosen while this batch is evaluated, by a surrogate that has not
-        # seen it. Not in the first iteration: the surrogate has nothing to train on until its random batch is back.
-        if evaluation is not None and self.config.pipeline and self.outer_iteration > 0 \
-                and self.evals + len(solutions) < self.config.budget:
-            overlap = time.perf_counter()
-            self.pending = self._propose(self.outer_iteration + 1, times)
-            if evaluation.overlapped:
-                times["overlapped"] = time.perf_counter() - overlap
         if probing:
             proposal, results, seeds = self._probe_first_picks(proposal, solutions, seeds, started)
-            solutions = proposal.solutions[:len(results)]
         else:
+            evaluation = PendingEvaluation(self.evaluator, solutions, seeds, deadline=self._deadline(started),
+                                           progress=self._evaluation_progress())
+            # The next iteration's picks, chosen while this batch is evaluated, by a surrogate that has not seen it.
+            # Not in the first iteration: the surrogate has nothing to train on until its random batch is back.
+            if self.config.pipeline and self.outer_iteration > 0 and self.evals + len(solutions) < self.config.budget:
+                overlap = time.perf_counter()
+                self.pending = self._propose(self.outer_iteration + 1, times)
+                if evaluation.overlapped:
+                    times["overlapped"] = time.perf_counter() - overlap
             results = evaluation.result()
         times["evaluate"] = time.perf_counter() - tic
-        solutions = solutions[:len(results)]  # a time budget may have stopped the batch early
+        solutions = proposal.solutions[:len(results)]  # a time budget (or auto's probe) may have stopped the batch
         self._record_failures(solutions, seeds, results)
         batch = EvaluatedBatch.collect(proposal, results, domain=self.domain, outer_iteration=self.outer_iteration)
         if results and not batch.ok:

@@ -39,7 +39,6 @@ def test_a_picks_cost_is_the_surrogates_seconds_spread_over_the_picks_plus_the_p
     assert choice.surrogate_level_seconds == pytest.approx(5.0 / 25 + 2.4 / 8)
     assert choice.cost_ratio == pytest.approx(0.5 / 0.05)
     assert choice.direct is (choice.cost_ratio > auto_search.BREAK_EVEN_COST_RATIO)
-    assert choice.outer_iteration == 1
 
 
 def test_a_probe_cut_at_its_allowance_has_its_picks_at_the_break_even_or_past_it():

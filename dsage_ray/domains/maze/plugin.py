@@ -143,7 +143,8 @@ DOMAIN = DomainSpec(
     domain="dsage_ray.domains.maze.domain:MazeDomain",
     presets=PRESETS,
     variants=VARIANTS,
-    # search = "auto" continues with MAP-Elites, the paper's Maze baseline (DSAGE leads it at equal CPU time: auto keeps DSAGE here).
+    # search = "auto" continues with MAP-Elites, the paper's Maze baseline (DSAGE leads it at equal CPU time: auto
+    # keeps DSAGE here).
     direct_search="map_elites",
     # The paper's Table 2 rows (``dsage_rsample`` is the appendix ablation).
     comparison=("dsage", "dsage_only_anc", "dsage_only_down", "dsage_basic", "map_elites", "dr"),
