@@ -235,12 +235,13 @@ class RunConfig:
     domain: str = key("maze", status="tool", values="a registered domain", note="maze, mario, gym, or a plug-in's")
     variant: str = key("dsage", status="paper", values="a variant of the domain",
                        note="the search: dsage, its ablations, or a baseline (sets other keys)")
-    #: ``auto``: after DSAGE's first surrogate iteration, continue with the domain's direct search
-    #: (``DomainSpec.direct_search``) on the same archive when a level DSAGE picked cost more than
+    #: ``auto``: continue with the domain's direct search (``DomainSpec.direct_search``) on the same archive, with a
+    #: time budget right after the random iteration when too few surrogate iterations fit in the time left, else
+    #: after DSAGE's first surrogate iteration when a level DSAGE picked cost more than
     #: :data:`~dsage_ray.core.auto_search.BREAK_EVEN_COST_RATIO` times a random one, surrogate time included.
     search: SearchMode = key("fixed", status="opt-in",
                              note="auto: DSAGE, or the domain's direct search where the surrogate costs more than it "
-                                  "buys (equal_compute §21)")
+                                  "buys (equal_compute §21, §22)")
     preset: str = key("paper", status="tool", values="a preset of the domain",
                       note="the scale: paper, cpu, demo or tiny (sets other keys)")
     seed: int = key(0, status="tool", note="the run's seed; the same seed and config give the same archive")

@@ -130,7 +130,8 @@ def test_a_tune_resume_reads_the_config_of_its_trials_latest_checkpoint(tmp_path
     from dsage_ray.core.checkpoint import CHECKPOINT_NAME
     from dsage_ray.runs import _stored_config
 
-    config = dsage_ray.resolve_config(CONFIG, preset="tiny", overrides=SMALL)
+    # One random iteration each (the budget is the tiny preset's n_rand): a checkpoint is all this reads.
+    config = dsage_ray.resolve_config(CONFIG, preset="tiny", overrides={**SMALL, "budget": 50})
     assert _stored_config(config, local=False, out=tmp_path) is None
     for seed, number in ((1, 2), (2, 10)):  # checkpoint_000010 is the later one, though it sorts first as text
         run = dsage_ray.run(config.replace(seed=seed), local=True, out=tmp_path / f"s{seed}")

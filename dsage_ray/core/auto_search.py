@@ -13,7 +13,17 @@ pick costs, all of that included, over what a random level's evaluation costs:
 * Mario (A*, the ``cpu`` preset): about 16×, and CMA-ME found twice DSAGE's QD-score at equal CPU time
   (equal_compute §6, §18).
 
-So the first outer iteration that uses the surrogate is measured as it runs: its first :data:`PROBE_PICKS` picks
+With a time budget, the choice can come before the surrogate ever trains: right after the random first iteration,
+the surrogate's first proposal is projected from one timed training step and one timed inner-loop batch
+(:meth:`~dsage_ray.core.proposers.SurrogateAssisted.projected_proposal_seconds`), and a surrogate iteration at its
+cheapest (that proposal, then its picks at a random level's seconds each) against the time left. Where fewer than
+:data:`MIN_SURROGATE_ITERATIONS` fit, the run continues with the direct search at once (:func:`choose_by_time_left`):
+DSAGE's first model has seen only random levels, and it cannot pay for its training in the one or two iterations left
+to it. On Mario at 10 minutes the probe below comes 4-7 minutes into the run, too late for the direct search to catch
+up (0.32-0.72× CMA-ME), while the same random levels followed at once by CMA-ME did as well as CMA-ME from the start
+(docs/results/equal_compute §22). Without a time budget nothing limits the iterations, and only the probe decides.
+
+Otherwise the first outer iteration that uses the surrogate is measured as it runs: its first :data:`PROBE_PICKS` picks
 are evaluated (stopped once they alone cost past the break-even, :func:`probe_allowance`), and a pick's cost is
 projected as the surrogate's seconds spread over all the picks plus the probe's mean evaluation seconds
 (:func:`choose_search`). Above :data:`BREAK_EVEN_COST_RATIO` times a random level's
@@ -29,6 +39,7 @@ the direct search, as it should at equal wall time. Like a time budget, the choi
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any, Mapping, Sequence
 
 from dsage_ray.config import RunConfig, variants
@@ -38,6 +49,13 @@ from dsage_ray.domains.registry import get_domain
 #: continues with the direct search. Above the ratios where DSAGE won at equal CPU time (Maze up to 2.4, CartPole
 #: and LunarLander up to 2.0), below Mario's (about 16), where it lost by half.
 BREAK_EVEN_COST_RATIO = 3.0
+
+#: With a time budget, fewer surrogate iterations than this fitting in the time left after the random iteration (each at
+#: its cheapest: the projected proposal, then its picks at a random level's seconds) sends the run to the direct
+#: search before the surrogate trains. Not tuned (set before any run read it): on Mario with 10 minutes 0.9-1.5
+#: fit, on the Maze's ``cpu`` preset with 10 minutes 32, in a CartPole ``demo`` audit with 5 minutes 4.2
+#: (docs/results/equal_compute §22).
+MIN_SURROGATE_ITERATIONS = 3
 
 #: Picks evaluated before the choice: enough to average a pick's evaluation, few where each is slow (Mario).
 PROBE_PICKS = 8
@@ -57,6 +75,11 @@ class SearchChoice:
         random_level_seconds: Wall seconds per level of the random first iteration's evaluation.
         surrogate_level_seconds: A pick's projected wall seconds in the first surrogate iteration: the surrogate's
             proposal (training, inner loop, selection) over all its picks, plus the probe picks' mean evaluation.
+            Chosen by the time left (:func:`choose_by_time_left`): the projected proposal over the picks, plus a
+            random level's evaluation.
+        iterations_left: With a time budget, how many surrogate iterations at their cheapest fit in the time left
+            after the random iteration (None: no time budget).
+        time_left: Wall seconds of the time budget left after the random iteration (None: no time budget).
     """
 
     direct: bool
@@ -64,10 +87,22 @@ class SearchChoice:
     cost_ratio: float
     random_level_seconds: float
     surrogate_level_seconds: float
+    iterations_left: float | None = None
+    time_left: float | None = None
+
+    @property
+    def by_time_left(self) -> bool:
+        """Chosen before the surrogate trained, because too few of its iterations fit in the time budget."""
+        return self.iterations_left is not None and self.iterations_left < MIN_SURROGATE_ITERATIONS
 
     @property
     def reason(self) -> str:
         """One line for the log: the choice and the numbers it was made on."""
+        if self.by_time_left:
+            iteration = self.time_left / max(self.iterations_left, 1e-9)
+            return (f"search auto: continuing with {self.variant} on the same archive (the time budget leaves "
+                    f"{self.time_left:.0f} s, room for {self.iterations_left:.1f} surrogate iterations of at least "
+                    f"{iteration:.0f} s; DSAGE needs {MIN_SURROGATE_ITERATIONS})")
         numbers = (f"a pick costs {self.surrogate_level_seconds:.3g} s with the surrogate's time, a random level "
                    f"{self.random_level_seconds:.3g} s: {self.cost_ratio:.2f}×; break-even {BREAK_EVEN_COST_RATIO:g}×")
         if self.direct:
@@ -76,8 +111,12 @@ class SearchChoice:
 
     def metrics(self) -> dict[str, float]:
         """The choice as metrics columns of the row it was made after (TensorBoard, ``metrics.json``, Tune)."""
-        return {"auto_direct": float(self.direct), "auto_cost_ratio": self.cost_ratio,
-                "auto_random_level_s": self.random_level_seconds, "auto_picked_level_s": self.surrogate_level_seconds}
+        metrics = {"auto_direct": float(self.direct), "auto_cost_ratio": self.cost_ratio,
+                   "auto_random_level_s": self.random_level_seconds,
+                   "auto_picked_level_s": self.surrogate_level_seconds}
+        if self.iterations_left is not None:
+            metrics.update(auto_iterations_left=self.iterations_left, auto_time_left_s=self.time_left)
+        return metrics
 
     @classmethod
     def from_metrics(cls, row: Mapping[str, Any], *, variant: str) -> "SearchChoice | None":
@@ -86,7 +125,9 @@ class SearchChoice:
             return None
         return cls(direct=bool(row["auto_direct"]), variant=variant, cost_ratio=float(row["auto_cost_ratio"]),
                    random_level_seconds=float(row["auto_random_level_s"]),
-                   surrogate_level_seconds=float(row["auto_picked_level_s"]))
+                   surrogate_level_seconds=float(row["auto_picked_level_s"]),
+                   iterations_left=_number(row.get("auto_iterations_left")),
+                   time_left=_number(row.get("auto_time_left_s")))
 
     def state_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -94,6 +135,10 @@ class SearchChoice:
     @classmethod
     def from_state_dict(cls, state: Mapping[str, Any] | None) -> "SearchChoice | None":
         return None if state is None else cls(**state)
+
+
+def _number(value: Any) -> float | None:
+    return None if value is None else float(value)
 
 
 def random_level_seconds(history: Sequence[Mapping[str, float]]) -> float:
@@ -110,8 +155,32 @@ def probe_allowance(history: Sequence[Mapping[str, float]], *, surrogate_seconds
     return max(per_pick, 0.0) * probed
 
 
+def choose_by_time_left(history: Sequence[Mapping[str, float]], *, time_left: float, proposal_seconds: float,
+                        picks: int, direct_variant: str) -> SearchChoice:
+    """The choice right after the random iteration, with a time budget: the direct search if fewer than
+    :data:`MIN_SURROGATE_ITERATIONS` surrogate iterations fit in ``time_left``, else DSAGE for now (``direct`` False:
+    the probe decides later).
+
+    Args:
+        history: The run's metrics rows; the first is the random iteration.
+        time_left: Wall seconds of the time budget left.
+        proposal_seconds: The surrogate's first proposal, projected
+            (:meth:`~dsage_ray.core.proposers.SurrogateAssisted.projected_proposal_seconds`).
+        picks: Levels a surrogate iteration evaluates (within the evaluation budget).
+        direct_variant: The domain's direct search.
+    """
+    random_seconds = random_level_seconds(history)
+    per_pick = proposal_seconds / max(picks, 1) + random_seconds
+    iterations = time_left / (per_pick * max(picks, 1)) if per_pick > 0 else math.inf
+    ratio = per_pick / random_seconds if random_seconds > 0 else math.inf
+    return SearchChoice(direct=iterations < MIN_SURROGATE_ITERATIONS, variant=direct_variant, cost_ratio=ratio,
+                        random_level_seconds=random_seconds, surrogate_level_seconds=per_pick,
+                        iterations_left=iterations, time_left=time_left)
+
+
 def choose_search(history: Sequence[Mapping[str, float]], *, surrogate_seconds: float, picks: int,
-                  probe_seconds: float, probed: int, direct_variant: str) -> SearchChoice:
+                  probe_seconds: float, probed: int, direct_variant: str,
+                  before: SearchChoice | None = None) -> SearchChoice:
     """The choice once the surrogate's first picks are probed: a pick's projected cost against a random level's.
 
     Args:
@@ -121,12 +190,16 @@ def choose_search(history: Sequence[Mapping[str, float]], *, surrogate_seconds: 
         probe_seconds: Seconds the evaluation of the first ``probed`` of them took.
         probed: Picks evaluated for the choice (:data:`PROBE_PICKS`, fewer where fewer were proposed).
         direct_variant: The domain's direct search.
+        before: The time budget's look after the random iteration (:func:`choose_by_time_left`), which kept DSAGE:
+            its numbers are carried into the choice (None: no time budget).
     """
     random_seconds = random_level_seconds(history)
     per_pick = surrogate_seconds / max(picks, 1) + probe_seconds / max(probed, 1)
     ratio = per_pick / random_seconds if random_seconds > 0 else float("inf")
     return SearchChoice(direct=ratio > BREAK_EVEN_COST_RATIO, variant=direct_variant, cost_ratio=ratio,
-                        random_level_seconds=random_seconds, surrogate_level_seconds=per_pick)
+                        random_level_seconds=random_seconds, surrogate_level_seconds=per_pick,
+                        iterations_left=None if before is None else before.iterations_left,
+                        time_left=None if before is None else before.time_left)
 
 
 #: Keys that add to or filter a surrogate's picks: off in the direct search unless its variant sets them (an audit

@@ -35,7 +35,9 @@ iteration cannot overlap: nothing is known until its random batch is back. A ste
 entries are the phases that ran during it, so a pipelined step's ``time_train`` is the next picks'
 training; ``time_overlapped`` is how long the driver worked while the batch was being evaluated.
 
-*Search auto* (``search = "auto"``): the first surrogate iteration's picks are probed before the rest are
+*Search auto* (``search = "auto"``): with a time budget, right after the random iteration, the surrogate's first
+proposal is projected and the direct search takes over at once where too few surrogate iterations fit in the time
+left (:meth:`DSAGE._look_at_time_left`); otherwise the first surrogate iteration's picks are probed before the rest are
 evaluated (:meth:`DSAGE._probe_first_picks`); where a pick costs more than the break-even, the rest are dropped and
 the domain's direct search takes over the same archive (:mod:`dsage_ray.core.auto_search`).
 
@@ -64,8 +66,8 @@ from typing import Any
 import numpy as np
 
 from dsage_ray.config import RunConfig, changed_keys
-from dsage_ray.core.auto_search import (PROBE_PICKS, SURROGATE_PHASES, SearchChoice, choose_search, direct_config,
-                                        direct_variant, probe_allowance)
+from dsage_ray.core.auto_search import (PROBE_PICKS, SURROGATE_PHASES, SearchChoice, choose_by_time_left, choose_search,
+                                        direct_config, direct_variant, probe_allowance)
 from dsage_ray.core.evaluation import InProcessEvaluator, PendingEvaluation
 from dsage_ray.core.outputs import write_outputs
 from dsage_ray.core.proposers import (DirectQD, EvaluatedBatch, ProgressCallback, Proposal, Proposer,
@@ -139,6 +141,8 @@ class DSAGE:
         self.growth: tuple[GrowthPoint, ...] = ()
         #: What ``search = "auto"`` chose, once it has (None: not yet, or a fixed search).
         self.search_choice: SearchChoice | None = None
+        #: ``search = "auto"`` with a time budget: the look at the time left that kept DSAGE until the probe.
+        self._time_look: SearchChoice | None = None
         self.proposer: Proposer
         if config.uses_surrogate:
             self.proposer = SurrogateAssisted(config=config, domain=self.domain, archive=self.archive, seeds=self.seeds,
@@ -203,7 +207,8 @@ class DSAGE:
             progress=self._evaluation_progress()).result()))
         self.search_choice = choose_search(
             self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=count,
-            probe_seconds=time.perf_counter() - tic, probed=len(results), direct_variant=direct_variant(self.config))
+            probe_seconds=time.perf_counter() - tic, probed=len(results), direct_variant=direct_variant(self.config),
+            before=self._time_look)
         proposal.metrics.update(self.search_choice.metrics())
         rest = [i for i in range(count) if i not in results]
         if not self.search_choice.direct and len(results) == len(probe) and rest:
@@ -215,6 +220,23 @@ class DSAGE:
             proposal = proposal.take(evaluated)
         return proposal, [results[i] for i in evaluated], [seeds[i] for i in evaluated]
 
+    def _look_at_time_left(self, step_started: float) -> bool:
+        """``search = "auto"`` with a time budget, before the first surrogate proposal: continues with the direct
+        search at once where fewer than :data:`~dsage_ray.core.auto_search.MIN_SURROGATE_ITERATIONS` surrogate
+        iterations, at their cheapest, fit in the time left. Returns whether it chose so."""
+        config = self.config
+        picks = min(config.selection.count + config.selection.elite_mutants, config.budget - self.evals)
+        time_left = config.time_budget - self.wall_time - (time.perf_counter() - step_started)
+        look = choose_by_time_left(self.history, time_left=time_left,
+                                   proposal_seconds=self.proposer.projected_proposal_seconds(), picks=picks,
+                                   direct_variant=direct_variant(config))
+        if not look.direct:
+            self._time_look = look
+            return False
+        self.search_choice = look
+        self._continue_direct()
+        return True
+
     def _continue_direct(self) -> None:
         """The domain's direct search takes over the archive (the surrogate's proposer is dropped with its data)."""
         self.proposer = DirectQD(config=direct_config(self.config), domain=self.domain, archive=self.archive,
@@ -222,12 +244,19 @@ class DSAGE:
 
     def _step(self) -> dict[str, float]:
         started = time.perf_counter()
+        # search = "auto" with a time budget looks at the time left before the surrogate's first training.
+        looked = (self.config.search == "auto" and self.config.time_budget > 0 and self.outer_iteration == 1
+                  and self.search_choice is None and self._time_look is None)
+        chose_by_time = looked and self._look_at_time_left(started)
+        look_seconds = time.perf_counter() - started
         if self.pending is not None:  # chosen during the previous step (pipelined)
             proposal, times = self.pending, {}
             self.pending = None
         else:
             proposal = self.proposer.propose(outer_iteration=self.outer_iteration)
             times = dict(proposal.times)
+        if looked:
+            times["auto_look"] = look_seconds
         solutions = proposal.solutions[: self.config.budget - self.evals]
         seeds = [self.seeds.evaluation(self.evals + i) for i in range(len(solutions))]
 
@@ -260,6 +289,8 @@ class DSAGE:
         self.growth = growth_curve(self.archive, measures=batch.measures, objective=batch.objective,
                                    evals_at=[self.evals + i + 1 for i in batch.ok], budget=self.config.budget)
         metrics = {**proposal.metrics, **self.proposer.learn(batch)}
+        if chose_by_time:
+            metrics.update(self.search_choice.metrics())
         if probing and self.search_choice.direct:
             self._continue_direct()
 

@@ -15,8 +15,10 @@ Training always runs in float32.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
+import time
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -274,6 +276,27 @@ class Surrogate:
         if self._prior_index is not None:
             self._prior_fit = self._fit_prior(window)
         return losses
+
+    def training_step_seconds(self, dataset: SurrogateDataset) -> float:
+        """Seconds of one training step (forward and backward on ``config.batch_size`` recent samples), timed on a
+        copy of the model: the model, its optimiser, its batch-norm statistics and its random streams are untouched.
+
+        The second of two steps is timed, as the first carries one-off allocations.
+        """
+        window = dataset.recent(self.config.train_window)
+        if len(window) == 0:
+            raise ValueError("cannot time a training step on an empty dataset")
+        model = copy.deepcopy(self.model).train()
+        indices = np.arange(min(self.config.batch_size, len(window)))
+        seconds = 0.0
+        for _ in range(2):
+            tic = time.perf_counter()
+            levels, *targets = window.batch(indices, self.device)
+            loss, _ = self._losses(model(levels), *targets)
+            loss.backward()
+            model.zero_grad(set_to_none=True)
+            seconds = time.perf_counter() - tic
+        return seconds
 
     def _log_prior(self, encoded: np.ndarray) -> np.ndarray:
         """``log(1 + prior)`` of ``(n, C, S, S)`` float32 levels, float64, in chunks of :data:`PREDICT_BATCH_SIZE`."""

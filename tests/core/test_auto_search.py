@@ -5,7 +5,8 @@ import pytest
 from dsage_ray.config import ConfigError, RunConfig
 from dsage_ray.core import auto_search
 from dsage_ray.core import runner as runner_module
-from dsage_ray.core.auto_search import SearchChoice, choose_search, direct_config, probe_allowance
+from dsage_ray.core.auto_search import (SearchChoice, choose_by_time_left, choose_search, direct_config,
+                                        direct_variant, probe_allowance)
 from dsage_ray.core.proposers import DirectQD, SurrogateAssisted
 from dsage_ray.core.runner import DSAGE
 from tests.core.test_runner import archive_snapshot
@@ -152,3 +153,78 @@ def test_a_run_resumes_exactly_before_at_and_after_the_switch(monkeypatch, probe
     if steps >= 2:  # the choice was made before the stop: the resumed run holds that one (its own times differ)
         assert resumed.search_choice == interrupted.search_choice
     assert isinstance(resumed.proposer, DirectQD)
+
+
+#: Far more than the run can take: it ends on its evaluations; only the look at the time left reads it.
+LONG = 1e6
+
+
+def test_the_time_left_is_counted_in_surrogate_iterations_at_their_cheapest():
+    history = [random_row(2.0, 40)]  # a random level: 0.05 s
+    # A proposal of 5 s over 25 picks, then each pick at a random level's 0.05 s: an iteration of 6.25 s at least.
+    short = choose_by_time_left(history, time_left=12.5, proposal_seconds=5.0, picks=25, direct_variant="cma_me")
+    assert short.iterations_left == pytest.approx(2.0) and short.time_left == 12.5
+    assert short.surrogate_level_seconds == pytest.approx(0.25) and short.cost_ratio == pytest.approx(5.0)
+    assert short.direct and short.by_time_left
+    assert "room for 2.0 surrogate iterations of at least 6 s; DSAGE needs 3" in short.reason
+    long = choose_by_time_left(history, time_left=100.0, proposal_seconds=5.0, picks=25, direct_variant="cma_me")
+    assert long.iterations_left == pytest.approx(16.0) and not long.direct and not long.by_time_left
+    # Kept until the probe, whose choice carries the look's numbers (and its own reason).
+    probed = choose_search(history, surrogate_seconds=5.0, picks=25, probe_seconds=100.0, probed=8,
+                           direct_variant="cma_me", before=long)
+    assert probed.direct and probed.iterations_left == long.iterations_left and "break-even" in probed.reason
+    row = {"outer_iteration": 1.0, **short.metrics()}
+    assert row["auto_iterations_left"] == pytest.approx(2.0)
+    assert SearchChoice.from_metrics(row, variant="cma_me") == short
+
+
+def test_with_too_little_time_left_the_direct_search_takes_over_before_the_surrogate_trains(monkeypatch):
+    monkeypatch.setattr(auto_search, "MIN_SURROGATE_ITERATIONS", 1e12)
+    runner = make_runner(time_budget=LONG)
+    first = runner.step()
+    second = runner.step()
+    assert "auto_direct" not in first
+    assert second["auto_direct"] == 1.0 and 0 < second["auto_iterations_left"] < 1e12
+    assert second["auto_time_left_s"] == pytest.approx(LONG - first["wall_time"], abs=5.0)
+    assert runner.search_choice.by_time_left and "DSAGE needs" in runner.search_choice.reason
+    # Nothing trained: the direct search proposed this iteration's batch (MAP-Elites' 5 x 30).
+    assert "time_train" not in second and "surrogate_loss" not in second and second["time_auto_look"] > 0
+    assert second["evaluated_this_iteration"] == 150 and isinstance(runner.proposer, DirectQD)
+    runner.run()
+    # The look drew nothing from the run's streams: the run is the random iteration, then the direct search.
+    by_hand = make_runner(time_budget=LONG)
+    by_hand.step()
+    by_hand.search_choice = runner.search_choice
+    by_hand._continue_direct()
+    by_hand.run()
+    assert archive_snapshot(runner.archive) == archive_snapshot(by_hand.archive)
+
+
+def test_a_look_that_keeps_dsage_leaves_its_run_bit_for_bit_and_its_numbers_in_the_choice(monkeypatch, probe_two):
+    monkeypatch.setattr(auto_search, "MIN_SURROGATE_ITERATIONS", 0)
+    monkeypatch.setattr(auto_search, "BREAK_EVEN_COST_RATIO", float("inf"))
+    budget = SMALL_RUN["n_rand"] + 10
+    auto = make_runner(budget=budget, time_budget=LONG, **PICKING)
+    auto.run()
+    fixed = make_runner(budget=budget, time_budget=LONG, search="fixed", **PICKING)
+    fixed.run()
+    assert not auto.search_choice.direct and auto.search_choice.iterations_left > 0
+    assert auto.history[1]["auto_iterations_left"] == auto.search_choice.iterations_left
+    assert archive_snapshot(auto.archive) == archive_snapshot(fixed.archive)
+    assert auto.history[-1]["surrogate_loss"] == fixed.history[-1]["surrogate_loss"]
+
+
+@pytest.mark.parametrize("steps", [1, 2])
+def test_a_run_resumes_exactly_across_a_switch_by_the_time_left(monkeypatch, steps):
+    monkeypatch.setattr(auto_search, "MIN_SURROGATE_ITERATIONS", 1e12)
+    reference = make_runner(time_budget=LONG)
+    reference.run()
+    interrupted = make_runner(time_budget=LONG)
+    for _ in range(steps):
+        interrupted.step()
+    resumed = make_runner(time_budget=LONG)
+    resumed.load_state_dict(pickle.loads(pickle.dumps(interrupted.state_dict())))
+    resumed.run()
+    assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
+    assert isinstance(resumed.proposer, DirectQD) and resumed.search_choice.by_time_left
+    assert direct_variant(resumed.config) == "map_elites"

@@ -15,8 +15,8 @@ from dsage_ray.core.warm_start import (SurrogateInitError, check_warm_start, loa
 from tests.fakes import SMALL_RUN, BitmapDomain
 
 #: A real Maze run small enough for a test: the pretraining and CLI tests need a real domain's encoding.
-MAZE_RUN = {"preset": "tiny", "budget": 60, "n_rand": 30, "maze.episodes": 2, "qd.exploit_iterations": 3,
-            "surrogate.epochs": 2, "selection.count": 20}
+MAZE_RUN = {"preset": "tiny", "maze.agent": "builtin:wall_follower", "budget": 60, "n_rand": 30, "maze.episodes": 2,
+            "qd.exploit_iterations": 3, "surrogate.epochs": 2, "selection.count": 20}
 
 
 def bitmap_runner(**overrides) -> DSAGE:

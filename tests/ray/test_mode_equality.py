@@ -102,19 +102,24 @@ def test_in_process_and_tune_with_one_or_two_actors_write_the_same_archive(varia
 
 
 
-@pytest.mark.parametrize("variant", VARIANTS)
-def test_a_screened_search_writes_the_same_archive_in_process_and_through_tune(variant, tmp_path):
+def test_a_screened_search_writes_the_same_archive_in_process_and_through_tune(tmp_path):
     # The screen plays its episodes where the proposer runs (the trial's process) and draws its seeds from the
     # run's stream, so it must not make the modes differ. MAP-Elites screens once its random batches are done.
-    config = RunConfig.build({**CONFIG, "variant": variant, "selection.screen_episodes": 1, "budget": 100,
-                              "ray.num_workers": 1})
-    run_locally(config, out_dir=tmp_path / "local")
-    local = outputs(tmp_path / "local", config)
-    assert sum(row.get("selection_screened", 0) for row in local["metrics"]) > 0
-    experiment = run_experiment(grid_param_space(config, {"variant": [variant]}), name="screened",
+    # One Tune experiment for both variants: a Tune start costs more than either run.
+    screened = {"selection.screen_episodes": 1, "budget": 100, "ray.num_workers": 1}
+    local = {}
+    for variant in VARIANTS:
+        config = RunConfig.build({**CONFIG, "variant": variant, **screened})
+        run_locally(config, out_dir=tmp_path / variant)
+        local[variant] = outputs(tmp_path / variant, config)
+        assert sum(row.get("selection_screened", 0) for row in local[variant]["metrics"]) > 0, variant
+    base = RunConfig.build({**CONFIG, "variant": "dsage", **screened})
+    experiment = run_experiment(grid_param_space(base, {"variant": list(VARIANTS)}), name="screened",
                                 storage_path=tmp_path / "tune", max_failures=0)
-    (trial,) = experiment.trials
-    tuned = outputs(trial.path, trial.config)
-    assert tuned["config"] == local["config"]
-    assert tuned["metrics"] == local["metrics"]
-    assert tuned["archive.csv"] == local["archive.csv"]
+    assert sorted(trial.config.variant for trial in experiment.trials) == sorted(VARIANTS)
+    for trial in experiment.trials:
+        tuned = outputs(trial.path, trial.config)
+        expected = local[trial.config.variant]
+        assert tuned["config"] == expected["config"], trial.config.variant
+        assert tuned["metrics"] == expected["metrics"], trial.config.variant
+        assert tuned["archive.csv"] == expected["archive.csv"], trial.config.variant

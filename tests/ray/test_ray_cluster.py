@@ -7,9 +7,15 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
+# About a minute (a 4-node cluster started in a subprocess): in `make test-slow`. The default suite keeps the single-node
+# checks of the same guarantees: actors replaced without losing a level (test_ray_pool.py) and an agent played from
+# its bytes once its file is gone (tests/agents/test_shipping.py).
+@pytest.mark.slow
 def test_pool_spreads_over_nodes_survives_losing_one_and_needs_no_agent_path_on_any_node():
     env = {**os.environ, "PYTHONPATH": str(ROOT), "RAY_AUTH_MODE": "disabled"}
     proc = subprocess.run([sys.executable, "-m", "tests.ray.multinode_check"], cwd=ROOT, env=env,
