@@ -37,7 +37,8 @@ test: $(STAMP)
 	RAY_AUTH_MODE=disabled LD_PRELOAD=$(JSIG) $(BIN)/python -m pytest -q --durations=20
 
 # The long tests the default suite leaves out (marked slow: end-to-end script runs whose parts the default
-# suite covers, and runs of the real ACCEL agent); about 3 minutes on 2 cores (6 tests in 142 s, measured).
+# suite covers, runs of the real ACCEL agent, and the 4-node cluster); about 3 minutes on 2 cores (8 tests in 158 s,
+# measured).
 test-slow: $(STAMP)
 	RAY_AUTH_MODE=disabled LD_PRELOAD=$(JSIG) $(BIN)/python -m pytest -q -m slow
 

@@ -75,9 +75,9 @@ def main() -> int:
         variants = tiny_variants(args.domain)
     seeds = args.seeds if args.seeds is not None else (2 if tiny else None)
     if args.num_cpus is not None and not (args.address or os.environ.get("RAY_ADDRESS")):
-        from dsage_ray.ray.experiment import connect
+        from dsage_ray.ray.session import start_ray
 
-        connect(None, num_cpus=args.num_cpus)
+        start_ray(None, num_cpus=args.num_cpus)
 
     # 2. Every grid point is checked, then each trial runs to its evaluation budget.
     started = time.perf_counter()
