@@ -225,6 +225,7 @@ class DSAGE:
         search at once where fewer than :data:`~dsage_ray.core.auto_search.MIN_SURROGATE_ITERATIONS` surrogate
         iterations, at their cheapest, fit in the time left. Returns whether it chose so."""
         config = self.config
+        # The picks before any screen: a screen that drops some makes the iteration cheaper than counted here.
         picks = min(config.selection.count + config.selection.elite_mutants, config.budget - self.evals)
         time_left = config.time_budget - self.wall_time - (time.perf_counter() - step_started)
         look = choose_by_time_left(self.history, time_left=time_left,
@@ -233,12 +234,14 @@ class DSAGE:
         if not look.direct:
             self._time_look = look
             return False
-        self.search_choice = look
-        self._continue_direct()
+        self.continue_direct(look)
         return True
 
-    def _continue_direct(self) -> None:
-        """The domain's direct search takes over the archive (the surrogate's proposer is dropped with its data)."""
+    def continue_direct(self, choice: SearchChoice) -> None:
+        """Records ``choice`` and hands the archive to the domain's direct search (the surrogate's proposer is dropped
+        with its data). ``search = "auto"`` calls it when it chooses; ``benchmarks/bench_auto_switch_bound.py`` calls
+        it right after the random iteration."""
+        self.search_choice = choice
         self.proposer = DirectQD(config=direct_config(self.config), domain=self.domain, archive=self.archive,
                                  seeds=self.seeds)
 
@@ -246,9 +249,9 @@ class DSAGE:
         started = time.perf_counter()
         # search = "auto" with a time budget looks at the time left before the surrogate's first training.
         looked = (self.config.search == "auto" and self.config.time_budget > 0 and self.outer_iteration == 1
-                  and self.search_choice is None and self._time_look is None)
+                  and self.search_choice is None)
         chose_by_time = looked and self._look_at_time_left(started)
-        look_seconds = time.perf_counter() - started
+        look_seconds = time.perf_counter() - started if looked else 0.0
         if self.pending is not None:  # chosen during the previous step (pipelined)
             proposal, times = self.pending, {}
             self.pending = None
@@ -292,7 +295,7 @@ class DSAGE:
         if chose_by_time:
             metrics.update(self.search_choice.metrics())
         if probing and self.search_choice.direct:
-            self._continue_direct()
+            self.continue_direct(self.search_choice)
 
         self.evals += len(solutions)
         self.outer_iteration += 1
@@ -429,7 +432,7 @@ class DSAGE:
         # Before the seeds load: the direct search's construction draws a seed the stored streams already account for.
         self.search_choice = SearchChoice.from_state_dict(state.get("search_choice"))
         if self.search_choice is not None and self.search_choice.direct:
-            self._continue_direct()
+            self.continue_direct(self.search_choice)
         self.seeds.load_state_dict(state)
         self.archive = state["archive"]
         self.proposer.load_state_dict(state)

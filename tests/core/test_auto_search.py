@@ -194,8 +194,7 @@ def test_with_too_little_time_left_the_direct_search_takes_over_before_the_surro
     # The look drew nothing from the run's streams: the run is the random iteration, then the direct search.
     by_hand = make_runner(time_budget=LONG)
     by_hand.step()
-    by_hand.search_choice = runner.search_choice
-    by_hand._continue_direct()
+    by_hand.continue_direct(runner.search_choice)
     by_hand.run()
     assert archive_snapshot(runner.archive) == archive_snapshot(by_hand.archive)
 
