@@ -88,7 +88,8 @@ def audit_config(
         name: Run name, the Tune experiment folder (default ``audit_<agent>``).
         overrides: Further dotted config keys (``--set``), applied last. Audits hold no levels out
             (``experimental.holdout_levels = 0``) unless these say otherwise, and a DSAGE search also takes the
-            registration's ``audit.surrogate_keys`` (Maze: ``selection.elite_mutants = 150``).
+            registration's ``audit.surrogate_keys`` (Maze: ``selection.elite_mutants = 150``). ``search = "auto"``
+            runs as ``fixed`` where the registration's ``audit.auto_keeps_dsage`` says why (Maze).
         started: The config of the search this audit continues (``--resume``). The registration's
             ``audit.surrogate_keys`` then keep the values it was started with, so an audit begun under an
             earlier default continues as it began; ``overrides`` still win.
@@ -115,14 +116,17 @@ def audit_config(
     # The held-out levels are a diagnostic of the surrogate for research runs (about 10% of a cpu run's
     # time); an audit wants failures, so it holds none out unless asked (--set experimental.holdout_levels=100).
     values["experimental.holdout_levels"] = 0
-    config = RunConfig.build({**values, **(overrides or {})})
+    keys = {**values, **(overrides or {})}
+    config = RunConfig.build(keys)
     if spec.audit.surrogate_keys and config.mutates_elites:
         defaults = dict(spec.audit.surrogate_keys)
         if started is not None:
             begun = started.to_flat()
             defaults = {key: begun[key] for key in defaults}
-        config = RunConfig.build({**values, **defaults, **(overrides or {})})
-    return config
+        keys = {**values, **defaults, **(overrides or {})}
+    if config.search == "auto" and spec.audit.auto_keeps_dsage:
+        keys["search"] = "fixed"
+    return RunConfig.build(keys)
 
 
 def audit_spec(domain: str):

@@ -107,6 +107,8 @@ def run_audit(
                           preset=preset or default_preset(domain, agent=agent), variant=variant,
                           objective=objective, measures=measures, budget=budget, seed=seed,
                           overrides=dict(overrides or {}), started=started)
+    if (overrides or {}).get("search") == "auto" and config.search == "fixed":
+        print(f"search auto: {domain} audits keep DSAGE: {spec.audit.auto_keeps_dsage}")
     if out is None:
         out = default_audit_folder(agent, domain=domain)
     return search_and_collect(config, out_dir=out, local=local, workers=workers, address=address, resume=resume,

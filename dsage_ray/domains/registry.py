@@ -111,6 +111,11 @@ class AuditSpec:
             version lacks.
         surrogate_keys: Dotted config keys an audit adds when its search is a DSAGE variant whose QD emitter
             mutates (``RunConfig.mutates_elites``), under the user's own keys; other searches leave them out.
+        auto_keeps_dsage: Why ``search = "auto"`` keeps DSAGE in this domain's audits (empty: an audit's ``auto``
+            chooses as a run's does). ``auto``'s break-even compares a pick's cost with a random level's, measured
+            in searches for QD-score; where failures are the slow levels to play (a maze the agent never solves
+            runs to the step limit), an audit's picks cost more than that for every search that finds failures,
+            and equal-time audits are the measurement that decides.
     """
 
     objectives: tuple[str, ...]
@@ -121,6 +126,7 @@ class AuditSpec:
     settings: tuple[ReportField, ...] = ()
     upgrade: str | None = None
     surrogate_keys: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    auto_keeps_dsage: str = ""
 
     def upgrade_collection(self, collection: dict[str, Any], *, folder: Any) -> None:
         """Runs :attr:`upgrade` on a collection just read from ``folder`` (nothing when there is none)."""

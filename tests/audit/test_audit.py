@@ -131,6 +131,15 @@ def test_audit_config_rejects_non_failure_objectives():
     assert config.maze.objective == "regret" and config.maze.archive_dims == (256, 648)
 
 
+def test_search_auto_keeps_dsage_in_maze_audits_and_chooses_in_other_domains():
+    """A Maze audit's picks cost past auto's break-even while DSAGE's audit finds the most failures at equal time."""
+    maze = audit_config(agent=AUDITED, overrides={"search": "auto"})
+    assert maze.search == "fixed" and maze.variant == "dsage" and maze.selection.elite_mutants == 150
+    gym = audit_config(domain="gym", agent="random", preset="tiny", overrides={"search": "auto"})
+    assert gym.search == "auto"
+    assert audit_config(agent=AUDITED).search == "fixed"
+
+
 def test_v1_collections_still_load_and_compare(collection, tmp_path, capsys):
     """A collection in the v1 format (Maze only, no domain/reference/level_file/reproduce) reads as v2."""
     import shutil
