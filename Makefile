@@ -33,7 +33,7 @@ run: $(STAMP)
 JSIG := $(shell j=$$(readlink -f $$(command -v java) 2>/dev/null) && ls $$(dirname $$(dirname $$j))/lib/libjsig.so 2>/dev/null)
 
 # Two pytest workers, each taking whole files (module fixtures are built once) and starting its own 2-CPU Ray
-# cluster: most of the suite waits on process start-up, so 2 workers on 2 cores took 789 s against 1,141 s for one
+# cluster: most of the suite waits on process start-up, so 2 workers on 2 cores took 737 s against 1,141 s for one
 # (measured). --durations: every CI log lists the slowest tests, to keep the suite under its 15 minutes.
 test: $(STAMP)
 	RAY_AUTH_MODE=disabled LD_PRELOAD=$(JSIG) $(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=20
