@@ -124,7 +124,8 @@ def audit_config(
             begun = started.to_flat()
             defaults = {key: begun[key] for key in defaults}
         keys = {**values, **defaults, **(overrides or {})}
-    if config.search == "auto" and spec.audit.auto_keeps_dsage:
+    # An audit begun with auto before the domain kept DSAGE continues as it began, like the surrogate keys above.
+    if config.search == "auto" and spec.audit.auto_keeps_dsage and (started is None or started.search != "auto"):
         keys["search"] = "fixed"
     return RunConfig.build(keys)
 

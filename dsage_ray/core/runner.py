@@ -141,8 +141,6 @@ class DSAGE:
         self.growth: tuple[GrowthPoint, ...] = ()
         #: What ``search = "auto"`` chose, once it has (None: not yet, or a fixed search).
         self.search_choice: SearchChoice | None = None
-        #: ``search = "auto"`` with a time budget: the look at the time left that kept DSAGE until the probe.
-        self._time_look: SearchChoice | None = None
         self.proposer: Proposer
         if config.uses_surrogate:
             self.proposer = SurrogateAssisted(config=config, domain=self.domain, archive=self.archive, seeds=self.seeds,
@@ -188,12 +186,13 @@ class DSAGE:
         self.history.append(metrics)
         return metrics
 
-    def _probe_first_picks(self, proposal: Proposal, solutions: Solutions, seeds: list[int], started: float
-                           ) -> tuple[Proposal, list[EvaluationResult], list[int]]:
+    def _probe_first_picks(self, proposal: Proposal, solutions: Solutions, seeds: list[int], started: float,
+                           look: SearchChoice | None) -> tuple[Proposal, list[EvaluationResult], list[int]]:
         """``search = "auto"``: evaluates :data:`PROBE_PICKS` of the surrogate's first picks, spread over its order
         (the picks come in archive order, where a region of cheap levels may come first), chooses, then evaluates
-        the rest or drops it. Returns the proposal of what was evaluated, its results and seeds, in the picks'
-        order: with every pick evaluated, the fixed run's batch exactly."""
+        the rest or drops it. ``look`` is this step's look at the time left, which kept DSAGE (None: no time budget).
+        Returns the proposal of what was evaluated, its results and seeds, in the picks' order: with every pick
+        evaluated, the fixed run's batch exactly."""
         tic, count = time.perf_counter(), len(solutions)
         probe = sorted({int(i) for i in np.linspace(0, count - 1, min(PROBE_PICKS, count)).round()})
         # The probe stops once its picks alone have cost more than the break-even allows (Mario's A* may play a
@@ -208,7 +207,7 @@ class DSAGE:
         self.search_choice = choose_search(
             self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=count,
             probe_seconds=time.perf_counter() - tic, probed=len(results), direct_variant=direct_variant(self.config),
-            before=self._time_look)
+            before=look)
         proposal.metrics.update(self.search_choice.metrics())
         rest = [i for i in range(count) if i not in results]
         if not self.search_choice.direct and len(results) == len(probe) and rest:
@@ -220,10 +219,10 @@ class DSAGE:
             proposal = proposal.take(evaluated)
         return proposal, [results[i] for i in evaluated], [seeds[i] for i in evaluated]
 
-    def _look_at_time_left(self, step_started: float) -> bool:
+    def _look_at_time_left(self, step_started: float) -> SearchChoice:
         """``search = "auto"`` with a time budget, before the first surrogate proposal: continues with the direct
         search at once where fewer than :data:`~dsage_ray.core.auto_search.MIN_SURROGATE_ITERATIONS` surrogate
-        iterations, at their cheapest, fit in the time left. Returns whether it chose so."""
+        iterations, at their cheapest, fit in the time left. Returns the look (``direct``: it chose so)."""
         config = self.config
         # The picks before any screen: a screen that drops some makes the iteration cheaper than counted here.
         picks = min(config.selection.count + config.selection.elite_mutants, config.budget - self.evals)
@@ -231,11 +230,9 @@ class DSAGE:
         look = choose_by_time_left(self.history, time_left=time_left,
                                    proposal_seconds=self.proposer.projected_proposal_seconds(), picks=picks,
                                    direct_variant=direct_variant(config))
-        if not look.direct:
-            self._time_look = look
-            return False
-        self.continue_direct(look)
-        return True
+        if look.direct:
+            self.continue_direct(look)
+        return look
 
     def continue_direct(self, choice: SearchChoice) -> None:
         """Records ``choice`` and hands the archive to the domain's direct search (the surrogate's proposer is dropped
@@ -248,17 +245,16 @@ class DSAGE:
     def _step(self) -> dict[str, float]:
         started = time.perf_counter()
         # search = "auto" with a time budget looks at the time left before the surrogate's first training.
-        looked = (self.config.search == "auto" and self.config.time_budget > 0 and self.outer_iteration == 1
-                  and self.search_choice is None)
-        chose_by_time = looked and self._look_at_time_left(started)
-        look_seconds = time.perf_counter() - started if looked else 0.0
+        look = (self._look_at_time_left(started) if self.config.search == "auto" and self.config.time_budget > 0
+                and self.outer_iteration == 1 and self.search_choice is None else None)
+        look_seconds = time.perf_counter() - started
         if self.pending is not None:  # chosen during the previous step (pipelined)
             proposal, times = self.pending, {}
             self.pending = None
         else:
             proposal = self.proposer.propose(outer_iteration=self.outer_iteration)
             times = dict(proposal.times)
-        if looked:
+        if look is not None:
             times["auto_look"] = look_seconds
         solutions = proposal.solutions[: self.config.budget - self.evals]
         seeds = [self.seeds.evaluation(self.evals + i) for i in range(len(solutions))]
@@ -267,7 +263,7 @@ class DSAGE:
         # search = "auto": the surrogate's first picks are probed, then the rest evaluated or dropped.
         probing = self.config.search == "auto" and self.search_choice is None and self.outer_iteration > 0
         if probing:
-            proposal, results, seeds = self._probe_first_picks(proposal, solutions, seeds, started)
+            proposal, results, seeds = self._probe_first_picks(proposal, solutions, seeds, started, look)
         else:
             evaluation = PendingEvaluation(self.evaluator, solutions, seeds, deadline=self._deadline(started),
                                            progress=self._evaluation_progress())
@@ -292,8 +288,8 @@ class DSAGE:
         self.growth = growth_curve(self.archive, measures=batch.measures, objective=batch.objective,
                                    evals_at=[self.evals + i + 1 for i in batch.ok], budget=self.config.budget)
         metrics = {**proposal.metrics, **self.proposer.learn(batch)}
-        if chose_by_time:
-            metrics.update(self.search_choice.metrics())
+        if look is not None and look.direct:
+            metrics.update(look.metrics())
         if probing and self.search_choice.direct:
             self.continue_direct(self.search_choice)
 

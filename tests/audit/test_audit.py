@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 import shlex
@@ -138,6 +139,9 @@ def test_search_auto_keeps_dsage_in_maze_audits_and_chooses_in_other_domains():
     gym = audit_config(domain="gym", agent="random", preset="tiny", overrides={"search": "auto"})
     assert gym.search == "auto"
     assert audit_config(agent=AUDITED).search == "fixed"
+    # An audit begun with auto before Maze audits kept DSAGE resumes as it began.
+    begun = dataclasses.replace(maze, search="auto")
+    assert audit_config(agent=AUDITED, overrides={"search": "auto"}, started=begun).search == "auto"
 
 
 def test_v1_collections_still_load_and_compare(collection, tmp_path, capsys):
