@@ -14,7 +14,8 @@ Maze agents do). ``normalize_actions`` (default 1, RLlib's own default) maps a B
 ``[-1, 1]`` to the action bounds, as RLlib's env runner does for a module trained with that setting.
 
 Batches (:func:`stack_observations`): a Box observation arrives as ``(n, *shape)`` in the space's dtype, a
-Discrete one as int64 ``(n,)``, a Dict as a dict and a Tuple as a tuple of such arrays. Actions leave as a numpy
+Discrete one as int64 ``(n,)``, a Dict as a dict and a Tuple as a tuple of such arrays, any other space (Text,
+MiniGrid's mission) as an object array of the ``n`` observations. Actions leave as a numpy
 array with ``n`` rows: int64 ``(n,)`` for Discrete, float32 ``(n, *shape)`` clipped to the bounds for a float
 Box, int64 for MultiDiscrete, int8 for MultiBinary. Every draw comes from the caller's ``rng`` (never torch's),
 so an evaluation is reproducible from its seed.
@@ -116,8 +117,11 @@ def stack_observations(observations: list, space: gymnasium.Space) -> Any:
     if isinstance(space, (spaces.Box, spaces.Discrete, spaces.MultiDiscrete, spaces.MultiBinary)):
         # reshape, not stack: an empty batch keeps its shape too.
         return np.asarray(observations, dtype=space.dtype).reshape((len(observations), *space.shape))
-    raise AgentError(f"observation space {space} is not supported (Box, Discrete, MultiDiscrete, MultiBinary, "
-                     f"Dict or Tuple of them)")
+    # Text, MiniGrid's MissionSpace, Graph, Sequence...: the observations as they are, one object per row. A
+    # Python policy reads them; a network cannot, and says so when the load-time check calls it.
+    batch = np.empty(len(observations), dtype=object)
+    batch[:] = [*observations]
+    return batch
 
 
 def check_actions(agent: Agent, *, observation_space: gymnasium.Space, action_space: gymnasium.Space,

@@ -329,6 +329,20 @@ def test_python_function_from_a_module(tmp_path, monkeypatch):
     assert_valid(act(cartpole("python:gym_test_policy_mod:act"), batch(CARTPOLE_OBS, 4)), CARTPOLE_ACT, 4)
 
 
+def test_python_function_reads_a_text_observation_a_network_could_not(tmp_path):
+    # MiniGrid's observation: an image, a direction and a mission string (a Text-like space).
+    space = gym.spaces.Dict({"image": gym.spaces.Box(0, 10, (3, 3, 3), np.uint8), "direction": gym.spaces.Discrete(4),
+                             "mission": gym.spaces.Text(max_length=20)})
+    stacked = stack_observations([{"image": np.zeros((3, 3, 3)), "direction": 1, "mission": "go left"},
+                                  {"image": np.ones((3, 3, 3)), "direction": 2, "mission": "go"}], space)
+    assert stacked["mission"].dtype == object and stacked["mission"].tolist() == ["go left", "go"]
+    assert stacked["image"].shape == (2, 3, 3, 3) and stacked["direction"].tolist() == [1, 2]
+    (tmp_path / "reads.py").write_text("def act(obs):\n    return len(obs['mission']) % 2\n")
+    agent = load_gym_agent(f"python:{tmp_path / 'reads.py'}:act", observation_space=space, action_space=CARTPOLE_ACT)
+    actions = agent.act(stacked, None, np.random.default_rng(0))[0]
+    assert actions.tolist() == [1, 0]  # len('go left') is odd, len('go') even
+
+
 def test_python_errors_name_the_spec(policy_file, tmp_path):
     assert "has no function 'nope'" in load_error(f"python:{policy_file}:nope")
     assert "not callable" in load_error(f"python:{policy_file}:NOT_A_FUNCTION")
