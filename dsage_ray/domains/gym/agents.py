@@ -120,7 +120,8 @@ def stack_observations(observations: list, space: gymnasium.Space) -> Any:
     # Text, MiniGrid's MissionSpace, Graph, Sequence...: the observations as they are, one object per row. A
     # Python policy reads them; a network cannot, and says so when the load-time check calls it.
     batch = np.empty(len(observations), dtype=object)
-    batch[:] = [*observations]
+    for i, observation in enumerate(observations):  # one by one: a row that is itself a sequence is never an axis
+        batch[i] = observation
     return batch
 
 

@@ -341,6 +341,10 @@ def test_python_function_reads_a_text_observation_a_network_could_not(tmp_path):
     agent = load_gym_agent(f"python:{tmp_path / 'reads.py'}:act", observation_space=space, action_space=CARTPOLE_ACT)
     actions = agent.act(stacked, None, np.random.default_rng(0))[0]
     assert actions.tolist() == [1, 0]  # len('go left') is odd, len('go') even
+    # A Sequence observation stays one object per row, even when every row has the same length.
+    row = (np.zeros(2, np.float32), np.ones(2, np.float32))
+    sequences = stack_observations([row, row, row], gym.spaces.Sequence(gym.spaces.Box(0, 1, (2,))))
+    assert sequences.shape == (3,) and sequences[2] is row
 
 
 def test_python_errors_name_the_spec(policy_file, tmp_path):
