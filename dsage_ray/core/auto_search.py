@@ -13,7 +13,11 @@ pick costs, all of that included, over what a random level's evaluation costs:
 * Mario (A*, the ``cpu`` preset): about 16×, and CMA-ME found twice DSAGE's QD-score at equal CPU time
   (equal_compute §6, §18).
 
-With a time budget, the choice can come before the surrogate ever trains: right after the random first iteration,
+With a time budget, the choice can come before the surrogate ever trains. First, during the random iteration: once
+its first :data:`RANDOM_LEVELS_TIMED` levels are evaluated, the rest are projected at their seconds, and where they
+would leave room for fewer than :data:`MIN_SURROGATE_ITERATIONS` surrogate iterations even at no surrogate cost, the
+rest are dropped and the direct search continues from those levels (:func:`choose_during_random`). Then right after
+the random first iteration,
 the surrogate's first proposal is projected from one timed training step and one timed inner-loop batch
 (:meth:`~dsage_ray.core.proposers.SurrogateAssisted.projected_proposal_seconds`), and a surrogate iteration at its
 cheapest (that proposal, then its picks at a random level's seconds each) against the time left. Where fewer than
@@ -21,9 +25,9 @@ cheapest (that proposal, then its picks at a random level's seconds each) agains
 DSAGE's first model has seen only random levels, and it cannot pay for its training in the one or two iterations left
 to it. On Mario at 10 minutes the probe below comes 4-7 minutes into the run, too late for the direct search to catch
 up (0.32-0.72× CMA-ME), while the same random levels followed at once by CMA-ME did as well as CMA-ME from the start
-(docs/results/equal_compute §22). Where the random levels themselves take much of the budget, the look comes too late
-as well (Mario seeds 96-98: they took 35-57% of 10 minutes, and ``auto`` reached 0.51× CMA-ME, §24). Without a time
-budget nothing limits the iterations, and only the probe decides.
+(docs/results/equal_compute §22). Where the random levels themselves take much of the budget, the look after them
+comes too late as well (Mario seeds 96-98: they took 35-57% of 10 minutes, and ``auto`` reached 0.51× CMA-ME, §24),
+hence the look during them. Without a time budget nothing limits the iterations, and only the probe decides.
 
 Otherwise the first outer iteration that uses the surrogate is measured as it runs: its first :data:`PROBE_PICKS` picks
 are evaluated (stopped once they alone cost past the break-even, :func:`probe_allowance`), and a pick's cost is
@@ -62,6 +66,12 @@ MIN_SURROGATE_ITERATIONS = 3
 #: Picks evaluated before the choice: enough to average a pick's evaluation, few where each is slow (Mario).
 PROBE_PICKS = 8
 
+#: With a time budget, the random first iteration's first levels timed before its rest: where the rest, at their
+#: seconds, would leave room for fewer than :data:`MIN_SURROGATE_ITERATIONS` surrogate iterations even at no
+#: surrogate cost, the rest is dropped and the direct search continues from these. Mario's random levels took 35-57%
+#: of 10 minutes on seeds 96-98 (equal_compute §24); the look after them came too late.
+RANDOM_LEVELS_TIMED = 8
+
 #: The phases of a surrogate proposal that its cost counts (``Proposal.times``; held-out levels are not the search's).
 SURROGATE_PHASES = ("train", "exploit", "select")
 
@@ -82,6 +92,8 @@ class SearchChoice:
         iterations_left: With a time budget, how many surrogate iterations at their cheapest fit in the time left
             after the random iteration (None: no time budget).
         time_left: Wall seconds of the time budget left after the random iteration (None: no time budget).
+        random_levels_timed: Where the choice came during the random iteration: the levels it was timed on, the rest
+            projected at their seconds (None: after the whole random iteration).
     """
 
     direct: bool
@@ -91,6 +103,7 @@ class SearchChoice:
     surrogate_level_seconds: float
     iterations_left: float | None = None
     time_left: float | None = None
+    random_levels_timed: int | None = None
 
     @property
     def by_time_left(self) -> bool:
@@ -102,9 +115,16 @@ class SearchChoice:
         """One line for the log: the choice and the numbers it was made on."""
         if self.by_time_left:
             iteration = self.time_left / max(self.iterations_left, 1e-9)
+            room = (f"room for {self.iterations_left:.1f} surrogate iterations of at least {iteration:.0f} s; "
+                    f"DSAGE needs {MIN_SURROGATE_ITERATIONS}")
+            if self.random_levels_timed is not None:
+                after = (f"would leave {self.time_left:.0f} s, {room}" if self.time_left > 0
+                         else "would use up the time budget")
+                return (f"search auto: continuing with {self.variant} on the same archive after "
+                        f"{self.random_levels_timed} random levels (they took {self.random_level_seconds:.3g} s each: "
+                        f"the rest of the random iteration {after})")
             return (f"search auto: continuing with {self.variant} on the same archive (the time budget leaves "
-                    f"{self.time_left:.0f} s, room for {self.iterations_left:.1f} surrogate iterations of at least "
-                    f"{iteration:.0f} s; DSAGE needs {MIN_SURROGATE_ITERATIONS})")
+                    f"{self.time_left:.0f} s, {room})")
         numbers = (f"a pick costs {self.surrogate_level_seconds:.3g} s with the surrogate's time, a random level "
                    f"{self.random_level_seconds:.3g} s: {self.cost_ratio:.2f}×; break-even {BREAK_EVEN_COST_RATIO:g}×")
         if self.direct:
@@ -118,6 +138,8 @@ class SearchChoice:
                    "auto_picked_level_s": self.surrogate_level_seconds}
         if self.iterations_left is not None:
             metrics.update(auto_iterations_left=self.iterations_left, auto_time_left_s=self.time_left)
+        if self.random_levels_timed is not None:
+            metrics.update(auto_random_levels_timed=float(self.random_levels_timed))
         return metrics
 
     @classmethod
@@ -129,7 +151,9 @@ class SearchChoice:
                    random_level_seconds=float(row["auto_random_level_s"]),
                    surrogate_level_seconds=float(row["auto_picked_level_s"]),
                    iterations_left=_number(row.get("auto_iterations_left")),
-                   time_left=_number(row.get("auto_time_left_s")))
+                   time_left=_number(row.get("auto_time_left_s")),
+                   random_levels_timed=None if row.get("auto_random_levels_timed") is None
+                   else int(row["auto_random_levels_timed"]))
 
     def state_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -157,27 +181,48 @@ def probe_allowance(history: Sequence[Mapping[str, float]], *, surrogate_seconds
     return max(per_pick, 0.0) * probed
 
 
-def choose_by_time_left(history: Sequence[Mapping[str, float]], *, time_left: float, proposal_seconds: float,
-                        picks: int, direct_variant: str) -> SearchChoice:
+def choose_by_time_left(*, random_seconds: float, time_left: float, proposal_seconds: float, picks: int,
+                        direct_variant: str) -> SearchChoice:
     """The choice right after the random iteration, with a time budget: the direct search if fewer than
     :data:`MIN_SURROGATE_ITERATIONS` surrogate iterations fit in ``time_left``, else DSAGE for now (``direct`` False:
     the probe decides later).
 
     Args:
-        history: The run's metrics rows; the first is the random iteration.
+        random_seconds: Wall seconds per level of the random iteration (:func:`random_level_seconds`).
         time_left: Wall seconds of the time budget left.
         proposal_seconds: The surrogate's first proposal, projected
             (:meth:`~dsage_ray.core.proposers.SurrogateAssisted.projected_proposal_seconds`).
         picks: Levels a surrogate iteration evaluates (within the evaluation budget).
         direct_variant: The domain's direct search.
     """
-    random_seconds = random_level_seconds(history)
     per_pick = proposal_seconds / max(picks, 1) + random_seconds
     iterations = time_left / (per_pick * max(picks, 1)) if per_pick > 0 else math.inf
     ratio = per_pick / random_seconds if random_seconds > 0 else math.inf
     return SearchChoice(direct=iterations < MIN_SURROGATE_ITERATIONS, variant=direct_variant, cost_ratio=ratio,
                         random_level_seconds=random_seconds, surrogate_level_seconds=per_pick,
                         iterations_left=iterations, time_left=time_left)
+
+
+def choose_during_random(*, seconds: float, timed: int, random_levels: int, time_left: float, picks: int,
+                         direct_variant: str) -> SearchChoice:
+    """The choice after the random iteration's first ``timed`` levels, with a time budget: the direct search if the
+    rest, at their seconds, would leave room for fewer than :data:`MIN_SURROGATE_ITERATIONS` surrogate iterations
+    even at no surrogate cost (each its picks at a random level's seconds), else DSAGE for now (the look after the
+    random iteration, with the surrogate's projected proposal, comes next).
+
+    Args:
+        seconds: Wall seconds the ``timed`` levels took.
+        timed: Random levels evaluated so far.
+        random_levels: Levels of the whole random iteration (within the evaluation budget).
+        time_left: Wall seconds of the time budget left now.
+        picks: Levels a surrogate iteration evaluates (within the evaluation budget).
+        direct_variant: The domain's direct search.
+    """
+    per_level = seconds / max(timed, 1)
+    after_random = time_left - per_level * (random_levels - timed)
+    choice = choose_by_time_left(random_seconds=per_level, time_left=after_random, proposal_seconds=0.0, picks=picks,
+                                 direct_variant=direct_variant)
+    return dataclasses.replace(choice, random_levels_timed=timed)
 
 
 def choose_search(history: Sequence[Mapping[str, float]], *, surrogate_seconds: float, picks: int,

@@ -35,8 +35,9 @@ iteration cannot overlap: nothing is known until its random batch is back. A ste
 entries are the phases that ran during it, so a pipelined step's ``time_train`` is the next picks'
 training; ``time_overlapped`` is how long the driver worked while the batch was being evaluated.
 
-*Search auto* (``search = "auto"``): with a time budget, right after the random iteration, the surrogate's first
-proposal is projected and the direct search takes over at once where too few surrogate iterations fit in the time
+*Search auto* (``search = "auto"``): with a time budget, the random iteration's first levels are timed and the rest
+dropped where they would leave too little time for the surrogate (:meth:`DSAGE._time_random_levels`); right after
+the random iteration, the surrogate's first proposal is projected and the direct search takes over at once where too few surrogate iterations fit in the time
 left (:meth:`DSAGE._look_at_time_left`); otherwise the first surrogate iteration's picks are probed before the rest are
 evaluated (:meth:`DSAGE._probe_first_picks`); where a pick costs more than the break-even, the rest are dropped and
 the domain's direct search takes over the same archive (:mod:`dsage_ray.core.auto_search`).
@@ -66,8 +67,9 @@ from typing import Any
 import numpy as np
 
 from dsage_ray.config import RunConfig, changed_keys
-from dsage_ray.core.auto_search import (PROBE_PICKS, SURROGATE_PHASES, SearchChoice, choose_by_time_left, choose_search,
-                                        direct_config, direct_variant, probe_allowance)
+from dsage_ray.core.auto_search import (PROBE_PICKS, RANDOM_LEVELS_TIMED, SURROGATE_PHASES, SearchChoice,
+                                        choose_by_time_left, choose_during_random, choose_search, direct_config,
+                                        direct_variant, probe_allowance, random_level_seconds)
 from dsage_ray.core.evaluation import InProcessEvaluator, PendingEvaluation
 from dsage_ray.core.outputs import write_outputs
 from dsage_ray.core.proposers import (DirectQD, EvaluatedBatch, ProgressCallback, Proposal, Proposer,
@@ -186,50 +188,84 @@ class DSAGE:
         self.history.append(metrics)
         return metrics
 
+    def _evaluate_in_two(self, proposal: Proposal, solutions: Solutions, seeds: list[int], first: list[int],
+                         started: float, choose, *, first_deadline: float | None = None
+                         ) -> tuple[SearchChoice, Proposal, list[EvaluationResult], list[int]]:
+        """``search = "auto"``: evaluates the batch's ``first`` levels, then ``choose(seconds, evaluated)``, then the
+        rest unless the choice is the direct search (or the first were cut short). Returns the choice, and the proposal
+        of what was evaluated with its results and seeds, in the batch's order: with every level evaluated, the batch
+        exactly as one evaluation gives it."""
+        tic = time.perf_counter()
+        deadline = self._deadline(started)
+        if first_deadline is not None:
+            deadline = first_deadline if deadline is None else min(deadline, first_deadline)
+        results = dict(zip(first, PendingEvaluation(
+            self.evaluator, solutions[first], [seeds[i] for i in first], deadline=deadline,
+            progress=self._evaluation_progress()).result()))
+        choice = choose(time.perf_counter() - tic, len(results))
+        rest = [i for i in range(len(solutions)) if i not in results]
+        if not choice.direct and len(results) == len(first) and rest:
+            results.update(zip(rest, PendingEvaluation(
+                self.evaluator, solutions[rest], [seeds[i] for i in rest], deadline=self._deadline(started),
+                progress=self._evaluation_progress(offset=len(first))).result()))
+        evaluated = sorted(results)
+        if len(evaluated) < len(proposal.solutions):
+            proposal = proposal.take(evaluated)
+        return choice, proposal, [results[i] for i in evaluated], [seeds[i] for i in evaluated]
+
     def _probe_first_picks(self, proposal: Proposal, solutions: Solutions, seeds: list[int], started: float,
                            look: SearchChoice | None) -> tuple[Proposal, list[EvaluationResult], list[int]]:
         """``search = "auto"``: evaluates :data:`PROBE_PICKS` of the surrogate's first picks, spread over its order
         (the picks come in archive order, where a region of cheap levels may come first), chooses, then evaluates
-        the rest or drops it. ``look`` is this step's look at the time left, which kept DSAGE (None: no time budget).
-        Returns the proposal of what was evaluated, its results and seeds, in the picks' order: with every pick
-        evaluated, the fixed run's batch exactly."""
-        tic, count = time.perf_counter(), len(solutions)
+        the rest or drops it. ``look`` is this step's look at the time left, which kept DSAGE (None: no time budget)."""
+        count = len(solutions)
         probe = sorted({int(i) for i in np.linspace(0, count - 1, min(PROBE_PICKS, count)).round()})
         # The probe stops once its picks alone have cost more than the break-even allows (Mario's A* may play a
         # pick for half a minute): the choice is then made already.
         allowance = probe_allowance(self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=count,
                                     probed=len(probe))
-        deadline = self._deadline(started)
-        deadline = tic + allowance if deadline is None else min(deadline, tic + allowance)
-        results = dict(zip(probe, PendingEvaluation(
-            self.evaluator, solutions[probe], [seeds[i] for i in probe], deadline=deadline,
-            progress=self._evaluation_progress()).result()))
-        self.search_choice = choose_search(
-            self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=count,
-            probe_seconds=time.perf_counter() - tic, probed=len(results), direct_variant=direct_variant(self.config),
-            before=look)
+
+        def choose(seconds: float, probed: int) -> SearchChoice:
+            return choose_search(self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=count,
+                                 probe_seconds=seconds, probed=probed, direct_variant=direct_variant(self.config),
+                                 before=look)
+
+        self.search_choice, proposal, results, seeds = self._evaluate_in_two(
+            proposal, solutions, seeds, probe, started, choose, first_deadline=time.perf_counter() + allowance)
         proposal.metrics.update(self.search_choice.metrics())
-        rest = [i for i in range(count) if i not in results]
-        if not self.search_choice.direct and len(results) == len(probe) and rest:
-            results.update(zip(rest, PendingEvaluation(
-                self.evaluator, solutions[rest], [seeds[i] for i in rest], deadline=self._deadline(started),
-                progress=self._evaluation_progress(offset=len(probe))).result()))
-        evaluated = sorted(results)
-        if len(evaluated) < len(proposal.solutions):
-            proposal = proposal.take(evaluated)
-        return proposal, [results[i] for i in evaluated], [seeds[i] for i in evaluated]
+        return proposal, results, seeds
+
+    def _surrogate_picks(self, evals: int) -> int:
+        """Levels a surrogate iteration evaluates after ``evals`` evaluations, within the budget (before any screen:
+        a screen that drops some makes the iteration cheaper than counted here)."""
+        selection = self.config.selection
+        return min(selection.count + selection.elite_mutants, self.config.budget - evals)
+
+    def _time_random_levels(self, proposal: Proposal, solutions: Solutions, seeds: list[int], started: float
+                            ) -> tuple[SearchChoice, Proposal, list[EvaluationResult], list[int]]:
+        """``search = "auto"`` with a time budget, in the random first iteration: times its first
+        :data:`~dsage_ray.core.auto_search.RANDOM_LEVELS_TIMED` levels, then evaluates the rest, or drops them where
+        the rest would leave too little time for the surrogate (:func:`~dsage_ray.core.auto_search.choose_during_random`).
+        Returns the choice (``direct``: it chose so) and what was evaluated."""
+        config, count = self.config, len(solutions)
+
+        def choose(seconds: float, timed: int) -> SearchChoice:
+            time_left = config.time_budget - self.wall_time - (time.perf_counter() - started)
+            return choose_during_random(seconds=seconds, timed=timed, random_levels=count, time_left=time_left,
+                                        picks=self._surrogate_picks(self.evals + count),
+                                        direct_variant=direct_variant(config))
+
+        return self._evaluate_in_two(proposal, solutions, seeds, list(range(RANDOM_LEVELS_TIMED)), started, choose)
 
     def _look_at_time_left(self, step_started: float) -> SearchChoice:
         """``search = "auto"`` with a time budget, before the first surrogate proposal: continues with the direct
         search at once where fewer than :data:`~dsage_ray.core.auto_search.MIN_SURROGATE_ITERATIONS` surrogate
         iterations, at their cheapest, fit in the time left. Returns the look (``direct``: it chose so)."""
         config = self.config
-        # The picks before any screen: a screen that drops some makes the iteration cheaper than counted here.
-        picks = min(config.selection.count + config.selection.elite_mutants, config.budget - self.evals)
         time_left = config.time_budget - self.wall_time - (time.perf_counter() - step_started)
-        look = choose_by_time_left(self.history, time_left=time_left,
-                                   proposal_seconds=self.proposer.projected_proposal_seconds(), picks=picks,
-                                   direct_variant=direct_variant(config))
+        look = choose_by_time_left(random_seconds=random_level_seconds(self.history), time_left=time_left,
+                                   proposal_seconds=self.proposer.projected_proposal_seconds(),
+                                   picks=self._surrogate_picks(self.evals), direct_variant=direct_variant(config))
         if look.direct:
             self.continue_direct(look)
         return look
@@ -260,10 +296,17 @@ class DSAGE:
         seeds = [self.seeds.evaluation(self.evals + i) for i in range(len(solutions))]
 
         tic = time.perf_counter()
-        # search = "auto": the surrogate's first picks are probed, then the rest evaluated or dropped.
+        # search = "auto": the surrogate's first picks are probed, then the rest evaluated or dropped; with a time
+        # budget, the random iteration's first levels are timed first.
         probing = self.config.search == "auto" and self.search_choice is None and self.outer_iteration > 0
+        timing_random = (self.config.search == "auto" and self.config.time_budget > 0 and self.outer_iteration == 0
+                         and self.search_choice is None and not self.config.surrogate.init
+                         and len(solutions) > RANDOM_LEVELS_TIMED
+                         and self._surrogate_picks(self.evals + len(solutions)) > 0)
         if probing:
             proposal, results, seeds = self._probe_first_picks(proposal, solutions, seeds, started, look)
+        elif timing_random:
+            look, proposal, results, seeds = self._time_random_levels(proposal, solutions, seeds, started)
         else:
             evaluation = PendingEvaluation(self.evaluator, solutions, seeds, deadline=self._deadline(started),
                                            progress=self._evaluation_progress())
@@ -290,6 +333,8 @@ class DSAGE:
         metrics = {**proposal.metrics, **self.proposer.learn(batch)}
         if look is not None and look.direct:
             metrics.update(look.metrics())
+            if timing_random:  # the direct search continues from the random levels evaluated
+                self.continue_direct(look)
         if probing and self.search_choice.direct:
             self.continue_direct(self.search_choice)
 

@@ -5,8 +5,8 @@ import pytest
 from dsage_ray.config import ConfigError, RunConfig
 from dsage_ray.core import auto_search
 from dsage_ray.core import runner as runner_module
-from dsage_ray.core.auto_search import (SearchChoice, choose_by_time_left, choose_search, direct_config,
-                                        direct_variant, probe_allowance)
+from dsage_ray.core.auto_search import (SearchChoice, choose_by_time_left, choose_during_random, choose_search,
+                                        direct_config, direct_variant, probe_allowance, random_level_seconds)
 from dsage_ray.core.proposers import DirectQD, SurrogateAssisted
 from dsage_ray.core.runner import DSAGE
 from tests.core.test_runner import archive_snapshot
@@ -27,6 +27,12 @@ def make_runner(**overrides) -> DSAGE:
 @pytest.fixture
 def probe_two(monkeypatch):
     monkeypatch.setattr(runner_module, "PROBE_PICKS", 2)
+
+
+@pytest.fixture
+def after_random(monkeypatch):
+    """No look during the random iteration: every random level is evaluated before the first look."""
+    monkeypatch.setattr(runner_module, "RANDOM_LEVELS_TIMED", 10**9)
 
 
 def random_row(seconds=2.0, levels=40):
@@ -162,12 +168,12 @@ LONG = 1e6
 def test_the_time_left_is_counted_in_surrogate_iterations_at_their_cheapest():
     history = [random_row(2.0, 40)]  # a random level: 0.05 s
     # A proposal of 5 s over 25 picks, then each pick at a random level's 0.05 s: an iteration of 6.25 s at least.
-    short = choose_by_time_left(history, time_left=12.5, proposal_seconds=5.0, picks=25, direct_variant="cma_me")
+    short = choose_by_time_left(random_seconds=random_level_seconds(history), time_left=12.5, proposal_seconds=5.0, picks=25, direct_variant="cma_me")
     assert short.iterations_left == pytest.approx(2.0) and short.time_left == 12.5
     assert short.surrogate_level_seconds == pytest.approx(0.25) and short.cost_ratio == pytest.approx(5.0)
     assert short.direct and short.by_time_left
     assert "room for 2.0 surrogate iterations of at least 6 s; DSAGE needs 3" in short.reason
-    long = choose_by_time_left(history, time_left=100.0, proposal_seconds=5.0, picks=25, direct_variant="cma_me")
+    long = choose_by_time_left(random_seconds=0.05, time_left=100.0, proposal_seconds=5.0, picks=25, direct_variant="cma_me")
     assert long.iterations_left == pytest.approx(16.0) and not long.direct and not long.by_time_left
     # Kept until the probe, whose choice carries the look's numbers (and its own reason).
     probed = choose_search(history, surrogate_seconds=5.0, picks=25, probe_seconds=100.0, probed=8,
@@ -178,7 +184,7 @@ def test_the_time_left_is_counted_in_surrogate_iterations_at_their_cheapest():
     assert SearchChoice.from_metrics(row, variant="cma_me") == short
 
 
-def test_with_too_little_time_left_the_direct_search_takes_over_before_the_surrogate_trains(monkeypatch):
+def test_with_too_little_time_left_the_direct_search_takes_over_before_the_surrogate_trains(monkeypatch, after_random):
     monkeypatch.setattr(auto_search, "MIN_SURROGATE_ITERATIONS", 1e12)
     runner = make_runner(time_budget=LONG)
     first = runner.step()
@@ -214,7 +220,7 @@ def test_a_look_that_keeps_dsage_leaves_its_run_bit_for_bit_and_its_numbers_in_t
 
 
 @pytest.mark.parametrize("steps", [1, 2])
-def test_a_run_resumes_exactly_across_a_switch_by_the_time_left(monkeypatch, steps):
+def test_a_run_resumes_exactly_across_a_switch_by_the_time_left(monkeypatch, after_random, steps):
     monkeypatch.setattr(auto_search, "MIN_SURROGATE_ITERATIONS", 1e12)
     reference = make_runner(time_budget=LONG)
     reference.run()
@@ -227,3 +233,62 @@ def test_a_run_resumes_exactly_across_a_switch_by_the_time_left(monkeypatch, ste
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
     assert isinstance(resumed.proposer, DirectQD) and resumed.search_choice.by_time_left
     assert direct_variant(resumed.config) == "map_elites"
+
+
+def test_during_the_random_iteration_the_rest_is_projected_at_the_first_levels_seconds():
+    # 8 levels of 1 s; 32 more would take 32 s; a surrogate iteration of 10 picks takes 10 s at the least.
+    room = choose_during_random(seconds=8.0, timed=8, random_levels=40, time_left=100.0, picks=10,
+                                direct_variant="cma_me")
+    assert room.time_left == pytest.approx(68.0) and room.iterations_left == pytest.approx(6.8) and not room.direct
+    short = choose_during_random(seconds=8.0, timed=8, random_levels=40, time_left=40.0, picks=10,
+                                 direct_variant="cma_me")
+    assert short.iterations_left == pytest.approx(0.8) and short.direct and short.by_time_left
+    assert "after 8 random levels (they took 1 s each: the rest of the random iteration would leave 8 s" in short.reason
+    spent = choose_during_random(seconds=8.0, timed=8, random_levels=40, time_left=20.0, picks=10,
+                                 direct_variant="cma_me")
+    assert spent.direct and "would use up the time budget" in spent.reason
+    row = {"outer_iteration": 1.0, **short.metrics()}
+    assert row["auto_random_levels_timed"] == 8.0
+    assert SearchChoice.from_metrics(row, variant="cma_me") == short
+    assert SearchChoice.from_state_dict(pickle.loads(pickle.dumps(short.state_dict()))) == short
+
+
+def test_random_levels_that_leave_too_little_time_are_dropped_and_the_direct_search_continues_from_the_first(
+        monkeypatch):
+    monkeypatch.setattr(auto_search, "MIN_SURROGATE_ITERATIONS", 1e12)
+    runner = make_runner(time_budget=LONG)
+    first = runner.step()
+    timed = runner_module.RANDOM_LEVELS_TIMED
+    assert first["auto_direct"] == 1.0 and first["auto_random_levels_timed"] == timed
+    assert first["evaluated_this_iteration"] == timed == runner.evals and len(runner.archive) >= 1
+    assert isinstance(runner.proposer, DirectQD) and runner.search_choice.random_levels_timed == timed
+    assert f"after {timed} random levels" in runner.search_choice.reason
+    # Nothing trained, nothing more looked at: MAP-Elites' 5 x 30 from the next iteration on.
+    second = runner.step()
+    assert second["evaluated_this_iteration"] == 150 and "time_train" not in second and "auto_direct" not in second
+    runner.run()
+    assert sum("auto_direct" in row for row in runner.history) == 1
+
+
+def test_with_time_for_the_surrogate_every_random_level_is_evaluated_as_in_the_fixed_run(monkeypatch):
+    monkeypatch.setattr(auto_search, "MIN_SURROGATE_ITERATIONS", 0)
+    auto = make_runner(time_budget=LONG)
+    first = auto.step()
+    fixed = make_runner(time_budget=LONG, search="fixed")
+    fixed.step()
+    assert "auto_direct" not in first and auto.search_choice is None
+    assert first["evaluated_this_iteration"] == SMALL_RUN["n_rand"]
+    assert archive_snapshot(auto.archive) == archive_snapshot(fixed.archive)
+
+
+def test_a_run_resumes_exactly_across_a_switch_during_the_random_iteration(monkeypatch):
+    monkeypatch.setattr(auto_search, "MIN_SURROGATE_ITERATIONS", 1e12)
+    reference = make_runner(time_budget=LONG)
+    reference.run()
+    interrupted = make_runner(time_budget=LONG)
+    interrupted.step()
+    resumed = make_runner(time_budget=LONG)
+    resumed.load_state_dict(pickle.loads(pickle.dumps(interrupted.state_dict())))
+    resumed.run()
+    assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
+    assert isinstance(resumed.proposer, DirectQD) and resumed.search_choice.random_levels_timed is not None
