@@ -13,11 +13,12 @@ pick costs, all of that included, over what a random level's evaluation costs:
 * Mario (A*, the ``cpu`` preset): about 16×, and CMA-ME found twice DSAGE's QD-score at equal CPU time
   (equal_compute §6, §18).
 
-With a time budget, the choice can come before the surrogate ever trains. First, during the random iteration: once
-its first :data:`RANDOM_LEVELS_TIMED` levels are evaluated, the rest are projected at their seconds, and where they
-would leave room for fewer than :data:`MIN_SURROGATE_ITERATIONS` surrogate iterations even at no surrogate cost, the
-rest are dropped and the direct search continues from those levels (:func:`choose_during_random`). Then right after
-the random first iteration,
+With a time budget, the choice can come before the surrogate ever trains. First, during the random iteration: after
+every :data:`RANDOM_LEVELS_TIMED` of its levels, the rest are projected at the seconds of the levels so far, and
+where they would leave room for fewer than :data:`MIN_SURROGATE_ITERATIONS` surrogate iterations even at no surrogate
+cost, the rest are dropped and the direct search continues from the levels evaluated (:func:`choose_during_random`).
+The look repeats because level times are heavy-tailed: on Mario seed 100 the first 8 random levels were quick and the
+100 took 342 s. Then right after the random first iteration,
 the surrogate's first proposal is projected from one timed training step and one timed inner-loop batch
 (:meth:`~dsage_ray.core.proposers.SurrogateAssisted.projected_proposal_seconds`), and a surrogate iteration at its
 cheapest (that proposal, then its picks at a random level's seconds each) against the time left. Where fewer than
@@ -66,10 +67,11 @@ MIN_SURROGATE_ITERATIONS = 3
 #: Picks evaluated before the choice: enough to average a pick's evaluation, few where each is slow (Mario).
 PROBE_PICKS = 8
 
-#: With a time budget, the random first iteration's first levels timed before its rest: where the rest, at their
-#: seconds, would leave room for fewer than :data:`MIN_SURROGATE_ITERATIONS` surrogate iterations even at no
-#: surrogate cost, the rest is dropped and the direct search continues from these. Mario's random levels took 35-57%
-#: of 10 minutes on seeds 96-98 (equal_compute §24); the look after them came too late.
+#: With a time budget, the random first iteration is evaluated in parts of this many levels (or one per simulator,
+#: if more), with a look after each: where the rest, at the seconds of the levels so far, would leave room for fewer
+#: than :data:`MIN_SURROGATE_ITERATIONS` surrogate iterations even at no surrogate cost, the rest is dropped and the
+#: direct search continues from the levels evaluated. Mario's random levels took 35-57% of 10 minutes on seeds 96-98
+#: (equal_compute §24), and the look after them came too late.
 RANDOM_LEVELS_TIMED = 8
 
 #: The phases of a surrogate proposal that its cost counts (``Proposal.times``; held-out levels are not the search's).

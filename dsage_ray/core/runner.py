@@ -35,8 +35,8 @@ iteration cannot overlap: nothing is known until its random batch is back. A ste
 entries are the phases that ran during it, so a pipelined step's ``time_train`` is the next picks'
 training; ``time_overlapped`` is how long the driver worked while the batch was being evaluated.
 
-*Search auto* (``search = "auto"``): with a time budget, the random iteration's first levels are timed and the rest
-dropped where they would leave too little time for the surrogate (:meth:`DSAGE._time_random_levels`); right after
+*Search auto* (``search = "auto"``): with a time budget, the random iteration is evaluated in parts, and the rest
+dropped once it would leave too little time for the surrogate (:meth:`DSAGE._time_random_levels`); right after
 the random iteration, the surrogate's first proposal is projected and the direct search takes over at once where too few surrogate iterations fit in the time
 left (:meth:`DSAGE._look_at_time_left`); otherwise the first surrogate iteration's picks are probed before the rest are
 evaluated (:meth:`DSAGE._probe_first_picks`); where a pick costs more than the break-even, the rest are dropped and
@@ -188,52 +188,38 @@ class DSAGE:
         self.history.append(metrics)
         return metrics
 
-    def _evaluate_in_two(self, proposal: Proposal, solutions: Solutions, seeds: list[int], first: list[int],
-                         started: float, choose, *, first_deadline: float | None = None
-                         ) -> tuple[SearchChoice, Proposal, list[EvaluationResult], list[int]]:
-        """``search = "auto"``: evaluates the batch's ``first`` levels, then ``choose(seconds, evaluated)``, then the
-        rest unless the choice is the direct search (or the first were cut short). Returns the choice, and the proposal
-        of what was evaluated with its results and seeds, in the batch's order: with every level evaluated, the batch
-        exactly as one evaluation gives it."""
-        tic = time.perf_counter()
-        deadline = self._deadline(started)
-        if first_deadline is not None:
-            deadline = first_deadline if deadline is None else min(deadline, first_deadline)
-        results = dict(zip(first, PendingEvaluation(
-            self.evaluator, solutions[first], [seeds[i] for i in first], deadline=deadline,
-            progress=self._evaluation_progress()).result()))
-        choice = choose(time.perf_counter() - tic, len(results))
-        rest = [i for i in range(len(solutions)) if i not in results]
-        if not choice.direct and len(results) == len(first) and rest:
-            results.update(zip(rest, PendingEvaluation(
-                self.evaluator, solutions[rest], [seeds[i] for i in rest], deadline=self._deadline(started),
-                progress=self._evaluation_progress(offset=len(first))).result()))
-        evaluated = sorted(results)
-        if len(evaluated) < len(proposal.solutions):
-            proposal = proposal.take(evaluated)
-        return choice, proposal, [results[i] for i in evaluated], [seeds[i] for i in evaluated]
-
     def _probe_first_picks(self, proposal: Proposal, solutions: Solutions, seeds: list[int], started: float,
                            look: SearchChoice | None) -> tuple[Proposal, list[EvaluationResult], list[int]]:
         """``search = "auto"``: evaluates :data:`PROBE_PICKS` of the surrogate's first picks, spread over its order
         (the picks come in archive order, where a region of cheap levels may come first), chooses, then evaluates
-        the rest or drops it. ``look`` is this step's look at the time left, which kept DSAGE (None: no time budget)."""
-        count = len(solutions)
+        the rest or drops it. ``look`` is this step's look at the time left, which kept DSAGE (None: no time budget).
+        Returns the proposal of what was evaluated, its results and seeds, in the picks' order: with every pick
+        evaluated, the fixed run's batch exactly."""
+        tic, count = time.perf_counter(), len(solutions)
         probe = sorted({int(i) for i in np.linspace(0, count - 1, min(PROBE_PICKS, count)).round()})
         # The probe stops once its picks alone have cost more than the break-even allows (Mario's A* may play a
         # pick for half a minute): the choice is then made already.
         allowance = probe_allowance(self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=count,
                                     probed=len(probe))
-
-        def choose(seconds: float, probed: int) -> SearchChoice:
-            return choose_search(self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=count,
-                                 probe_seconds=seconds, probed=probed, direct_variant=direct_variant(self.config),
-                                 before=look)
-
-        self.search_choice, proposal, results, seeds = self._evaluate_in_two(
-            proposal, solutions, seeds, probe, started, choose, first_deadline=time.perf_counter() + allowance)
+        deadline = self._deadline(started)
+        deadline = tic + allowance if deadline is None else min(deadline, tic + allowance)
+        results = dict(zip(probe, PendingEvaluation(
+            self.evaluator, solutions[probe], [seeds[i] for i in probe], deadline=deadline,
+            progress=self._evaluation_progress()).result()))
+        self.search_choice = choose_search(
+            self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=count,
+            probe_seconds=time.perf_counter() - tic, probed=len(results), direct_variant=direct_variant(self.config),
+            before=look)
         proposal.metrics.update(self.search_choice.metrics())
-        return proposal, results, seeds
+        rest = [i for i in range(count) if i not in results]
+        if not self.search_choice.direct and len(results) == len(probe) and rest:
+            results.update(zip(rest, PendingEvaluation(
+                self.evaluator, solutions[rest], [seeds[i] for i in rest], deadline=self._deadline(started),
+                progress=self._evaluation_progress(offset=len(probe))).result()))
+        evaluated = sorted(results)
+        if len(evaluated) < len(proposal.solutions):
+            proposal = proposal.take(evaluated)
+        return proposal, [results[i] for i in evaluated], [seeds[i] for i in evaluated]
 
     def _surrogate_picks(self, evals: int) -> int:
         """Levels a surrogate iteration evaluates after ``evals`` evaluations, within the budget (before any screen:
@@ -242,20 +228,34 @@ class DSAGE:
         return min(selection.count + selection.elite_mutants, self.config.budget - evals)
 
     def _time_random_levels(self, proposal: Proposal, solutions: Solutions, seeds: list[int], started: float
-                            ) -> tuple[SearchChoice, Proposal, list[EvaluationResult], list[int]]:
-        """``search = "auto"`` with a time budget, in the random first iteration: times its first
-        :data:`~dsage_ray.core.auto_search.RANDOM_LEVELS_TIMED` levels, then evaluates the rest, or drops them where
-        the rest would leave too little time for the surrogate (:func:`~dsage_ray.core.auto_search.choose_during_random`).
-        Returns the choice (``direct``: it chose so) and what was evaluated."""
+                            ) -> tuple[SearchChoice | None, Proposal, list[EvaluationResult], list[int]]:
+        """``search = "auto"`` with a time budget, in the random first iteration: evaluates it in parts of
+        :data:`~dsage_ray.core.auto_search.RANDOM_LEVELS_TIMED` levels (or one per simulator, if more) and looks after
+        each: where the rest, at the seconds of the levels so far, would leave too little time for the surrogate
+        (:func:`~dsage_ray.core.auto_search.choose_during_random`), the rest is dropped. Level times are heavy-tailed
+        (Mario's A* plays most random levels in a second, a few in half a minute), so one look after the first few
+        can miss a slow iteration. Returns the choice (None: none of the looks chose the direct search) and what was
+        evaluated, a prefix of the batch: with every level evaluated, the batch exactly as one evaluation gives it."""
         config, count = self.config, len(solutions)
-
-        def choose(seconds: float, timed: int) -> SearchChoice:
+        part = max(RANDOM_LEVELS_TIMED, int(getattr(self.evaluator, "num_workers", 1)))
+        tic, results = time.perf_counter(), []
+        while len(results) < count:
+            first, stop = len(results), min(len(results) + part, count)
+            got = PendingEvaluation(self.evaluator, solutions[first:stop], seeds[first:stop],
+                                    deadline=self._deadline(started),
+                                    progress=self._evaluation_progress(offset=first)).result()
+            results += got
+            if len(got) < stop - first or len(results) == count:  # the time budget stopped it, or it is done
+                break
             time_left = config.time_budget - self.wall_time - (time.perf_counter() - started)
-            return choose_during_random(seconds=seconds, timed=timed, random_levels=count, time_left=time_left,
-                                        picks=self._surrogate_picks(self.evals + count),
-                                        direct_variant=direct_variant(config))
-
-        return self._evaluate_in_two(proposal, solutions, seeds, list(range(RANDOM_LEVELS_TIMED)), started, choose)
+            choice = choose_during_random(seconds=time.perf_counter() - tic, timed=len(results), random_levels=count,
+                                          time_left=time_left, picks=self._surrogate_picks(self.evals + count),
+                                          direct_variant=direct_variant(config))
+            if choice.direct:
+                return choice, proposal.take(slice(0, len(results))), results, seeds[:len(results)]
+        if len(results) < len(proposal.solutions):
+            proposal = proposal.take(slice(0, len(results)))
+        return None, proposal, results, seeds[:len(results)]
 
     def _look_at_time_left(self, step_started: float) -> SearchChoice:
         """``search = "auto"`` with a time budget, before the first surrogate proposal: continues with the direct

@@ -1,3 +1,4 @@
+import dataclasses
 import pickle
 
 import pytest
@@ -292,3 +293,17 @@ def test_a_run_resumes_exactly_across_a_switch_during_the_random_iteration(monke
     resumed.run()
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
     assert isinstance(resumed.proposer, DirectQD) and resumed.search_choice.random_levels_timed is not None
+
+
+def test_the_look_repeats_through_the_random_iteration_until_the_levels_so_far_say_switch(monkeypatch):
+    looked = []
+
+    def choose_after_three_parts(**numbers):  # levels slow to play turn up late in the random iteration
+        looked.append(numbers["timed"])
+        return dataclasses.replace(choose_during_random(**numbers), direct=numbers["timed"] >= 24)
+
+    monkeypatch.setattr(runner_module, "choose_during_random", choose_after_three_parts)
+    runner = make_runner(time_budget=LONG)
+    first = runner.step()
+    assert looked == [8, 16, 24] and first["evaluated_this_iteration"] == 24 == runner.evals
+    assert first["auto_random_levels_timed"] == 24 and isinstance(runner.proposer, DirectQD)
