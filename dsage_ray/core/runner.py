@@ -37,8 +37,8 @@ training; ``time_overlapped`` is how long the driver worked while the batch was 
 
 *Search auto* (``search = "auto"``): with a time budget, the random iteration is evaluated in parts, and the rest
 dropped once it would leave too little time for the surrogate (:meth:`DSAGE._time_random_levels`); right after
-the random iteration, the surrogate's first proposal is projected and the direct search takes over at once where too few surrogate iterations fit in the time
-left (:meth:`DSAGE._look_at_time_left`); otherwise the first surrogate iteration's picks are probed before the rest are
+the random iteration, the surrogate's first proposal is projected and the direct search takes over at once where
+too few surrogate iterations fit in the time left (:meth:`DSAGE._look_at_time_left`); otherwise the first surrogate iteration's picks are probed before the rest are
 evaluated (:meth:`DSAGE._probe_first_picks`); where a pick costs more than the break-even, the rest are dropped and
 the domain's direct search takes over the same archive (:mod:`dsage_ray.core.auto_search`).
 
@@ -238,7 +238,7 @@ class DSAGE:
         evaluated, a prefix of the batch: with every level evaluated, the batch exactly as one evaluation gives it."""
         config, count = self.config, len(solutions)
         part = max(RANDOM_LEVELS_TIMED, int(getattr(self.evaluator, "num_workers", 1)))
-        tic, results = time.perf_counter(), []
+        tic, results, choice = time.perf_counter(), [], None
         while len(results) < count:
             first, stop = len(results), min(len(results) + part, count)
             got = PendingEvaluation(self.evaluator, solutions[first:stop], seeds[first:stop],
@@ -252,10 +252,11 @@ class DSAGE:
                                           time_left=time_left, picks=self._surrogate_picks(self.evals + count),
                                           direct_variant=direct_variant(config))
             if choice.direct:
-                return choice, proposal.take(slice(0, len(results))), results, seeds[:len(results)]
-        if len(results) < len(proposal.solutions):
-            proposal = proposal.take(slice(0, len(results)))
-        return None, proposal, results, seeds[:len(results)]
+                break
+        evaluated = len(results)
+        if evaluated < len(proposal.solutions):
+            proposal = proposal.take(slice(0, evaluated))
+        return (choice if choice is not None and choice.direct else None), proposal, results, seeds[:evaluated]
 
     def _look_at_time_left(self, step_started: float) -> SearchChoice:
         """``search = "auto"`` with a time budget, before the first surrogate proposal: continues with the direct
@@ -297,7 +298,7 @@ class DSAGE:
 
         tic = time.perf_counter()
         # search = "auto": the surrogate's first picks are probed, then the rest evaluated or dropped; with a time
-        # budget, the random iteration's first levels are timed first.
+        # budget, the random iteration is evaluated in parts, with a look at the time left after each.
         probing = self.config.search == "auto" and self.search_choice is None and self.outer_iteration > 0
         timing_random = (self.config.search == "auto" and self.config.time_budget > 0 and self.outer_iteration == 0
                          and self.search_choice is None and not self.config.surrogate.init
