@@ -96,6 +96,8 @@ class SearchChoice:
         time_left: Wall seconds of the time budget left after the random iteration (None: no time budget).
         random_levels_timed: Where the choice came during the random iteration: the levels it was timed on, the rest
             projected at their seconds (None: after the whole random iteration).
+        iterations_needed: With a time budget, the surrogate iterations DSAGE needs: :data:`MIN_SURROGATE_ITERATIONS`,
+            or fewer where fewer spend the rest of the evaluation budget (None: :data:`MIN_SURROGATE_ITERATIONS`).
     """
 
     direct: bool
@@ -106,11 +108,17 @@ class SearchChoice:
     iterations_left: float | None = None
     time_left: float | None = None
     random_levels_timed: int | None = None
+    iterations_needed: float | None = None
 
     @property
     def by_time_left(self) -> bool:
         """Chosen before the surrogate trained, because too few of its iterations fit in the time budget."""
-        return self.iterations_left is not None and self.iterations_left < MIN_SURROGATE_ITERATIONS
+        return self.iterations_left is not None and self.iterations_left < self.needed
+
+    @property
+    def needed(self) -> float:
+        """Surrogate iterations DSAGE needs in the time left (:attr:`iterations_needed`)."""
+        return MIN_SURROGATE_ITERATIONS if self.iterations_needed is None else self.iterations_needed
 
     @property
     def reason(self) -> str:
@@ -118,7 +126,7 @@ class SearchChoice:
         if self.by_time_left:
             iteration = self.time_left / max(self.iterations_left, 1e-9)
             room = (f"room for {self.iterations_left:.1f} surrogate iterations of at least {iteration:.0f} s; "
-                    f"DSAGE needs {MIN_SURROGATE_ITERATIONS}")
+                    f"DSAGE needs {self.needed:g}")
             if self.random_levels_timed is not None:
                 after = (f"would leave {self.time_left:.0f} s, {room}" if self.time_left > 0
                          else "would use up the time budget")
@@ -142,6 +150,8 @@ class SearchChoice:
             metrics.update(auto_iterations_left=self.iterations_left, auto_time_left_s=self.time_left)
         if self.random_levels_timed is not None:
             metrics.update(auto_random_levels_timed=float(self.random_levels_timed))
+        if self.iterations_needed is not None:
+            metrics.update(auto_iterations_needed=float(self.iterations_needed))
         return metrics
 
     @classmethod
@@ -155,7 +165,8 @@ class SearchChoice:
                    iterations_left=_number(row.get("auto_iterations_left")),
                    time_left=_number(row.get("auto_time_left_s")),
                    random_levels_timed=None if row.get("auto_random_levels_timed") is None
-                   else int(row["auto_random_levels_timed"]))
+                   else int(row["auto_random_levels_timed"]),
+                   iterations_needed=_number(row.get("auto_iterations_needed")))
 
     def state_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -184,7 +195,7 @@ def probe_allowance(history: Sequence[Mapping[str, float]], *, surrogate_seconds
 
 
 def choose_by_time_left(*, random_seconds: float, time_left: float, proposal_seconds: float, picks: int,
-                        direct_variant: str) -> SearchChoice:
+                        evals_left: int, direct_variant: str) -> SearchChoice:
     """The choice right after the random iteration, with a time budget: the direct search if fewer than
     :data:`MIN_SURROGATE_ITERATIONS` surrogate iterations fit in ``time_left``, else DSAGE for now (``direct`` False:
     the probe decides later).
@@ -195,18 +206,21 @@ def choose_by_time_left(*, random_seconds: float, time_left: float, proposal_sec
         proposal_seconds: The surrogate's first proposal, projected
             (:meth:`~dsage_ray.core.proposers.SurrogateAssisted.projected_proposal_seconds`).
         picks: Levels a surrogate iteration evaluates (within the evaluation budget).
+        evals_left: Evaluations of the budget left after the random iteration: where fewer than
+            :data:`MIN_SURROGATE_ITERATIONS` iterations spend them, DSAGE needs only those.
         direct_variant: The domain's direct search.
     """
+    needed = float(min(MIN_SURROGATE_ITERATIONS, math.ceil(max(evals_left, 1) / max(picks, 1))))
     per_pick = proposal_seconds / max(picks, 1) + random_seconds
     iterations = time_left / (per_pick * max(picks, 1)) if per_pick > 0 else math.inf
     ratio = per_pick / random_seconds if random_seconds > 0 else math.inf
-    return SearchChoice(direct=iterations < MIN_SURROGATE_ITERATIONS, variant=direct_variant, cost_ratio=ratio,
+    return SearchChoice(direct=iterations < needed, variant=direct_variant, cost_ratio=ratio,
                         random_level_seconds=random_seconds, surrogate_level_seconds=per_pick,
-                        iterations_left=iterations, time_left=time_left)
+                        iterations_left=iterations, time_left=time_left, iterations_needed=needed)
 
 
 def choose_during_random(*, seconds: float, timed: int, random_levels: int, time_left: float, picks: int,
-                         direct_variant: str) -> SearchChoice:
+                         evals_left: int, direct_variant: str) -> SearchChoice:
     """The choice after the random iteration's first ``timed`` levels, with a time budget: the direct search if the
     rest, at their seconds, would leave room for fewer than :data:`MIN_SURROGATE_ITERATIONS` surrogate iterations
     even at no surrogate cost (each its picks at a random level's seconds), else DSAGE for now (the look after the
@@ -218,12 +232,13 @@ def choose_during_random(*, seconds: float, timed: int, random_levels: int, time
         random_levels: Levels of the whole random iteration (within the evaluation budget).
         time_left: Wall seconds of the time budget left now.
         picks: Levels a surrogate iteration evaluates (within the evaluation budget).
+        evals_left: Evaluations of the budget left after the random iteration (:func:`choose_by_time_left`).
         direct_variant: The domain's direct search.
     """
     per_level = seconds / max(timed, 1)
     after_random = time_left - per_level * (random_levels - timed)
     choice = choose_by_time_left(random_seconds=per_level, time_left=after_random, proposal_seconds=0.0, picks=picks,
-                                 direct_variant=direct_variant)
+                                 evals_left=evals_left, direct_variant=direct_variant)
     return dataclasses.replace(choice, random_levels_timed=timed)
 
 
@@ -248,7 +263,8 @@ def choose_search(history: Sequence[Mapping[str, float]], *, surrogate_seconds: 
     return SearchChoice(direct=ratio > BREAK_EVEN_COST_RATIO, variant=direct_variant, cost_ratio=ratio,
                         random_level_seconds=random_seconds, surrogate_level_seconds=per_pick,
                         iterations_left=None if before is None else before.iterations_left,
-                        time_left=None if before is None else before.time_left)
+                        time_left=None if before is None else before.time_left,
+                        iterations_needed=None if before is None else before.iterations_needed)
 
 
 #: Keys that add to or filter a surrogate's picks: off in the direct search unless its variant sets them (an audit

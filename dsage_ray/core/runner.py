@@ -222,10 +222,17 @@ class DSAGE:
         return proposal, [results[i] for i in evaluated], [seeds[i] for i in evaluated]
 
     def _surrogate_picks(self, evals: int) -> int:
-        """Levels a surrogate iteration evaluates after ``evals`` evaluations, within the budget (before any screen:
-        a screen that drops some makes the iteration cheaper than counted here)."""
+        """Levels a surrogate iteration evaluates after ``evals`` evaluations, within the budget, counted before the
+        surrogate has picked any: ``selection.count``, and with downsampling at most one per block of the archive (a
+        gym archive of 20 × 20 cells in blocks of 4 × 4: 25). Before any screen: a screen that drops some makes the
+        iteration cheaper than counted here."""
         selection = self.config.selection
-        return min(selection.count + selection.elite_mutants, self.config.budget - evals)
+        picks = selection.count
+        if selection.method == "downsample":
+            picks = min(picks, int(np.prod([-(-int(d) // b) for d, b in zip(self.archive.dims, selection.block)])))
+        elif selection.method == "full":
+            picks = int(np.prod(self.archive.dims))
+        return min(picks + selection.elite_mutants, self.config.budget - evals)
 
     def _time_random_levels(self, proposal: Proposal, solutions: Solutions, seeds: list[int], started: float
                             ) -> tuple[SearchChoice | None, Proposal, list[EvaluationResult], list[int]]:
@@ -250,6 +257,7 @@ class DSAGE:
             time_left = config.time_budget - self.wall_time - (time.perf_counter() - started)
             choice = choose_during_random(seconds=time.perf_counter() - tic, timed=len(results), random_levels=count,
                                           time_left=time_left, picks=self._surrogate_picks(self.evals + count),
+                                          evals_left=config.budget - self.evals - count,
                                           direct_variant=direct_variant(config))
             if choice.direct:
                 break
@@ -266,7 +274,8 @@ class DSAGE:
         time_left = config.time_budget - self.wall_time - (time.perf_counter() - step_started)
         look = choose_by_time_left(random_seconds=random_level_seconds(self.history), time_left=time_left,
                                    proposal_seconds=self.proposer.projected_proposal_seconds(),
-                                   picks=self._surrogate_picks(self.evals), direct_variant=direct_variant(config))
+                                   picks=self._surrogate_picks(self.evals), evals_left=config.budget - self.evals,
+                                   direct_variant=direct_variant(config))
         if look.direct:
             self.continue_direct(look)
         return look

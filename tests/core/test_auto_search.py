@@ -31,6 +31,20 @@ def probe_two(monkeypatch):
 
 
 @pytest.fixture
+def slow_surrogate(monkeypatch):
+    """A first proposal projected at 10^9 s: no surrogate iteration fits in the time left."""
+    monkeypatch.setattr(SurrogateAssisted, "projected_proposal_seconds", lambda self: 1e9)
+
+
+@pytest.fixture
+def slow_random_levels(monkeypatch):
+    """Random levels timed at 10^9 times their seconds: the rest of the random iteration would use up the time."""
+    real = runner_module.choose_during_random
+    monkeypatch.setattr(runner_module, "choose_during_random",
+                        lambda **numbers: real(**{**numbers, "seconds": numbers["seconds"] * 1e9}))
+
+
+@pytest.fixture
 def after_random(monkeypatch):
     """No look during the random iteration: every random level is evaluated before the first look."""
     monkeypatch.setattr(runner_module, "RANDOM_LEVELS_TIMED", 10**9)
@@ -169,12 +183,14 @@ LONG = 1e6
 def test_the_time_left_is_counted_in_surrogate_iterations_at_their_cheapest():
     history = [random_row(2.0, 40)]  # a random level: 0.05 s
     # A proposal of 5 s over 25 picks, then each pick at a random level's 0.05 s: an iteration of 6.25 s at least.
-    short = choose_by_time_left(random_seconds=random_level_seconds(history), time_left=12.5, proposal_seconds=5.0, picks=25, direct_variant="cma_me")
+    short = choose_by_time_left(random_seconds=random_level_seconds(history), time_left=12.5, proposal_seconds=5.0,
+                                picks=25, evals_left=1000, direct_variant="cma_me")
     assert short.iterations_left == pytest.approx(2.0) and short.time_left == 12.5
     assert short.surrogate_level_seconds == pytest.approx(0.25) and short.cost_ratio == pytest.approx(5.0)
     assert short.direct and short.by_time_left
     assert "room for 2.0 surrogate iterations of at least 6 s; DSAGE needs 3" in short.reason
-    long = choose_by_time_left(random_seconds=0.05, time_left=100.0, proposal_seconds=5.0, picks=25, direct_variant="cma_me")
+    long = choose_by_time_left(random_seconds=0.05, time_left=100.0, proposal_seconds=5.0, picks=25, evals_left=1000,
+                               direct_variant="cma_me")
     assert long.iterations_left == pytest.approx(16.0) and not long.direct and not long.by_time_left
     # Kept until the probe, whose choice carries the look's numbers (and its own reason).
     probed = choose_search(history, surrogate_seconds=5.0, picks=25, probe_seconds=100.0, probed=8,
@@ -185,8 +201,8 @@ def test_the_time_left_is_counted_in_surrogate_iterations_at_their_cheapest():
     assert SearchChoice.from_metrics(row, variant="cma_me") == short
 
 
-def test_with_too_little_time_left_the_direct_search_takes_over_before_the_surrogate_trains(monkeypatch, after_random):
-    monkeypatch.setattr(auto_search, "MIN_SURROGATE_ITERATIONS", 1e12)
+def test_with_too_little_time_left_the_direct_search_takes_over_before_the_surrogate_trains(after_random,
+                                                                                            slow_surrogate):
     runner = make_runner(time_budget=LONG)
     first = runner.step()
     second = runner.step()
@@ -221,8 +237,7 @@ def test_a_look_that_keeps_dsage_leaves_its_run_bit_for_bit_and_its_numbers_in_t
 
 
 @pytest.mark.parametrize("steps", [1, 2])
-def test_a_run_resumes_exactly_across_a_switch_by_the_time_left(monkeypatch, after_random, steps):
-    monkeypatch.setattr(auto_search, "MIN_SURROGATE_ITERATIONS", 1e12)
+def test_a_run_resumes_exactly_across_a_switch_by_the_time_left(after_random, slow_surrogate, steps):
     reference = make_runner(time_budget=LONG)
     reference.run()
     interrupted = make_runner(time_budget=LONG)
@@ -238,14 +253,14 @@ def test_a_run_resumes_exactly_across_a_switch_by_the_time_left(monkeypatch, aft
 
 def test_during_the_random_iteration_the_rest_is_projected_at_the_first_levels_seconds():
     # 8 levels of 1 s; 32 more would take 32 s; a surrogate iteration of 10 picks takes 10 s at the least.
-    room = choose_during_random(seconds=8.0, timed=8, random_levels=40, time_left=100.0, picks=10,
+    room = choose_during_random(seconds=8.0, timed=8, random_levels=40, time_left=100.0, picks=10, evals_left=1000,
                                 direct_variant="cma_me")
     assert room.time_left == pytest.approx(68.0) and room.iterations_left == pytest.approx(6.8) and not room.direct
-    short = choose_during_random(seconds=8.0, timed=8, random_levels=40, time_left=40.0, picks=10,
+    short = choose_during_random(seconds=8.0, timed=8, random_levels=40, time_left=40.0, picks=10, evals_left=1000,
                                  direct_variant="cma_me")
     assert short.iterations_left == pytest.approx(0.8) and short.direct and short.by_time_left
     assert "after 8 random levels (they took 1 s each: the rest of the random iteration would leave 8 s" in short.reason
-    spent = choose_during_random(seconds=8.0, timed=8, random_levels=40, time_left=20.0, picks=10,
+    spent = choose_during_random(seconds=8.0, timed=8, random_levels=40, time_left=20.0, picks=10, evals_left=1000,
                                  direct_variant="cma_me")
     assert spent.direct and "would use up the time budget" in spent.reason
     row = {"outer_iteration": 1.0, **short.metrics()}
@@ -255,8 +270,7 @@ def test_during_the_random_iteration_the_rest_is_projected_at_the_first_levels_s
 
 
 def test_random_levels_that_leave_too_little_time_are_dropped_and_the_direct_search_continues_from_the_first(
-        monkeypatch):
-    monkeypatch.setattr(auto_search, "MIN_SURROGATE_ITERATIONS", 1e12)
+        slow_random_levels):
     runner = make_runner(time_budget=LONG)
     first = runner.step()
     timed = runner_module.RANDOM_LEVELS_TIMED
@@ -282,8 +296,7 @@ def test_with_time_for_the_surrogate_every_random_level_is_evaluated_as_in_the_f
     assert archive_snapshot(auto.archive) == archive_snapshot(fixed.archive)
 
 
-def test_a_run_resumes_exactly_across_a_switch_during_the_random_iteration(monkeypatch):
-    monkeypatch.setattr(auto_search, "MIN_SURROGATE_ITERATIONS", 1e12)
+def test_a_run_resumes_exactly_across_a_switch_during_the_random_iteration(slow_random_levels):
     reference = make_runner(time_budget=LONG)
     reference.run()
     interrupted = make_runner(time_budget=LONG)
@@ -307,3 +320,28 @@ def test_the_look_repeats_through_the_random_iteration_until_the_levels_so_far_s
     first = runner.step()
     assert looked == [8, 16, 24] and first["evaluated_this_iteration"] == 24 == runner.evals
     assert first["auto_random_levels_timed"] == 24 and isinstance(runner.proposer, DirectQD)
+
+
+def test_where_fewer_iterations_spend_the_evaluation_budget_dsage_needs_only_those():
+    # A gym demo audit with 2 minutes: 240 evaluations left after the random ones, all of them one iteration's picks.
+    finishing = choose_by_time_left(random_seconds=0.25, time_left=105.0, proposal_seconds=0.0, picks=240,
+                                    evals_left=240, direct_variant="cross_entropy")
+    assert finishing.iterations_left == pytest.approx(1.75) and finishing.iterations_needed == 1
+    assert not finishing.direct and not finishing.by_time_left
+    long_budget = choose_by_time_left(random_seconds=0.25, time_left=105.0, proposal_seconds=0.0, picks=240,
+                                      evals_left=10_000, direct_variant="cross_entropy")
+    assert long_budget.direct and long_budget.iterations_needed == auto_search.MIN_SURROGATE_ITERATIONS
+    short = choose_during_random(seconds=2.0, timed=8, random_levels=60, time_left=40.0, picks=240, evals_left=240,
+                                 direct_variant="cross_entropy")
+    assert short.direct and "DSAGE needs 1)" in short.reason
+    assert SearchChoice.from_metrics({"outer_iteration": 1.0, **short.metrics()}, variant="cross_entropy") == short
+
+
+@pytest.mark.parametrize("method, expected", [("downsample", "blocks"), ("random", "count"), ("full", "cells")])
+def test_a_surrogate_iteration_is_counted_at_one_pick_per_block_at_most(method, expected):
+    runner = make_runner(time_budget=LONG, **{"selection.method": method, "selection.count": 10_000,
+                                             "selection.block": (4, 4), "budget": 100_000})
+    dims = runner.archive.dims
+    count = {"blocks": -(-dims[0] // 4) * -(-dims[1] // 4), "count": 10_000, "cells": dims[0] * dims[1]}[expected]
+    assert runner._surrogate_picks(0) == count
+    assert runner._surrogate_picks(100_000 - 7) == 7  # within the evaluation budget
