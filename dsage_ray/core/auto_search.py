@@ -59,7 +59,7 @@ BREAK_EVEN_COST_RATIO = 3.0
 
 #: With a time budget, fewer surrogate iterations than this fitting in the time left after the random iteration (each at
 #: its cheapest: the projected proposal, then its picks at a random level's seconds) sends the run to the direct
-#: search before the surrogate trains. Not tuned (set before any run read it): on Mario with 10 minutes 0.9-1.5
+#: search before the surrogate trains; fewer are needed where fewer spend the rest of the evaluation budget. Not tuned (set before any run read it): on Mario with 10 minutes 0.9-1.5
 #: fit, on the Maze's ``cpu`` preset with 10 minutes 32, in a CartPole ``demo`` audit with 5 minutes 4.2
 #: (docs/results/equal_compute §22).
 MIN_SURROGATE_ITERATIONS = 3
