@@ -28,7 +28,8 @@ to it. On Mario at 10 minutes the probe below comes 4-7 minutes into the run, to
 up (0.32-0.72× CMA-ME), while the same random levels followed at once by CMA-ME did as well as CMA-ME from the start
 (docs/results/equal_compute §22). Where the random levels themselves take much of the budget, the look after them
 comes too late as well (Mario seeds 96-98: they took 35-57% of 10 minutes, and ``auto`` reached 0.51× CMA-ME, §24),
-hence the look during them (Mario seeds 102-104: a switch 14-34 s in, 0.87 ± 0.18× CMA-ME, §25). Without a time budget nothing limits the iterations, and only the probe decides.
+hence the look during them (Mario seeds 102-104: a switch 14-34 s in, 0.87 ± 0.18× CMA-ME, §25). Without a time
+budget nothing limits the iterations, and only the probe decides.
 
 Otherwise the first outer iteration that uses the surrogate is measured as it runs: its first :data:`PROBE_PICKS` picks
 are evaluated (stopped once they alone cost past the break-even, :func:`probe_allowance`), and a pick's cost is
@@ -59,9 +60,10 @@ BREAK_EVEN_COST_RATIO = 3.0
 
 #: With a time budget, fewer surrogate iterations than this fitting in the time left after the random iteration (each at
 #: its cheapest: the projected proposal, then its picks at a random level's seconds) sends the run to the direct
-#: search before the surrogate trains; fewer are needed where fewer spend the rest of the evaluation budget. Not tuned (set before any run read it): on Mario with 10 minutes 0.9-1.5
-#: fit, on the Maze's ``cpu`` preset with 10 minutes 32, in a CartPole ``demo`` audit with 5 minutes 4.2
-#: (docs/results/equal_compute §22).
+#: search before the surrogate trains; fewer are needed where fewer spend the rest of the evaluation budget. Not tuned
+#: (set before any run read it): on Mario with 10 minutes 0.9-1.5 fit, on the Maze's ``cpu`` preset with 10 minutes 32,
+#: in a CartPole ``demo`` audit with 5 minutes 4.2 (docs/results/equal_compute §22; counted then at
+#: ``selection.count`` picks an iteration, 432 where the gym archive has 25 blocks, so more fit in that audit now).
 MIN_SURROGATE_ITERATIONS = 3
 
 #: Picks evaluated before the choice: enough to average a pick's evaluation, few where each is slow (Mario).

@@ -323,7 +323,7 @@ def test_the_look_repeats_through_the_random_iteration_until_the_levels_so_far_s
 
 
 def test_where_fewer_iterations_spend_the_evaluation_budget_dsage_needs_only_those():
-    # A gym demo audit with 2 minutes: 240 evaluations left after the random ones, all of them one iteration's picks.
+    # 240 evaluations left after the random ones, all of them one iteration's picks: one iteration spends them.
     finishing = choose_by_time_left(random_seconds=0.25, time_left=105.0, proposal_seconds=0.0, picks=240,
                                     evals_left=240, direct_variant="cross_entropy")
     assert finishing.iterations_left == pytest.approx(1.75) and finishing.iterations_needed == 1
