@@ -26,7 +26,7 @@ from dsage_ray.core.screening import ScreenStep
 from dsage_ray.qd.archives import make_archive
 from dsage_ray.qd.mutants import elite_mutants
 from dsage_ray.qd.emitters import RandomEmitter
-from dsage_ray.qd.optimizer import MAP_ELITES_RANDOM_BATCHES, make_scheduler, run_inner_loop
+from dsage_ray.qd.optimizer import EMITTERS_WITH_OWN_START, MAP_ELITES_RANDOM_BATCHES, make_scheduler, run_inner_loop
 from dsage_ray.qd.selection import gather_elites, select_solutions
 from dsage_ray.surrogate.models import encode_solutions
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
@@ -161,18 +161,33 @@ class DirectQD:
         domain: The domain.
         archive: The ground-truth archive the optimizer fills.
         seeds: The run's seed streams.
+        handover: It takes over a run that began as DSAGE (``search = "auto"``), with levels in ``archive``
+            already. It then asks what a run of it from the start would have asked: its scheduler draws that run's
+            seed, and emitters with a start of their own (:data:`~dsage_ray.qd.optimizer.EMITTERS_WITH_OWN_START`)
+            read an archive of their own, while every level still enters ``archive``. Otherwise CMA-ME would rank
+            against, and restart from, DSAGE's random levels (on Mario, latents at σ 1: the levels A* is slow on).
     """
 
-    def __init__(self, *, config: RunConfig, domain: Domain, archive: "GridArchive", seeds: "RunSeeds") -> None:
+    def __init__(self, *, config: RunConfig, domain: Domain, archive: "GridArchive", seeds: "RunSeeds",
+                 handover: bool = False) -> None:
         self.config = config
         self.archive = archive
         self.seeds = seeds
         self.random_solutions = domain.random_solutions
         #: The domain's optional ``solution_bounds``: the box its solutions live in (``None``: unbounded).
         self.solution_bounds = getattr(domain, "solution_bounds", None)
-        self.scheduler = make_scheduler(archive, config=config.qd, solution_dim=domain.solution_dim,
-                                        random_solutions=domain.random_solutions, seed=seeds.next_qd_seed(),
-                                        bounds=self.solution_bounds)
+        emitters_archive = archive
+        if handover:
+            archive_seed, seed = seeds.first_qd_seeds()
+            if config.qd.emitter in EMITTERS_WITH_OWN_START:
+                emitters_archive = domain_archive(domain, with_occupancy="occupancy" in archive.field_list,
+                                                  seed=archive_seed)
+        else:
+            seed = seeds.next_qd_seed()
+        self.scheduler = make_scheduler(emitters_archive, config=config.qd, solution_dim=domain.solution_dim,
+                                        random_solutions=domain.random_solutions, seed=seed,
+                                        bounds=self.solution_bounds,
+                                        result_archive=None if emitters_archive is archive else archive)
         #: Chooses each batch after the random start-up among screened mutants (None: no screen).
         self.screen = ScreenStep.for_run(config=config, domain=domain, seeds=seeds)
         #: Whether the batch under evaluation came from the scheduler (then it is told), not from a screen.
@@ -198,8 +213,8 @@ class DirectQD:
     def learn(self, batch: EvaluatedBatch) -> dict[str, float]:
         if not self.asked:
             if batch.ok:
-                self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures,
-                                 occupancy=batch.occupancy)
+                for archive in self._archives():
+                    archive.add(batch.solutions[batch.ok], batch.objective, batch.measures, occupancy=batch.occupancy)
             self.screen.learn(batch)
             return {}
         if batch.complete:
@@ -207,14 +222,22 @@ class DirectQD:
             self.scheduler.tell(batch.objective, batch.measures, occupancy=batch.occupancy)
             return {}
         if batch.ok:
-            self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures, occupancy=batch.occupancy)
+            for archive in self._archives():
+                archive.add(batch.solutions[batch.ok], batch.objective, batch.measures, occupancy=batch.occupancy)
         # A batch with failed (or budget-truncated) evaluations cannot be told: pyribs needs the whole
-        # batch it asked for. A fresh scheduler over the same archive and emitters closes the ask/tell
+        # batch it asked for. A fresh scheduler over the same archives and emitters closes the ask/tell
         # cycle; the emitters simply never learn from this one batch.
         from ribs.schedulers import Scheduler
 
-        self.scheduler = Scheduler(self.archive, self.scheduler.emitters)
+        emitters_archive = self.scheduler.archive
+        self.scheduler = Scheduler(emitters_archive, self.scheduler.emitters,
+                                   result_archive=None if emitters_archive is self.archive else self.archive)
         return {}
+
+    def _archives(self) -> list["GridArchive"]:
+        """The run's archive, and the emitters' own where they have one (after a handover)."""
+        emitters_archive = self.scheduler.archive
+        return [self.archive] if emitters_archive is self.archive else [self.archive, emitters_archive]
 
     def state_dict(self) -> dict[str, Any]:
         return {"scheduler": self.scheduler, "surrogate": None, "dataset": None, "holdout": None, "holdout_evals": 0,

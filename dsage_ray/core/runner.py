@@ -289,7 +289,7 @@ class DSAGE:
         it right after the random iteration."""
         self.search_choice = choice
         self.proposer = DirectQD(config=direct_config(self.config), domain=self.domain, archive=self.archive,
-                                 seeds=self.seeds)
+                                 seeds=self.seeds, handover=True)
 
     def _step(self) -> dict[str, float]:
         started = time.perf_counter()

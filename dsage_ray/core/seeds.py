@@ -48,6 +48,14 @@ class RunSeeds:
         """A fresh seed for the next archive, scheduler or surrogate initialisation, in order of creation."""
         return int(self._qd_root.spawn(1)[0].generate_state(1)[0])
 
+    def first_qd_seeds(self) -> tuple[int, int]:
+        """The QD stream's first two seeds, as :meth:`next_qd_seed` gives them at a run's start (the stream is not
+        advanced): the run's archive's and its first search's (a direct run's scheduler). A direct search that takes
+        over a run later (``search = "auto"``) draws these, so that it asks what a run of it from the start would."""
+        root = self._qd_root
+        return tuple(int(np.random.SeedSequence(root.entropy, spawn_key=(*root.spawn_key, index),
+                                                pool_size=root.pool_size).generate_state(1)[0]) for index in (0, 1))
+
     def state_dict(self) -> dict[str, Any]:
         """The streams that advance during a run (the others are fixed by the run seed)."""
         return {"rng": self.rng.bit_generator.state, "qd_seed_root": self._qd_root}

@@ -26,6 +26,10 @@ CROSS_ENTROPY_ELITE_FRACTION = 0.2
 MAP_ELITES_RANDOM_BATCHES = 4
 #: ``cma_me``: the paper's two-stage improvement ranking.
 CMA_ME_RANKER = "2imp"
+#: Emitters that start from a point of their own (CMA-ES from the origin) and read the archive they add to, to rank
+#: their solutions and to restart from its elites. The others start from the domain's random levels or never read
+#: the archive (see :data:`EMITTERS`).
+EMITTERS_WITH_OWN_START: frozenset[str] = frozenset({"cma_me"})
 
 #: ``predict(solutions) -> (objective (n,), measures (n, m), extra fields {name: (n, ...)})``.
 Predictor = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, Mapping[str, np.ndarray]]]
@@ -133,14 +137,16 @@ def make_scheduler(
     random_solutions: Sampler,
     seed: int | None,
     bounds: tuple[float, float] | None = None,
+    result_archive: ArchiveBase | None = None,
 ) -> Scheduler:
     """A pyribs scheduler over :func:`make_emitters` (``bounds``: see there); one :meth:`~Scheduler.ask` yields
-    ``num_emitters × batch_size`` solutions."""
+    ``num_emitters × batch_size`` solutions. With ``result_archive``, the emitters read ``archive`` and every
+    solution told enters both."""
     emitters = make_emitters(
         archive, config=config, solution_dim=solution_dim, random_solutions=random_solutions, seed=seed,
         bounds=bounds,
     )
-    return Scheduler(archive, emitters)
+    return Scheduler(archive, emitters, result_archive=result_archive)
 
 
 @dataclasses.dataclass

@@ -1,6 +1,7 @@
 import dataclasses
 import pickle
 
+import numpy as np
 import pytest
 
 from dsage_ray.config import ConfigError, RunConfig
@@ -345,3 +346,80 @@ def test_a_surrogate_iteration_is_counted_at_one_pick_per_block_at_most(method, 
     count = {"blocks": -(-dims[0] // 4) * -(-dims[1] // 4), "count": 10_000, "cells": dims[0] * dims[1]}[expected]
     assert runner._surrogate_picks(0) == count
     assert runner._surrogate_picks(100_000 - 7) == 7  # within the evaluation budget
+
+
+def _direct_search(config, domain, *, levels_before=None, handover):
+    """A direct search over a fresh run archive; with ``levels_before``, after those levels entered it and a run
+    whose QD stream drew two more seeds (a surrogate's, its archive's), as a DSAGE run's has by then."""
+    from dsage_ray.core.proposers import domain_archive
+    from dsage_ray.core.seeds import RunSeeds
+
+    seeds = RunSeeds(seed=config.seed)
+    archive = domain_archive(domain, with_occupancy=True, seed=seeds.next_qd_seed())
+    if levels_before is not None:
+        seeds.next_qd_seed(), seeds.next_qd_seed()
+        results = [domain.evaluate(level, seed=i) for i, level in enumerate(levels_before)]
+        archive.add(levels_before, [r.objective for r in results], [r.measures for r in results],
+                    occupancy=[r.occupancy for r in results])
+    return DirectQD(config=config, domain=domain, archive=archive, seeds=seeds, handover=handover)
+
+
+def _play(search, domain, outer_iteration):
+    from dsage_ray.core.proposers import EvaluatedBatch
+
+    proposal = search.propose(outer_iteration=outer_iteration)
+    results = [domain.evaluate(level, seed=1000 * outer_iteration + i) for i, level in enumerate(proposal.solutions)]
+    search.learn(EvaluatedBatch.collect(proposal, results, domain=domain, outer_iteration=outer_iteration))
+    return proposal.solutions
+
+
+class LatentBitmapDomain(BitmapDomain):
+    """:class:`BitmapDomain` with real-valued solutions (a wall where a value is over 0.5), as CMA-ES needs."""
+
+    solution_dtype = np.float64
+
+
+@pytest.mark.parametrize("handover", [True, False])
+def test_a_cma_me_that_takes_over_asks_what_it_would_have_from_the_start_and_keeps_the_levels_before(handover):
+    domain = LatentBitmapDomain()
+    config = RunConfig.build({**SMALL_RUN, "variant": "map_elites", "qd.emitter": "cma_me", "qd.sigma0": 0.3})
+    from_start = _direct_search(config, domain, handover=False)
+    random_levels = domain.random_solutions(40, np.random.default_rng(7)).astype(np.float64)
+    taking_over = _direct_search(config, domain, levels_before=random_levels, handover=handover)
+    before = _elites(taking_over.archive)
+    same = [np.array_equal(_play(from_start, domain, i), _play(taking_over, domain, i)) for i in range(1, 6)]
+    # Without a handover the emitters rank against (and restart from) the levels before, with another seed.
+    assert all(same) if handover else not any(same)
+    if handover:
+        # Every level is in the run's archive, at least as good in every cell; the emitters' own holds what they
+        # asked, as the run from the start does.
+        after, alone = _elites(taking_over.archive), _elites(from_start.archive)
+        assert all(after[cell] >= objective for cell, objective in {**before, **alone}.items())
+        assert archive_snapshot(taking_over.scheduler.archive) == archive_snapshot(from_start.archive)
+        assert len(after) > len(alone)
+
+
+def _elites(archive) -> dict[int, float]:
+    data = archive.data()
+    return dict(zip(data["index"].tolist(), data["objective"].tolist()))
+
+
+def test_a_direct_search_that_took_over_resumes_from_a_checkpoint_with_its_two_archives_linked(tmp_path):
+    from dsage_ray.core.checkpoint import load_checkpoint, save_checkpoint
+
+    domain = LatentBitmapDomain()
+    config = RunConfig.build({**SMALL_RUN, "variant": "map_elites", "qd.emitter": "cma_me", "qd.sigma0": 0.3,
+                              "seed": 3})
+    random_levels = domain.random_solutions(40, np.random.default_rng(7)).astype(np.float64)
+    reference = _direct_search(config, domain, levels_before=random_levels, handover=True)
+    interrupted = _direct_search(config, domain, levels_before=random_levels, handover=True)
+    for i in (1, 2):
+        _play(reference, domain, i), _play(interrupted, domain, i)
+    path = save_checkpoint({"config": config.to_dict(), "archive": interrupted.archive,
+                            **interrupted.state_dict()}, tmp_path / "state.ckpt")
+    resumed = _direct_search(config, domain, handover=True)
+    resumed.load_state_dict(load_checkpoint(path))
+    assert resumed.scheduler.result_archive is resumed.archive is not resumed.scheduler.archive
+    for i in (3, 4):
+        assert np.array_equal(_play(reference, domain, i), _play(resumed, domain, i))
+    assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
