@@ -31,6 +31,13 @@ comes too late as well (Mario seeds 96-98: they took 35-57% of 10 minutes, and `
 hence the look during them (Mario seeds 102-104: a switch 14-34 s in, 0.87 ± 0.18× CMA-ME, §25). Without a time
 budget nothing limits the iterations, and only the probe decides.
 
+Whichever look chooses, the direct search that takes over asks what a run of it from the start would have asked
+(:class:`~dsage_ray.core.proposers.DirectQD` with ``handover``): it draws that run's seed, and CMA-ME ranks its levels
+against, and restarts from, an archive of its own finds, while every level still enters the run's archive. So ``auto``
+trails the fixed direct search by the time spent before the switch and keeps the levels played before it. Continuing
+on the run's archive instead, Mario's CMA-ME restarted from DSAGE's random levels (latents at σ 1, the ones A* is slow
+on) and played 822-949 levels in the time where CMA-ME from the start played 1,061-1,250 (§25).
+
 Otherwise the first outer iteration that uses the surrogate is measured as it runs: its first :data:`PROBE_PICKS` picks
 are evaluated (stopped once they alone cost past the break-even, :func:`probe_allowance`), and a pick's cost is
 projected as the surrogate's seconds spread over all the picks plus the probe's mean evaluation seconds

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import faulthandler
+import gc
 import hashlib
 import logging
 import os
@@ -187,6 +188,23 @@ def _keep_faulthandler_off() -> None:
         logger.info("Python faulthandler disabled: it conflicts with the JVM's signal handling")
 
 
+def _unlink_garbage_collectors() -> None:
+    """Stops JPype from running Java's garbage collector along with Python's.
+
+    JPype registers a callback on every Python collection (``gc.callbacks``) that, once the process's Python memory
+    passes its marks, asks the JVM for a collection too (jpype-project/jpype#1197). In a process holding a
+    surrogate and its data (a DSAGE run), that kept JPype's "Python Reference Queue" thread busy for more than a core
+    and made the same 40 Mario levels take 18.9 s where they took 7.9 s unlinked (``benchmarks/bench_mario_gc.py``).
+    The link exists for reference cycles between Python and Java objects; an episode makes none (Python holds Java
+    objects only, released when their Python handles go), and each collector still runs on its own heap's pressure.
+    """
+    import _jpype
+
+    collect = getattr(_jpype, "_collect", None)
+    while collect is not None and collect in gc.callbacks:
+        gc.callbacks.remove(collect)
+
+
 def _start_jvm() -> _Java:
     try:
         import jpype
@@ -222,6 +240,7 @@ def _start_jvm() -> _Java:
                           f"(faulthandler in pytest and Ray workers) can crash it at random. Start the process "
                           f"with LD_PRELOAD={chaining} (the Makefile and the Ray pool do).", RuntimeWarning, stacklevel=2)
         jpype.startJVM(jvm, *opts, classpath=classpath, convertStrings=False)
+        _unlink_garbage_collectors()
     jvm_start_s = time.perf_counter() - start
     JClass = jpype.JClass
     try:
