@@ -192,11 +192,11 @@ def _unlink_garbage_collectors() -> None:
     """Stops JPype from running Java's garbage collector along with Python's.
 
     JPype registers a callback on every Python collection (``gc.callbacks``) that, once the process's Python memory
-    passes its marks, asks the JVM for a collection too (jpype-project/jpype#1197). In a process holding a
-    surrogate and its data (a DSAGE run), that kept JPype's "Python Reference Queue" thread busy for more than a core
-    and made the same 40 Mario levels take 18.9 s where they took 7.9 s unlinked (``benchmarks/bench_mario_gc.py``).
-    The link exists for reference cycles between Python and Java objects; an episode makes none (Python holds Java
-    objects only, released when their Python handles go), and each collector still runs on its own heap's pressure.
+    passes its marks, asks the JVM for a collection too (jpype-project/jpype#1197). In a DSAGE run on Mario that kept
+    JPype's "Python Reference Queue" thread busy for more than half of a core, taken from the episodes
+    (``benchmarks/bench_mario_gc.py``). The link exists for reference cycles between Python and Java objects; an
+    episode makes none (Python holds Java objects only, released when their Python handles go), and each collector
+    still runs on its own heap's pressure.
     """
     import _jpype
 

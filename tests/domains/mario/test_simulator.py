@@ -151,3 +151,15 @@ def test_timer_class_compiles_into_the_cache(tmp_path, monkeypatch):
     assert folder.parent == tmp_path and (folder / "dsagemario" / "DeterministicTimer.class").is_file()
     assert sim.compile_timer_class() == folder  # cached
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".compile-")]  # no temp leftovers
+
+
+def test_the_jvm_runs_without_jpypes_link_to_pythons_garbage_collector():
+    import gc
+
+    import _jpype
+
+    from dsage_ray.domains.mario.simulator import java
+
+    java()
+    # Linked, a DSAGE run's Python collections kept JPype's reference thread busy (benchmarks/bench_mario_gc.py).
+    assert _jpype._collect not in gc.callbacks
