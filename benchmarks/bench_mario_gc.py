@@ -2,8 +2,10 @@
 
 JPype asks the JVM for a collection from Python's collections once the process's Python memory passes its marks
 (jpype-project/jpype#1197). ``dsage_ray.domains.mario.simulator`` removes that link when it starts the JVM. This runs
-the same Mario run (``--variant``, ``--search``, the ``cpu`` preset, ``--seconds`` of time budget) in fresh processes,
-one after the other: as shipped (unlinked), and with the link left in place. It prints each arm's evaluations,
+the same ``dsage-ray run`` on Mario (``--variant``, ``--search``, the ``cpu`` preset, ``--seconds`` of time budget) in
+fresh processes, one after the other: as shipped (unlinked), and with the link left in place. How much the link
+costs depends on the Python memory around the episodes: a ``DSAGE`` object run in-process, without the command's
+TensorBoard and progress bars, lost little to it. It prints each arm's evaluations,
 QD-score and CPU seconds, and the CPU seconds of JPype's "Python Reference Queue" thread and of the main thread (where
 the Mario episodes run)::
 
@@ -19,6 +21,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 #: JPype's thread name as Linux shows it (``/proc/*/task/*/comm`` keeps 15 characters).
 REFERENCE_THREAD = "Python Referenc"
@@ -35,21 +38,22 @@ def _thread_cpu_seconds() -> dict[str, float]:
     return seconds
 
 
-def run_arm(*, variant: str, search: str, seed: int, seconds: float, linked: bool) -> dict:
-    """One arm, in this process."""
-    from dsage_ray.config import RunConfig
-    from dsage_ray.core.runner import DSAGE
+def run_arm(*, variant: str, search: str, seed: int, seconds: float, linked: bool, out: Path) -> dict:
+    """One arm, in this process: ``dsage-ray run`` as a user runs it (TensorBoard, progress bars and all)."""
+    from dsage_ray.cli import main as cli
     from dsage_ray.domains.mario import simulator
 
     if linked:
         simulator._unlink_garbage_collectors = lambda: None
-    config = RunConfig.from_file("experiments/configs/mario_dsage.toml",
-                                 {"preset": "cpu", "variant": variant, "search": search, "seed": seed,
-                                  "budget": 100_000, "time_budget": seconds, "name": "bench_mario_gc"})
-    run = DSAGE(config=config)
-    run.run()
-    threads, last = _thread_cpu_seconds(), run.history[-1]
-    return {"linked": linked, "evals": run.evals, "qd_score": last["qd_score"], "cpu_s": last["cpu_time"],
+    code = cli(["run", "experiments/configs/mario_dsage.toml", "--local", "--preset", "cpu", "--out", str(out),
+                "--set", f"variant={variant}", "--set", f"search={search}", "--set", f"seed={seed}",
+                "--set", "budget=100000", "--time-budget", f"{seconds:g}s"])
+    if code:
+        raise SystemExit(code)
+    threads = _thread_cpu_seconds()
+    history = json.loads((out / "metrics.json").read_text())
+    last = (history if isinstance(history, list) else history["history"])[-1]
+    return {"linked": linked, "evals": int(last["evals"]), "qd_score": last["qd_score"], "cpu_s": last["cpu_time"],
             "reference_thread_s": threads.get(REFERENCE_THREAD, 0.0), "main_thread_s": threads.get("main", 0.0)}
 
 
@@ -59,17 +63,18 @@ def main(argv: list[str] | None = None) -> list[dict]:
     parser.add_argument("--search", default="fixed")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--seconds", type=float, default=100.0, help="each arm's time budget")
+    parser.add_argument("--out", type=Path, default=Path("tb_logs/bench_mario_gc"), help="the runs' folders")
     parser.add_argument("--arm", choices=("linked", "unlinked"), help=argparse.SUPPRESS)  # in a child process
     args = parser.parse_args(argv)
     options = {"variant": args.variant, "search": args.search, "seed": args.seed, "seconds": args.seconds}
     if args.arm:
-        print(json.dumps(run_arm(**options, linked=args.arm == "linked")))
+        print(json.dumps(run_arm(**options, linked=args.arm == "linked", out=args.out / args.arm)))
         return []
     rows = []
     for arm in ("unlinked", "linked"):
         child = [sys.executable, __file__, "--arm", arm, "--variant", args.variant, "--search", args.search,
-                 "--seed", str(args.seed), "--seconds", str(args.seconds)]
-        rows.append(json.loads(subprocess.run(child, capture_output=True, text=True, check=True).stdout
+                 "--seed", str(args.seed), "--seconds", str(args.seconds), "--out", str(args.out)]
+        rows.append(json.loads(subprocess.run(child, stdout=subprocess.PIPE, text=True, check=True).stdout
                                .strip().splitlines()[-1]))
     print(f"Mario {args.variant}, search {args.search}, seed {args.seed}, {args.seconds:g} s each")
     print(f"{'collectors':10} {'evaluations':>11} {'QD-score':>9} {'CPU s':>6} {'main thread CPU s':>18} "

@@ -11,7 +11,7 @@ pick costs, all of that included, over what a random level's evaluation costs:
 * CartPole and LunarLander (the published audits): 1.5-2.0×, and DSAGE was the better search at equal CPU time
   (docs/results/gym_audit);
 * Mario (A*, the ``cpu`` preset): about 16×, and CMA-ME found twice DSAGE's QD-score at equal CPU time
-  (equal_compute §6, §18).
+  (equal_compute §6, §18, and §27 without JPype's collector link: DSAGE 0.51 ± 0.11× CMA-ME).
 
 With a time budget, the choice can come before the surrogate ever trains. First, during the random iteration: after
 every :data:`RANDOM_LEVELS_TIMED` of its levels, the rest are projected at the seconds of the levels so far, and
@@ -28,15 +28,15 @@ to it. On Mario at 10 minutes the probe below comes 4-7 minutes into the run, to
 up (0.32-0.72× CMA-ME), while the same random levels followed at once by CMA-ME did as well as CMA-ME from the start
 (docs/results/equal_compute §22). Where the random levels themselves take much of the budget, the look after them
 comes too late as well (Mario seeds 96-98: they took 35-57% of 10 minutes, and ``auto`` reached 0.51× CMA-ME, §24),
-hence the look during them (Mario seeds 102-104: a switch 14-34 s in, 0.87 ± 0.18× CMA-ME, §25). Without a time
+hence the look during them (Mario seeds 108-110: a switch 22-32 s in, 1.00 ± 0.07× CMA-ME, §27). Without a time
 budget nothing limits the iterations, and only the probe decides.
 
 Whichever look chooses, the direct search that takes over asks what a run of it from the start would have asked
 (:class:`~dsage_ray.core.proposers.DirectQD` with ``handover``): it draws that run's seed, and CMA-ME ranks its levels
 against, and restarts from, an archive of its own finds, while every level still enters the run's archive. So ``auto``
-trails the fixed direct search by the time spent before the switch and keeps the levels played before it. Continuing
-on the run's archive instead, Mario's CMA-ME restarted from DSAGE's random levels (latents at σ 1, the ones A* is slow
-on) and played 822-949 levels in the time where CMA-ME from the start played 1,061-1,250 (§25).
+trails the fixed direct search by the time spent before the switch and keeps the levels played before it (on Mario
+seeds 108-110 it played 1,262 ± 52 levels in 10 minutes, CMA-ME from the start 1,236 ± 52, §27). Before, it
+continued on the run's archive with another seed, and restarted from DSAGE's random levels.
 
 Otherwise the first outer iteration that uses the surrogate is measured as it runs: its first :data:`PROBE_PICKS` picks
 are evaluated (stopped once they alone cost past the break-even, :func:`probe_allowance`), and a pick's cost is

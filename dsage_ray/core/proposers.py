@@ -165,7 +165,7 @@ class DirectQD:
             already. It then asks what a run of it from the start would have asked: its scheduler draws that run's
             seed, and emitters with a start of their own (:data:`~dsage_ray.qd.optimizer.EMITTERS_WITH_OWN_START`)
             read an archive of their own, while every level still enters ``archive``. Otherwise CMA-ME would rank
-            against, and restart from, DSAGE's random levels (on Mario, latents at σ 1: the levels A* is slow on).
+            against, and restart from, DSAGE's random levels, and ``auto`` would not be the fixed choice started late.
     """
 
     def __init__(self, *, config: RunConfig, domain: Domain, archive: "GridArchive", seeds: "RunSeeds",

@@ -114,7 +114,7 @@ DOMAIN = DomainSpec(
     domain="dsage_ray.domains.mario.domain:MarioDomain",
     presets=PRESETS,
     variants=VARIANTS,
-    # search = "auto" continues with CMA-ME: twice DSAGE's QD-score at equal CPU time (equal_compute §6, §18).
+    # search = "auto" continues with CMA-ME: twice DSAGE's QD-score at equal CPU time (equal_compute §18, §27).
     direct_search="cma_me",
     # The paper's Table 2 rows (``dsage_rsample`` is the appendix ablation).
     comparison=("dsage", "dsage_only_anc", "dsage_only_down", "dsage_basic", "cma_me", "dr"),
