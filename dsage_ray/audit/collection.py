@@ -88,8 +88,10 @@ def audit_config(
         name: Run name, the Tune experiment folder (default ``audit_<agent>``).
         overrides: Further dotted config keys (``--set``), applied last. Audits hold no levels out
             (``experimental.holdout_levels = 0``) unless these say otherwise, and a DSAGE search also takes the
-            registration's ``audit.surrogate_keys`` (Maze: ``selection.elite_mutants = 150``). ``search = "auto"``
-            runs as ``fixed`` where the registration's ``audit.auto_keeps_dsage`` says why (Maze).
+            registration's ``audit.surrogate_keys`` (Maze: ``selection.elite_mutants = 150``). A DSAGE search with
+            a time budget runs as ``search = "auto"`` unless these name a ``search`` (or ``auto`` cannot run: with
+            ``pipeline`` or ``surrogate.init``). ``search = "auto"`` runs as ``fixed`` where the registration's
+            ``audit.auto_keeps_dsage`` says why (Maze).
         started: The config of the search this audit continues (``--resume``). The registration's
             ``audit.surrogate_keys`` then keep the values it was started with, so an audit begun under an
             earlier default continues as it began; ``overrides`` still win.
@@ -124,8 +126,15 @@ def audit_config(
             begun = started.to_flat()
             defaults = {key: begun[key] for key in defaults}
         keys = {**values, **defaults, **(overrides or {})}
+    if "search" not in (overrides or {}) and config.uses_surrogate and not config.pipeline and not config.surrogate.init:
+        if started is not None:  # continues as it began
+            keys["search"] = started.search
+        elif config.time_budget > 0:
+            # With a time budget, DSAGE may not have the time to pay for its surrogate: in 5-minute Mario audits it
+            # did not get past its random levels, and auto found 1.7x its failing cells (equal_compute §26).
+            keys["search"] = "auto"
     # An audit begun with auto before the domain kept DSAGE continues as it began, like the surrogate keys above.
-    if config.search == "auto" and spec.audit.auto_keeps_dsage and (started is None or started.search != "auto"):
+    if keys.get("search") == "auto" and spec.audit.auto_keeps_dsage and (started is None or started.search != "auto"):
         keys["search"] = "fixed"
     return RunConfig.build(keys)
 

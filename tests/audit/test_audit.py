@@ -227,3 +227,19 @@ def test_audits_hold_no_levels_out_unless_asked():
     assert audit_config(agent=AUDITED, preset="cpu").experimental.holdout_levels == 0
     asked = audit_config(agent=AUDITED, preset="cpu", overrides={"experimental.holdout_levels": 30})
     assert asked.experimental.holdout_levels == 30
+
+
+def test_an_audit_with_a_time_budget_searches_with_auto_unless_told_or_where_auto_cannot_run():
+    timed = {"time_budget": 300.0}
+    assert audit_config(domain="gym", agent="random", preset="tiny", overrides=timed).search == "auto"
+    assert audit_config(domain="gym", agent="random", preset="tiny").search == "fixed"  # no time budget
+    told = audit_config(domain="gym", agent="random", preset="tiny", overrides={**timed, "search": "fixed"})
+    assert told.search == "fixed"
+    assert audit_config(domain="gym", agent="random", preset="tiny", variant="cross_entropy",
+                        overrides=timed).search == "fixed"  # no surrogate to pay for
+    assert audit_config(domain="gym", agent="random", preset="tiny",
+                        overrides={**timed, "pipeline": True}).search == "fixed"
+    # Maze audits keep DSAGE; an audit continues with the search it began with.
+    assert audit_config(agent=AUDITED, overrides=timed).search == "fixed"
+    begun = audit_config(domain="gym", agent="random", preset="tiny")
+    assert audit_config(domain="gym", agent="random", preset="tiny", overrides=timed, started=begun).search == "fixed"
