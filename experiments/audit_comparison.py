@@ -114,7 +114,11 @@ def audit_command(args: argparse.Namespace, label: str, seed: int, folder: Path)
     if args.budget is not None:
         command += ["--budget", str(args.budget)]
     arm_keys = [item.partition(":")[2] for item in args.arm_set if item.partition(":")[0] == label]
-    for item in [*args.overrides, *arm_keys]:
+    keys = [*args.overrides, *arm_keys]
+    if not any(item.partition("=")[0].strip() == "search" for item in keys):
+        # Each arm is the search it names: an audit with a time budget would otherwise search with auto.
+        keys.insert(0, "search=fixed")
+    for item in keys:
         command += ["--set", item]
     if label in args.match_time:
         command += ["--set", f"time_budget={reference_time(args, seed):.1f}"]

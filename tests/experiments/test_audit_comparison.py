@@ -73,9 +73,14 @@ def test_arms_are_labelled_variants_with_their_own_keys_on_the_seeds_asked_for(t
     warm = script.audit_command(args, "warm", 200, tmp_path / "warm_seed200")
     cold = script.audit_command(args, "cold", 200, tmp_path / "cold_seed200")
     assert warm[warm.index("--variant") + 1] == "dsage" and warm[warm.index("--seed") + 1] == "200"
+    # Each arm is the search it names (an audit with a time budget would otherwise search with auto), unless its keys
+    # name one.
     assert [warm[i + 1] for i, a in enumerate(warm) if a == "--set"] == [
-        "maze.episodes=3", "surrogate.init=/x/y", "experimental.init_prior=false"]
-    assert [cold[i + 1] for i, a in enumerate(cold) if a == "--set"] == ["maze.episodes=3"]
+        "search=fixed", "maze.episodes=3", "surrogate.init=/x/y", "experimental.init_prior=false"]
+    assert [cold[i + 1] for i, a in enumerate(cold) if a == "--set"] == ["search=fixed", "maze.episodes=3"]
+    auto = script.parse_args(["--variants", "dsage,auto=dsage", "--arm-set", "auto:search=auto"])
+    assert [a for a in script.audit_command(auto, "auto", 0, tmp_path / "auto_seed0") if "search=" in a] == [
+        "search=auto"]
     bad = script.parse_args(["--variants", "dsage", "--arm-set", "warm:surrogate.init=/x"])
     try:
         script.parse_arms(bad)
@@ -95,7 +100,7 @@ def test_match_time_gives_an_arm_the_time_its_seeds_reference_searched(tmp_path)
     (search / "metrics.json").write_text(json.dumps([{"wall_time": 100.0, "cpu_time": 90.0},
                                                      {"wall_time": 361.25, "cpu_time": 350.0}]))
     matched = script.audit_command(args, "map_elites", 10, tmp_path / "map_elites_seed10")
-    assert [matched[i + 1] for i, a in enumerate(matched) if a == "--set"] == ["time_budget=361.2"]
+    assert [matched[i + 1] for i, a in enumerate(matched) if a == "--set"] == ["search=fixed", "time_budget=361.2"]
     reference = script.audit_command(args, "dsage", 10, tmp_path / "dsage_seed10")
     assert not any(a.startswith("time_budget=") for a in reference)
     try:  # seed 11's reference has not run
