@@ -51,8 +51,7 @@ def run_arm(*, variant: str, search: str, seed: int, seconds: float, linked: boo
     if code:
         raise SystemExit(code)
     threads = _thread_cpu_seconds()
-    history = json.loads((out / "metrics.json").read_text())
-    last = (history if isinstance(history, list) else history["history"])[-1]
+    last = json.loads((out / "metrics.json").read_text())[-1]  # one row per outer iteration
     return {"linked": linked, "evals": int(last["evals"]), "qd_score": last["qd_score"], "cpu_s": last["cpu_time"],
             "reference_thread_s": threads.get(REFERENCE_THREAD, 0.0), "main_thread_s": threads.get("main", 0.0)}
 

@@ -26,7 +26,8 @@ from dsage_ray.core.screening import ScreenStep
 from dsage_ray.qd.archives import make_archive
 from dsage_ray.qd.mutants import elite_mutants
 from dsage_ray.qd.emitters import RandomEmitter
-from dsage_ray.qd.optimizer import EMITTERS_WITH_OWN_START, MAP_ELITES_RANDOM_BATCHES, make_scheduler, run_inner_loop
+from dsage_ray.qd.optimizer import (EMITTERS_WITH_OWN_START, MAP_ELITES_RANDOM_BATCHES, make_scheduler,
+                                   reopened_scheduler, run_inner_loop)
 from dsage_ray.qd.selection import gather_elites, select_solutions
 from dsage_ray.surrogate.models import encode_solutions
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
@@ -186,8 +187,7 @@ class DirectQD:
             seed = seeds.next_qd_seed()
         self.scheduler = make_scheduler(emitters_archive, config=config.qd, solution_dim=domain.solution_dim,
                                         random_solutions=domain.random_solutions, seed=seed,
-                                        bounds=self.solution_bounds,
-                                        result_archive=None if emitters_archive is archive else archive)
+                                        bounds=self.solution_bounds, result_archive=archive)
         #: Chooses each batch after the random start-up among screened mutants (None: no screen).
         self.screen = ScreenStep.for_run(config=config, domain=domain, seeds=seeds)
         #: Whether the batch under evaluation came from the scheduler (then it is told), not from a screen.
@@ -211,33 +211,20 @@ class DirectQD:
                         screened=estimates)
 
     def learn(self, batch: EvaluatedBatch) -> dict[str, float]:
-        if not self.asked:
-            if batch.ok:
-                for archive in self._archives():
-                    archive.add(batch.solutions[batch.ok], batch.objective, batch.measures, occupancy=batch.occupancy)
-            self.screen.learn(batch)
-            return {}
-        if batch.complete:
-            # The emitters need the whole batch they asked for; tell() also adds to the archive.
+        if self.asked and batch.complete:
+            # The emitters need the whole batch they asked for; tell() also adds to the archives.
             self.scheduler.tell(batch.objective, batch.measures, occupancy=batch.occupancy)
             return {}
         if batch.ok:
-            for archive in self._archives():
+            # The run's archive, and the emitters' own where they have one (after a handover).
+            for archive in {id(a): a for a in (self.archive, self.scheduler.archive)}.values():
                 archive.add(batch.solutions[batch.ok], batch.objective, batch.measures, occupancy=batch.occupancy)
-        # A batch with failed (or budget-truncated) evaluations cannot be told: pyribs needs the whole
-        # batch it asked for. A fresh scheduler over the same archives and emitters closes the ask/tell
-        # cycle; the emitters simply never learn from this one batch.
-        from ribs.schedulers import Scheduler
-
-        emitters_archive = self.scheduler.archive
-        self.scheduler = Scheduler(emitters_archive, self.scheduler.emitters,
-                                   result_archive=None if emitters_archive is self.archive else self.archive)
+        if not self.asked:
+            self.screen.learn(batch)
+        else:
+            # A batch with failed (or budget-truncated) evaluations cannot be told.
+            self.scheduler = reopened_scheduler(self.scheduler)
         return {}
-
-    def _archives(self) -> list["GridArchive"]:
-        """The run's archive, and the emitters' own where they have one (after a handover)."""
-        emitters_archive = self.scheduler.archive
-        return [self.archive] if emitters_archive is self.archive else [self.archive, emitters_archive]
 
     def state_dict(self) -> dict[str, Any]:
         return {"scheduler": self.scheduler, "surrogate": None, "dataset": None, "holdout": None, "holdout_evals": 0,

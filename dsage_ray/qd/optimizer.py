@@ -140,13 +140,24 @@ def make_scheduler(
     result_archive: ArchiveBase | None = None,
 ) -> Scheduler:
     """A pyribs scheduler over :func:`make_emitters` (``bounds``: see there); one :meth:`~Scheduler.ask` yields
-    ``num_emitters × batch_size`` solutions. With ``result_archive``, the emitters read ``archive`` and every
-    solution told enters both."""
+    ``num_emitters × batch_size`` solutions. With a ``result_archive`` other than ``archive``, the emitters read
+    ``archive`` and every solution told enters both."""
     emitters = make_emitters(
         archive, config=config, solution_dim=solution_dim, random_solutions=random_solutions, seed=seed,
         bounds=bounds,
     )
-    return Scheduler(archive, emitters, result_archive=result_archive)
+    return _scheduler(archive, emitters, result_archive)
+
+
+def reopened_scheduler(scheduler: Scheduler) -> Scheduler:
+    """A scheduler over ``scheduler``'s archives and emitters with no ask pending: it closes an ask/tell cycle whose
+    batch cannot be told (pyribs needs the whole batch it asked for); the emitters never learn from that batch."""
+    return _scheduler(scheduler.archive, scheduler.emitters, scheduler.result_archive)
+
+
+def _scheduler(archive: ArchiveBase, emitters: list[EmitterBase], result_archive: ArchiveBase | None) -> Scheduler:
+    # pyribs adds every solution told to its result archive besides its archive: the same one would get it twice.
+    return Scheduler(archive, emitters, result_archive=None if result_archive is archive else result_archive)
 
 
 @dataclasses.dataclass

@@ -357,7 +357,8 @@ def _direct_search(config, domain, *, levels_before=None, handover):
     seeds = RunSeeds(seed=config.seed)
     archive = domain_archive(domain, with_occupancy=True, seed=seeds.next_qd_seed())
     if levels_before is not None:
-        seeds.next_qd_seed(), seeds.next_qd_seed()
+        for _ in range(2):
+            seeds.next_qd_seed()
         results = [domain.evaluate(level, seed=i) for i, level in enumerate(levels_before)]
         archive.add(levels_before, [r.objective for r in results], [r.measures for r in results],
                     occupancy=[r.occupancy for r in results])
@@ -423,3 +424,19 @@ def test_a_direct_search_that_took_over_resumes_from_a_checkpoint_with_its_two_a
     for i in (3, 4):
         assert np.array_equal(_play(reference, domain, i), _play(resumed, domain, i))
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
+
+
+def test_a_batch_that_cannot_be_told_after_a_handover_enters_both_archives_and_keeps_them_linked():
+    from dsage_ray.core.proposers import EvaluatedBatch
+
+    domain = LatentBitmapDomain()
+    config = RunConfig.build({**SMALL_RUN, "variant": "map_elites", "qd.emitter": "cma_me", "qd.sigma0": 0.3})
+    search = _direct_search(config, domain, levels_before=domain.random_solutions(40, np.random.default_rng(7))
+                            .astype(np.float64), handover=True)
+    proposal = search.propose(outer_iteration=1)
+    results = [domain.evaluate(level, seed=i) for i, level in enumerate(proposal.solutions[:5])]  # a budget cut it
+    search.learn(EvaluatedBatch.collect(proposal, results, domain=domain, outer_iteration=1))
+    own = search.scheduler.archive
+    assert own is not search.archive and search.scheduler.result_archive is search.archive
+    assert 0 < len(own) <= 5 and set(_elites(own)) <= set(_elites(search.archive))
+    search.propose(outer_iteration=2)  # the cycle was closed: it asks again
