@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import json
+import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -13,6 +14,10 @@ from dsage_ray.io import atomic_write_bytes, atomic_write_json, atomic_write_tex
 
 if TYPE_CHECKING:
     from dsage_ray.core.snapshot import RunSnapshot
+
+
+#: Characters of a title per line that fit a 6-inch figure at the default font size.
+_TITLE_CHARS = 60
 
 
 def heatmap_png(archive, *, title: str = "", measure_names: tuple[str, ...] = (), zoom: bool = False) -> bytes:
@@ -39,7 +44,8 @@ def heatmap_png(archive, *, title: str = "", measure_names: tuple[str, ...] = ()
     if len(measure_names) >= 2:
         ax.set_xlabel(measure_names[0])
         ax.set_ylabel(measure_names[1])
-    ax.set_title(title or f"{len(archive)} elites")
+    # A title naming a long agent spec would run off the figure: wrap it to the figure's width instead.
+    ax.set_title(textwrap.fill(title or f"{len(archive)} elites", width=_TITLE_CHARS))
     fig.tight_layout()
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png")
