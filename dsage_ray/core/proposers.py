@@ -274,6 +274,9 @@ class SurrogateAssisted:
         self.prior_samples = 0
         #: Screens the picks and more surrogate elites before their evaluation (None: no screen).
         self.screen = ScreenStep.for_run(config=config, domain=domain, seeds=seeds)
+        #: Every measure is exact, so each pick's cell is known: picks are drawn among the elites that would enter
+        #: the ground-truth archive (docs/results/gym_audit).
+        self.cells_known = self.surrogate.measures_exact
 
     def propose(self, *, outer_iteration: int) -> Proposal:
         proposal = Proposal(np.empty(0))
@@ -392,13 +395,31 @@ class SurrogateAssisted:
         """Selection: downsample / random / full picks from the surrogate archive, and their screened results
         (None: no screen; ``times["screen"]``: the part of it spent screening them)."""
         selection = self.config.selection
+        among, gain = self._picks_that_add(surrogate_archive, metrics)
         picks = select_solutions(surrogate_archive, method=selection.method, block=selection.block,
-                                 count=selection.count, rng=self.seeds.rng)
+                                 count=selection.count, rng=self.seeds.rng, among=among, priority=gain)
         estimates = None
         if self.screen is not None:
             picks, estimates = self.screen.screen_picks(surrogate_archive, picks, self.archive, rng=self.seeds.rng,
                                                         metrics=metrics, times=times)
         return gather_elites(surrogate_archive, picks)["solution"], estimates
+
+    def _picks_that_add(self, surrogate_archive: "GridArchive",
+                        metrics: dict[str, float]) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """With known cells: the surrogate elites whose predicted objective would enter the ground-truth archive (a
+        new cell, or more than its elite) and what each would add to its QD-score, so that each block's pick is its
+        largest gain. ``(None, None)`` (every elite, uniformly) when cells are predicted or none would enter."""
+        if not self.cells_known:
+            return None, None
+        data = surrogate_archive.data()
+        occupied, elites = self.archive.retrieve(data["measures"])
+        held = np.where(occupied, elites["objective"], self.archive.qd_score_offset)
+        gain = np.asarray(data["objective"], dtype=np.float64) - held
+        adding = ~occupied | (gain > 0)
+        metrics["selection_elites_that_add"] = float(adding.sum())
+        if not adding.any():
+            return None, None
+        return np.asarray(data["index"])[adding], gain[adding]
 
     def _add_elite_mutants(self, proposal: Proposal) -> None:
         """Mutants of the ground truth's best elites beside the picks (``selection.elite_mutants``), unscreened."""

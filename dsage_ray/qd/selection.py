@@ -17,12 +17,14 @@ def select_solutions(
     block: Sequence[int],
     count: int,
     rng: np.random.Generator,
+    among: np.ndarray | None = None,
+    priority: np.ndarray | None = None,
 ) -> np.ndarray:
     """Picks elites of ``archive`` for real evaluation.
 
     - ``downsample``: the cell grid is cut into blocks of ``block`` cells per measure (edge blocks may
       be smaller when a block size does not divide the grid), and one occupied elite is chosen
-      uniformly at random per occupied block.
+      uniformly at random per occupied block (with ``priority``: the block's highest, ties uniformly).
     - ``random``: ``count`` elites uniformly without replacement (all of them if fewer).
     - ``full``: every elite.
 
@@ -35,6 +37,8 @@ def select_solutions(
         block: Cells per block along each measure (``downsample`` only).
         count: Elites to pick (``random`` only).
         rng: Source of randomness; ``full`` does not draw from it.
+        among: Archive indices to pick from (None: every elite); the method then sees only these elites.
+        priority: One value per index of ``among`` (``downsample`` only): each block's pick is its highest.
 
     Returns:
         Sorted integer archive indices of the chosen elites; read their data with :func:`gather_elites`.
@@ -47,12 +51,22 @@ def select_solutions(
         raise ConfigError(f"selection.method: unknown method {method!r} (known: {', '.join(SELECTION_METHODS)})"
                           f"{did_you_mean(method, SELECTION_METHODS)}")
     indices = np.sort(np.asarray(archive.data("index"), dtype=np.int64))
-    return np.sort(indices[SELECTION_METHODS[method](archive, indices, block, count, rng)])
+    if among is not None:
+        among = np.asarray(among, dtype=np.int64)
+        if priority is not None and len(priority) != len(among):
+            raise ValueError(f"priority needs one value per index of among ({len(priority)} != {len(among)})")
+        indices, _, positions = np.intersect1d(indices, among, return_indices=True)
+        priority = None if priority is None else np.asarray(priority, dtype=np.float64)[positions]
+    elif priority is not None:
+        raise ValueError("priority needs among: the indices it ranks")
+    if priority is None:
+        priority = np.zeros(len(indices))
+    return np.sort(indices[SELECTION_METHODS[method](archive, indices, block, count, rng, priority)])
 
 
 def _downsample(archive: GridArchive, indices: np.ndarray, block: Sequence[int], count: int,
-                rng: np.random.Generator) -> np.ndarray:
-    return _one_per_block(archive, indices, block, rng)
+                rng: np.random.Generator, priority: np.ndarray) -> np.ndarray:
+    return _one_per_block(archive, indices, block, rng, priority)
 
 
 def check_same_cells(archive: GridArchive, other: GridArchive, name: str) -> None:
@@ -62,18 +76,18 @@ def check_same_cells(archive: GridArchive, other: GridArchive, name: str) -> Non
 
 
 def _full(archive: GridArchive, indices: np.ndarray, block: Sequence[int], count: int,
-          rng: np.random.Generator) -> np.ndarray:
+          rng: np.random.Generator, priority: np.ndarray) -> np.ndarray:
     return np.arange(len(indices))
 
 
 def _random(archive: GridArchive, indices: np.ndarray, block: Sequence[int], count: int,
-            rng: np.random.Generator) -> np.ndarray:
+            rng: np.random.Generator, priority: np.ndarray) -> np.ndarray:
     if count < 0:
         raise ValueError(f"count must be >= 0 (got {count})")
     return rng.choice(len(indices), size=min(count, len(indices)), replace=False)
 
 
-#: Each ``selection.method``: ``pick(archive, sorted indices, block, count, rng)`` → positions in the
+#: Each ``selection.method``: ``pick(archive, sorted indices, block, count, rng, priority)`` → positions in the
 #: indices. Its keys are the config's :data:`~dsage_ray.config.SelectionMethod`.
 SELECTION_METHODS: dict[SelectionMethod, Callable[..., np.ndarray]] = {
     "downsample": _downsample,
@@ -97,14 +111,15 @@ def block_ids(archive: GridArchive, indices: np.ndarray, block: Sequence[int]) -
 
 
 def _one_per_block(archive: GridArchive, indices: np.ndarray, block: Sequence[int],
-                   rng: np.random.Generator) -> np.ndarray:
-    """Positions into ``indices`` (sorted) of one uniformly chosen elite per occupied block."""
+                   rng: np.random.Generator, priority: np.ndarray | None = None) -> np.ndarray:
+    """Positions into ``indices`` (sorted) of one elite per occupied block: its highest ``priority`` (None: all
+    equal), ties chosen uniformly."""
     blocks = block_ids(archive, indices, block)
     if len(indices) == 0:
         return np.empty(0, dtype=np.int64)
     # Each elite gets an i.i.d. uniform key; the smallest key in a block is a uniform pick within it.
     keys = rng.random(len(indices))
-    order = np.lexsort((keys, blocks))
+    order = np.lexsort((keys, -(np.zeros(len(indices)) if priority is None else priority), blocks))
     first_of_block = np.r_[True, blocks[order][1:] != blocks[order][:-1]]
     return np.sort(order[first_of_block])
 

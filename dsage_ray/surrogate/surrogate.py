@@ -214,6 +214,17 @@ class Surrogate:
                    level_values=domain_level_values(domain) if config.exact_level_values else None)
 
     @property
+    def measures_exact(self) -> bool:
+        """Whether the level's own values replace every measure's prediction (``config.exact_level_values`` with a
+        domain whose measures are all level values, e.g. a gym space's parameters): a level's archive cell is then
+        known before it is played."""
+        if self._level_values is None or self.num_measures == 0:
+            return False
+        sample = np.zeros((1, self.input_channels, *self.input_shape), np.float32)
+        return set(self._measure_columns) <= set(self._level_values(sample)) and \
+            len(self._measure_columns) == self.num_measures
+
+    @property
     def head_names(self) -> tuple[str, ...]:
         """Names of the predicted quantities, as used in :meth:`train` and :meth:`mae` results."""
         names = ("objective", *(f"measure_{i}" for i in range(self.num_measures)))

@@ -19,7 +19,8 @@ import bench_gym_surrogate as bench  # noqa: E402
 def gym_config(**surrogate):
     from dsage_ray.config import RunConfig
 
-    return RunConfig.build({"domain": "gym", "preset": "demo", "gym.space": "cartpole",
+    # The behaviour map the benchmark was written for (the shipped space maps two parameters).
+    return RunConfig.build({"domain": "gym", "preset": "demo", "gym.space": "cartpole", "gym.measures": ("x_end", "length"),
                             **{f"surrogate.{key}": value for key, value in surrogate.items()}})
 
 

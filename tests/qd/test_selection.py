@@ -90,3 +90,28 @@ def test_gather_elites_returns_fields_in_requested_order():
     free = np.setdiff1d(np.arange(archive.cells), archive.data("index"))[:1]
     with pytest.raises(KeyError):
         gather_elites(archive, free)
+
+
+@pytest.mark.parametrize("method", ["downsample", "random", "full"])
+def test_among_restricts_every_method_to_the_given_elites(method):
+    archive = _archive()
+    among = np.sort(archive.data("index"))[::3]
+    picked = select_solutions(archive, method=method, block=(8, 6), count=10_000, rng=np.random.default_rng(0),
+                              among=among)
+    assert len(picked) and set(picked) <= set(among)
+    if method == "full":
+        np.testing.assert_array_equal(picked, among)
+
+
+def test_downsample_with_priority_picks_each_blocks_highest():
+    archive = _archive(dims=(8, 8), n=500)  # every cell filled; blocks of 4×4 → four blocks
+    among = np.sort(archive.data("index"))
+    priority = np.random.default_rng(1).random(len(among))
+    picked = select_solutions(archive, method="downsample", block=(4, 4), count=0, rng=np.random.default_rng(0),
+                              among=among, priority=priority)
+    blocks = block_ids(archive, among, (4, 4))
+    best = [among[blocks == b][np.argmax(priority[blocks == b])] for b in np.unique(blocks)]
+    np.testing.assert_array_equal(picked, np.sort(best))
+    with pytest.raises(ValueError, match="one value per index"):
+        select_solutions(archive, method="downsample", block=(4, 4), count=0, rng=np.random.default_rng(0),
+                         among=among, priority=priority[:3])

@@ -88,3 +88,10 @@ def test_for_domain_wires_the_maze_values_when_the_key_is_on(exact):
     encoded = encode_solutions(domain, domain.random_solutions(10, np.random.default_rng(1)))
     walls = surrogate.predict(encoded).measures[:, domain.measure_names.index("num_walls")]
     assert np.array_equal(walls, domain.level_values(encoded)["num_walls"]) == exact
+
+
+def test_measures_are_exact_only_when_the_level_gives_every_one():
+    both = lambda levels: {"walls": levels[:, 1].sum(axis=(1, 2)), "path": levels[:, 2].sum(axis=(1, 2))}  # noqa: E731
+    assert make(True, level_values=both).measures_exact
+    assert not make(True).measures_exact  # "path" is predicted
+    assert not make(False, level_values=both).measures_exact  # the key is off

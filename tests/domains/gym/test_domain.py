@@ -46,7 +46,7 @@ def test_attributes_derived_values_and_the_first_observation_follow_the_level():
 
 
 def test_episodes_are_deterministic_for_a_seed_and_differ_between_seeds(policy_file):
-    domain = build_domain(config(**{"gym.agent": policy_file, "gym.episodes": 4}))
+    domain = build_domain(config(**{"gym.agent": policy_file, "gym.episodes": 4, "gym.measures": ("x_end", "length")}))
     solution = np.zeros(domain.solution_dim, dtype=np.float32)
     first, again, other = (domain.evaluate(solution, seed) for seed in (5, 5, 6))
     assert first.info == again.info and np.array_equal(first.measures, again.measures)
@@ -158,3 +158,41 @@ def test_a_choice_parameter_measures_as_its_index_in_episodes_and_for_the_surrog
                                       "initial_angle": 0.0, "mode": "storm"})
     assert domain.evaluate(solution, 0).measures[0] == 2.0
     assert domain.level_values(domain.encode(solution[None]))["param.mode"].tolist() == [2.0]
+
+
+
+@pytest.mark.parametrize("measures, known", [(("param.length", "param.force_mag"), True),
+                                             (("param.length", "length"), False)])
+def test_with_parameter_measures_dsage_picks_only_elites_that_would_enter_the_archive(measures, known):
+    """A level's cell is known before it is played when every measure is a parameter: a pick in a cell the archive
+    already holds at that failure rate would be an evaluation that cannot add."""
+    from dsage_ray.core.proposers import SurrogateAssisted, domain_archive
+    from dsage_ray.core.seeds import RunSeeds
+    from dsage_ray.qd.selection import adds_to
+
+    run = config(**{"gym.measures": measures})
+    domain = build_domain(run)
+    archive = domain_archive(domain, with_occupancy=False, seed=0)
+    proposer = SurrogateAssisted(config=run, domain=domain, archive=archive, seeds=RunSeeds(seed=0), evaluator=None)
+    assert proposer.cells_known is known
+    rng = np.random.default_rng(0)
+    played = domain.random_solutions(100, rng)
+    archive.add(played, np.full(100, 0.5), proposer.surrogate.predict(domain.encode(played)).measures)
+    surrogate_archive = domain_archive(domain, with_occupancy=False, seed=1)
+    candidates = domain.random_solutions(300, rng)
+    surrogate_archive.add(candidates, rng.random(300), proposer.surrogate.predict(domain.encode(candidates)).measures)
+
+    metrics = {}
+    among, gain = proposer._picks_that_add(surrogate_archive, metrics)
+    if not known:
+        assert among is None and gain is None and not metrics
+        return
+    elites = surrogate_archive.data()
+    adding = adds_to(archive, elites["objective"], elites["measures"])
+    assert 0 < adding.sum() < len(adding) and metrics["selection_elites_that_add"] == adding.sum()
+    np.testing.assert_array_equal(np.sort(among), np.sort(elites["index"][adding]))
+    occupied, held = archive.retrieve(elites["measures"][adding])
+    np.testing.assert_allclose(gain, elites["objective"][adding] - np.where(occupied, held["objective"], 0.0))
+    picks, _ = proposer._select(surrogate_archive, {}, {})
+    allowed = {tuple(row) for row in elites["solution"][adding]}
+    assert len(picks) and all(tuple(row) in allowed for row in picks)

@@ -1,0 +1,54 @@
+"""Does an agent's failure depend on the parameters a gym space varies? Failure rate by quarter of each parameter.
+
+Reads the re-evaluated levels of gym audit collections (``collection.json``) and prints, for each parameter, the
+correlation of its value with the failure rate and the mean failure rate in each quarter of its values. Give it the
+collections of uniform random searches (``--variant dr``): their levels are a sample of the whole space, so the
+table says where the agent fails, not where a search looked::
+
+    python benchmarks/gym_failure_by_parameter.py tb_logs/gym_lunarlander_params/dr_t_seed*/collection
+
+A failure rate that is flat across every parameter leaves a search nothing to find: each cell then fails or not by
+the luck of its episodes, and the search that fills the most cells finds the most failing ones.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+
+def failure_by_parameter(collections: list[Path]) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """The parameters' names, their values ``(n, P)`` and the failure rates ``(n,)`` of every collection's levels."""
+    names: list[str] = []
+    rows, failure = [], []
+    for folder in collections:
+        levels = json.loads((folder / "collection.json").read_text())["levels"]
+        for level in levels:
+            if not names:
+                names = sorted(key for key in level if key.startswith("param."))
+            rows.append([float(level[name]) for name in names])
+            failure.append(float(level["objective"]))
+    return names, np.asarray(rows), np.asarray(failure)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("collections", nargs="+", type=Path, help="audit collection folders")
+    args = parser.parse_args(argv)
+    names, values, failure = failure_by_parameter(args.collections)
+    print(f"{len(failure)} levels from {len(args.collections)} collections; mean failure rate {failure.mean():.2f}")
+    print("| parameter | correlation with the failure rate | failure rate by quarter of its values, low to high |")
+    print("|---|---|---|")
+    for k, name in enumerate(names):
+        edges = np.quantile(values[:, k], [0.0, 0.25, 0.5, 0.75, 1.0])
+        quarters = np.clip(np.searchsorted(edges, values[:, k], side="right") - 1, 0, 3)
+        means = [failure[quarters == q].mean() for q in range(4)]
+        ranges = [f"{edges[q]:.3g}..{edges[q + 1]:.3g}: {m:.2f}" for q, m in enumerate(means)]
+        print(f"| {name} | {np.corrcoef(values[:, k], failure)[0, 1]:+.2f} | {'; '.join(ranges)} |")
+
+
+if __name__ == "__main__":
+    main()
