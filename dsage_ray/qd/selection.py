@@ -111,15 +111,15 @@ def block_ids(archive: GridArchive, indices: np.ndarray, block: Sequence[int]) -
 
 
 def _one_per_block(archive: GridArchive, indices: np.ndarray, block: Sequence[int],
-                   rng: np.random.Generator, priority: np.ndarray | None = None) -> np.ndarray:
-    """Positions into ``indices`` (sorted) of one elite per occupied block: its highest ``priority`` (None: all
-    equal), ties chosen uniformly."""
+                   rng: np.random.Generator, priority: np.ndarray) -> np.ndarray:
+    """Positions into ``indices`` (sorted) of one elite per occupied block: its highest ``priority``, ties chosen
+    uniformly."""
     blocks = block_ids(archive, indices, block)
     if len(indices) == 0:
         return np.empty(0, dtype=np.int64)
     # Each elite gets an i.i.d. uniform key; the smallest key in a block is a uniform pick within it.
     keys = rng.random(len(indices))
-    order = np.lexsort((keys, -(np.zeros(len(indices)) if priority is None else priority), blocks))
+    order = np.lexsort((keys, -priority, blocks))
     first_of_block = np.r_[True, blocks[order][1:] != blocks[order][:-1]]
     return np.sort(order[first_of_block])
 
