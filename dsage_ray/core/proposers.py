@@ -28,7 +28,7 @@ from dsage_ray.qd.mutants import elite_mutants
 from dsage_ray.qd.emitters import RandomEmitter
 from dsage_ray.qd.optimizer import (EMITTERS_WITH_OWN_START, MAP_ELITES_RANDOM_BATCHES, make_scheduler,
                                    reopened_scheduler, run_inner_loop)
-from dsage_ray.qd.selection import gather_elites, select_solutions
+from dsage_ray.qd.selection import additions, gather_elites, select_solutions
 from dsage_ray.surrogate.models import encode_solutions
 from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
 
@@ -412,10 +412,7 @@ class SurrogateAssisted:
         if not self.cells_known:
             return None, None
         data = surrogate_archive.data()
-        occupied, elites = self.archive.retrieve(data["measures"])
-        held = np.where(occupied, elites["objective"], self.archive.qd_score_offset)
-        gain = np.asarray(data["objective"], dtype=np.float64) - held
-        adding = ~occupied | (gain > 0)
+        adding, gain = additions(self.archive, data["objective"], data["measures"])
         metrics["selection_elites_that_add"] = float(adding.sum())
         if not adding.any():
             return None, None

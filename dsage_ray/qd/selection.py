@@ -124,10 +124,20 @@ def _one_per_block(archive: GridArchive, indices: np.ndarray, block: Sequence[in
     return np.sort(order[first_of_block])
 
 
+def additions(archive: GridArchive, objective: np.ndarray,
+              measures: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Whether each ``(objective, measures)`` would add to ``archive`` (its cell is empty, or holds a lower
+    objective), and what it would add to the QD-score: its objective less the cell's elite's (less
+    ``qd_score_offset`` in an empty cell)."""
+    objective = np.asarray(objective, dtype=np.float64)
+    occupied, elites = archive.retrieve(np.asarray(measures, dtype=np.float64))
+    gain = objective - np.where(occupied, elites["objective"], archive.qd_score_offset)
+    return ~occupied | (gain > 0), gain
+
+
 def adds_to(archive: GridArchive, objective: np.ndarray, measures: np.ndarray) -> np.ndarray:
     """Whether each ``(objective, measures)`` would add to ``archive``: its cell is empty, or holds a lower objective."""
-    occupied, elites = archive.retrieve(np.asarray(measures, dtype=np.float64))
-    return ~occupied | (elites["objective"] < np.asarray(objective, dtype=np.float64))
+    return additions(archive, objective, measures)[0]
 
 
 def gather_elites(archive: GridArchive, indices: np.ndarray) -> dict[str, np.ndarray]:

@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from dsage_ray.qd import block_ids, gather_elites, make_archive, select_solutions
+from dsage_ray.qd.selection import additions, adds_to
 
 
 def _archive(dims=(32, 27), n=300, seed=0):
@@ -115,3 +116,14 @@ def test_downsample_with_priority_picks_each_blocks_highest():
     with pytest.raises(ValueError, match="one value per index"):
         select_solutions(archive, method="downsample", block=(4, 4), count=0, rng=np.random.default_rng(0),
                          among=among, priority=priority[:3])
+
+
+def test_additions_say_what_enters_and_what_it_adds_to_the_qd_score():
+    archive = make_archive(solution_dim=1, dims=(4,), ranges=[(0, 4)])  # QD-score offset 0
+    archive.add(np.zeros((1, 1)), np.array([0.5]), np.array([[0.5]]))  # cell 0 holds 0.5; cells 1-3 are empty
+    objective = np.array([0.7, 0.2, 0.5, -2.0])
+    measures = np.array([[0.5], [0.5], [0.5], [2.5]])
+    adding, gain = additions(archive, objective, measures)
+    np.testing.assert_array_equal(adding, [True, False, False, True])  # a tie does not enter; an empty cell does
+    np.testing.assert_allclose(gain, [0.2, -0.3, 0.0, -2.0])  # the empty cell's gain counts from the offset
+    np.testing.assert_array_equal(adds_to(archive, objective, measures), adding)
