@@ -8,7 +8,10 @@ table says where the agent fails, not where a search looked::
     python benchmarks/gym_failure_by_parameter.py tb_logs/gym_lunarlander_params/dr_t_seed*/collection
 
 A failure rate that is flat across every parameter leaves a search nothing to find: each cell then fails or not by
-the luck of its episodes, and the search that fills the most cells finds the most failing ones.
+the luck of its episodes, and the search that fills the most cells finds the most failing ones. The last line says
+how much of the failure rate the parameters predict together (their interactions too): the leave-one-out R² of the
+mean failure rate of each level's nearest levels in the (normalised) parameter space. Near 0, no surrogate can learn
+where the agent fails; a surrogate-assisted search then has nothing to exploit.
 """
 
 from __future__ import annotations
@@ -34,6 +37,18 @@ def failure_by_parameter(collections: list[Path]) -> tuple[list[str], np.ndarray
     return names, np.asarray(rows), np.asarray(failure)
 
 
+def predicted_share(values: np.ndarray, failure: np.ndarray, *, neighbours: int = 15) -> float:
+    """Leave-one-out R² of predicting each level's failure rate by the mean of its ``neighbours`` nearest levels
+    (Euclidean, each parameter scaled to [0, 1])."""
+    span = np.ptp(values, axis=0)
+    scaled = (values - values.min(axis=0)) / np.where(span > 0, span, 1.0)
+    distance = ((scaled[:, None, :] - scaled[None, :, :]) ** 2).sum(-1)
+    np.fill_diagonal(distance, np.inf)
+    nearest = np.argsort(distance, axis=1)[:, :neighbours]
+    predicted = failure[nearest].mean(axis=1)
+    return float(1.0 - ((failure - predicted) ** 2).mean() / failure.var())
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("collections", nargs="+", type=Path, help="audit collection folders")
@@ -48,6 +63,8 @@ def main(argv: list[str] | None = None) -> None:
         means = [failure[quarters == q].mean() for q in range(4)]
         ranges = [f"{edges[q]:.3g}..{edges[q + 1]:.3g}: {m:.2f}" for q, m in enumerate(means)]
         print(f"| {name} | {np.corrcoef(values[:, k], failure)[0, 1]:+.2f} | {'; '.join(ranges)} |")
+    print(f"share of the failure rate's variance the parameters predict (leave-one-out R², 15 nearest levels): "
+          f"{predicted_share(values, failure):.2f}")
 
 
 if __name__ == "__main__":

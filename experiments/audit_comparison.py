@@ -15,7 +15,9 @@ table (``OUT/summary.md``: mean ± standard error over seeds, then every audit's
 failure-diversity numbers of each collection (``dsage_ray.audit.summary``): never-solved levels, distinct
 archive cells with a level failing at least half the time, levels with any failure. Audits run ``--jobs``
 at a time, each in its own process on one thread; one already collected is skipped and an interrupted one
-resumes, so the command can be run again after a stop. An arm is a variant, or ``LABEL=VARIANT`` with its own
+resumes, so the command can be run again after a stop. ``--episodes N`` re-evaluates each collection with N
+episodes per level: give a search that plays few episodes per level (``gym.episodes=3``) a steadier count, and
+run again with it to re-collect finished audits without searching again. An arm is a variant, or ``LABEL=VARIANT`` with its own
 config keys (``--arm-set LABEL:KEY=VALUE``), so one search can be compared with itself under other
 settings; its folders and rows are named by the label. The table also gives each search's wall time
 (minutes of its ``wall_time``: compare it only on a quiet machine at ``--jobs 1``) and its CPU seconds (the
@@ -69,6 +71,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--match-time", action="append", default=[], metavar="LABEL",
                         help="run LABEL's audits with the time that the same seed's first other arm searched as "
                              "their time_budget (module docstring, 'Equal time')")
+    parser.add_argument("--episodes", type=int,
+                        help="episodes per level in each collection's re-evaluation (default: the config's, e.g. "
+                             "gym.episodes); an audit collected with another number is collected again from its "
+                             "finished search, which is not re-run")
     parser.add_argument("--summary-only", action="store_true", help="only write the table from finished audits")
     return parser.parse_args(argv)
 
@@ -122,9 +128,27 @@ def audit_command(args: argparse.Namespace, label: str, seed: int, folder: Path)
         command += ["--set", item]
     if label in args.match_time:
         command += ["--set", f"time_budget={reference_time(args, seed):.1f}"]
-    if (folder / "search").is_dir():
+    if args.episodes is not None:
+        command += ["--episodes", str(args.episodes)]
+    if (folder / "collection" / "collection.json").is_file():
+        command.append("--collect-only")  # only the re-evaluation's episodes differ (see to_run)
+    elif (folder / "search").is_dir():
         command.append("--resume")
     return command
+
+
+def collected_episodes(out: Path, variant: str, seed: int) -> int | None:
+    """Episodes per level of the audit's collection re-evaluation; None when it has no collection yet."""
+    try:
+        return int(json.loads(collection_file(out, variant, seed).read_text())["episodes"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def to_run(args: argparse.Namespace, variant: str, seed: int) -> bool:
+    """Whether the grid point still needs its audit: no collection, or one re-evaluated with other ``--episodes``."""
+    episodes = collected_episodes(args.out, variant, seed)
+    return episodes is None or (args.episodes is not None and episodes != args.episodes)
 
 
 def run_audit(args: argparse.Namespace, variant: str, seed: int) -> tuple[str, int, int, float]:
@@ -199,6 +223,12 @@ def per_seed_table(per_run: dict[str, list[dict]]) -> str:
     return "\n".join(lines)
 
 
+def episodes_note(args: argparse.Namespace, variants: list[str]) -> str:
+    """`` and N episodes`` of the collections' re-evaluations (each count, when they differ)."""
+    counts = sorted({e for v in variants for s in seeds(args) if (e := collected_episodes(args.out, v, s))})
+    return f" and {' or '.join(map(str, counts))} episodes" if counts else ""
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     variants = list(parse_arms(args))
@@ -206,7 +236,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.summary_only:
         # Seed by seed, so that the arms running side by side share the machine alike; matched arms last.
         todo = [(v, s) for matched in (False, True) for s in seeds(args) for v in variants
-                if (v in args.match_time) == matched and not collection_file(args.out, v, s).is_file()]
+                if (v in args.match_time) == matched and to_run(args, v, s)]
         print(f"{len(todo)} audits to run ({len(variants)} variants × {args.seeds} seeds, "
               f"{len(variants) * args.seeds - len(todo)} already collected), {args.jobs} at a time; logs in {args.out}")
         failed = []
@@ -230,8 +260,8 @@ def main(argv: list[str] | None = None) -> int:
         + "".join(f", {item}" for item in args.arm_set)
         + "".join(f", {label} given the time of the same seed's reference search" for label in args.match_time)
         + f", seeds {args.first_seed}..{args.first_seed + args.seeds - 1}; mean ± standard error over seeds. Every "
-          "level of a collection was "
-          "re-evaluated with its recorded seed.\n")
+          "level of a collection was re-evaluated with its recorded seed"
+        + episodes_note(args, variants) + ".\n")
     print(table)
     print(f"table: {args.out / 'summary.md'}")
     return 0

@@ -50,6 +50,14 @@ def test_two_searches_two_seeds_one_table_and_a_rerun_runs_nothing(tmp_path, cap
     # Everything collected: a second call only rebuilds the table.
     assert script.main(argv) == 0
     assert "0 audits to run" in capsys.readouterr().out
+    # More episodes per re-evaluation: every collection again, from the same searches.
+    searched = [(out / f"dsage_seed{seed}" / "search" / "metrics.json").read_text() for seed in (0, 1)]
+    assert script.main([*argv, "--episodes", "5"]) == 0
+    assert "4 audits to run" in capsys.readouterr().out
+    assert {load_collection(out / f"{v}_seed{s}" / "collection")["episodes"] for v in ("dsage", "dr") for s in (0, 1)
+            } == {5}
+    assert [(out / f"dsage_seed{seed}" / "search" / "metrics.json").read_text() for seed in (0, 1)] == searched
+    assert "re-evaluated with its recorded seed and 5 episodes." in (out / "summary.md").read_text()
 
 
 def test_the_table_prints_every_audit_beside_the_means():
@@ -117,3 +125,24 @@ def test_match_time_gives_an_arm_the_time_its_seeds_reference_searched(tmp_path)
             assert message in str(exc)
         else:
             raise AssertionError(f"{argv} was accepted")
+
+
+def test_episodes_recollects_an_audit_whose_collection_played_another_number(tmp_path):
+    script = load_script()
+    args = script.parse_args(["--variants", "dsage", "--episodes", "10", "--out", str(tmp_path)])
+    folder = tmp_path / "dsage_seed0"
+    assert script.to_run(args, "dsage", 0)  # nothing collected yet
+    (folder / "search").mkdir(parents=True)
+    command = script.audit_command(args, "dsage", 0, folder)
+    assert command[command.index("--episodes") + 1] == "10" and "--resume" in command  # an interrupted search
+    assert "--collect-only" not in command
+    (folder / "collection").mkdir()
+    (folder / "collection" / "collection.json").write_text(json.dumps({"episodes": 3, "levels": []}))
+    assert script.to_run(args, "dsage", 0)  # re-evaluated with 3: collected again, from the finished search
+    command = script.audit_command(args, "dsage", 0, folder)
+    assert "--collect-only" in command and "--resume" not in command
+    assert script.episodes_note(args, ["dsage"]) == " and 3 episodes"
+    (folder / "collection" / "collection.json").write_text(json.dumps({"episodes": 10, "levels": []}))
+    assert not script.to_run(args, "dsage", 0)
+    assert not script.to_run(script.parse_args(["--variants", "dsage", "--out", str(tmp_path)]), "dsage", 0)
+    assert script.episodes_note(args, ["dsage"]) == " and 10 episodes"
