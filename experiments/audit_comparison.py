@@ -18,8 +18,8 @@ at a time, each in its own process on one thread; one already collected is skipp
 resumes, so the command can be run again after a stop. ``--episodes N`` re-evaluates each collection with N
 episodes per level: give a search that plays few episodes per level (``gym.episodes=3``) a steadier count, and
 run again with it to re-collect finished audits without searching again. An arm is a variant, or
-``LABEL=VARIANT`` with its own config keys (``--arm-set LABEL:KEY=VALUE``), so one search can be compared with itself under other
-settings; its folders and rows are named by the label. The table also gives each search's wall time
+``LABEL=VARIANT`` with its own config keys (``--arm-set LABEL:KEY=VALUE``), so one search can be compared with
+itself under other settings; its folders and rows are named by the label. The table also gives each search's wall time
 (minutes of its ``wall_time``: compare it only on a quiet machine at ``--jobs 1``) and its CPU seconds (the
 search process's ``cpu_time``, evaluation included: the clock to compare when audits share the machine).
 
