@@ -237,8 +237,11 @@ def main(argv: list[str] | None = None) -> int:
         # Seed by seed, so that the arms running side by side share the machine alike; matched arms last.
         todo = [(v, s) for matched in (False, True) for s in seeds(args) for v in variants
                 if (v in args.match_time) == matched and to_run(args, v, s)]
+        again = sum(collected_episodes(args.out, v, s) is not None for v, s in todo)
         print(f"{len(todo)} audits to run ({len(variants)} variants × {args.seeds} seeds, "
-              f"{len(variants) * args.seeds - len(todo)} already collected), {args.jobs} at a time; logs in {args.out}")
+              f"{len(variants) * args.seeds - len(todo)} already collected"
+              + (f", {again} to collect again with {args.episodes} episodes" if again else "")
+              + f"), {args.jobs} at a time; logs in {args.out}")
         failed = []
         for matched in (False, True):
             phase = [(v, s) for v, s in todo if (v in args.match_time) == matched]

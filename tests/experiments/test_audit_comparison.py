@@ -53,7 +53,8 @@ def test_two_searches_two_seeds_one_table_and_a_rerun_runs_nothing(tmp_path, cap
     # More episodes per re-evaluation: every collection again, from the same searches.
     searched = [(out / f"dsage_seed{seed}" / "search" / "metrics.json").read_text() for seed in (0, 1)]
     assert script.main([*argv, "--episodes", "5"]) == 0
-    assert "4 audits to run" in capsys.readouterr().out
+    assert "4 audits to run (2 variants × 2 seeds, 0 already collected, 4 to collect again with 5 episodes)" in (
+        capsys.readouterr().out)
     assert {load_collection(out / f"{v}_seed{s}" / "collection")["episodes"] for v in ("dsage", "dr") for s in (0, 1)
             } == {5}
     assert [(out / f"dsage_seed{seed}" / "search" / "metrics.json").read_text() for seed in (0, 1)] == searched
