@@ -8,7 +8,9 @@ table says where the agent fails, not where a search looked::
     python benchmarks/gym_failure_by_parameter.py tb_logs/gym_lunarlander_params/dr_t_seed*/collection
 
 A failure rate that is flat across every parameter leaves a search nothing to find: each cell then fails or not by
-the luck of its episodes, and the search that fills the most cells finds the most failing ones. The last line says
+the luck of its episodes, and the search that fills the most cells finds the most failing ones. The archive line
+measures that luck: a cell whose levels fail less than half of their episodes on average (pooled over every
+collection given) still counts as failing when one of its levels happened to fail at least half of its own. The last line says
 how much of the failure rate the parameters predict together (their interactions too): the leave-one-out R² of the
 mean failure rate of each level's nearest levels in the (normalised) parameter space. Near 0, no surrogate can learn
 where the agent fails; a surrogate-assisted search then has nothing to exploit.
@@ -35,6 +37,26 @@ def failure_by_parameter(collections: list[Path]) -> tuple[list[str], np.ndarray
             rows.append([float(level[name]) for name in names])
             failure.append(float(level["objective"]))
     return names, np.asarray(rows), np.asarray(failure)
+
+
+def cell_failure(collections: list[Path]) -> tuple[int, dict[tuple[int, ...], list[float]]]:
+    """The archive's cell count and, per archive cell, the failure rates of every collection's levels in it (the
+    collections must share their archive: measures, ranges and cells)."""
+    cells: dict[tuple[int, ...], list[float]] = {}
+    archive = None
+    for folder in collections:
+        collection = json.loads((folder / "collection.json").read_text())
+        this = (collection["measures"], collection["measure_ranges"], collection["archive_dims"])
+        if archive not in (None, this):
+            raise SystemExit(f"{folder}: its archive differs from the first collection's")
+        archive = this
+        names, ranges, dims = this
+        low, high = np.asarray(ranges, dtype=float).T
+        for level in collection["levels"]:
+            at = np.asarray([level["measures"][name] for name in names], dtype=float)
+            cell = np.clip(np.floor((at - low) / (high - low) * dims), 0, np.asarray(dims) - 1).astype(int)
+            cells.setdefault(tuple(cell.tolist()), []).append(float(level["objective"]))
+    return int(np.prod(archive[2])), cells
 
 
 def predicted_share(values: np.ndarray, failure: np.ndarray, *, neighbours: int = 15) -> float:
@@ -65,6 +87,12 @@ def main(argv: list[str] | None = None) -> None:
         print(f"| {name} | {np.corrcoef(values[:, k], failure)[0, 1]:+.2f} | {'; '.join(ranges)} |")
     print(f"share of the failure rate's variance the parameters predict (leave-one-out R², 15 nearest levels): "
           f"{predicted_share(values, failure):.2f}")
+    total, cells = cell_failure(args.collections)
+    pooled = [np.mean(rates) for rates in cells.values() if len(rates) >= 3]
+    counted = sum(max(rates) >= 0.5 for rates in cells.values())
+    print(f"archive cells: {len(cells)} of {total} hold a level; of the {len(pooled)} with 3 levels or more, "
+          f"{sum(rate >= 0.5 for rate in pooled)} fail at least half of their levels' episodes on average; "
+          f"{counted} hold a level that failed at least half of its own")
 
 
 if __name__ == "__main__":
