@@ -144,7 +144,7 @@ class SelectionConfig:
 
     #: ``top`` (not in the paper): the ``count`` elites expected to add most to the ground-truth archive, wherever
     #: they are; it needs every measure known before an evaluation (the gym domain's parameter maps), and is
-    #: ``random`` otherwise.
+    #: ``downsample`` otherwise.
     method: SelectionMethod = key("downsample", status="paper",
                                   note="how picks are taken from the surrogate archive (gym: top)")
     #: Downsampling block in archive cells per measure.

@@ -26,8 +26,8 @@ def select_solutions(
       be smaller when a block size does not divide the grid), and one occupied elite is chosen
       uniformly at random per occupied block (with ``priority``: the block's highest, ties uniformly).
     - ``random``: ``count`` elites uniformly without replacement (all of them if fewer).
-    - ``top``: the ``count`` elites of highest ``priority``, wherever they are (ties uniformly; without
-      ``priority``, as ``random``).
+    - ``top``: the ``count`` elites of highest ``priority``, wherever they are (ties uniformly); without
+      ``priority`` (nothing to rank by), as ``downsample``.
     - ``full``: every elite.
 
     The result depends only on the archive's contents and ``rng``, not on the order in which elites
@@ -63,6 +63,7 @@ def select_solutions(
         raise ValueError("priority needs among: the indices it ranks")
     if priority is None:
         priority = np.zeros(len(indices))
+        method = "downsample" if method == "top" else method
     return np.sort(indices[SELECTION_METHODS[method](archive, indices, block, count, rng, priority)])
 
 

@@ -89,6 +89,7 @@ _SEARCH = {
     "qd.sigma0": 0.2,
     "selection.method": "top",
     "selection.count": 40,
+    "selection.block": (4, 4),  # when the cells are predicted (behaviour measures), ``top`` is ``downsample``
 }
 
 #: ``demo`` is the few-minute audit a newcomer pastes; ``cpu`` an audit of a named agent on 2 cores; ``tiny``
@@ -101,7 +102,7 @@ PRESETS: dict[str, dict[str, Any]] = {
              "surrogate.epochs": 20, "surrogate.batch_size": 16},
     "tiny": {**_SEARCH, "budget": 40, "n_rand": 20, "gym.episodes": 2, "qd.exploit_iterations": 5,
              "qd.num_emitters": 2, "qd.batch_size": 10, "surrogate.epochs": 2, "surrogate.batch_size": 8,
-             "selection.count": 10},
+             "selection.count": 10, "selection.block": (2, 2)},
 }
 
 _DIRECT = {"surrogate.kind": "none", "qd.num_emitters": 5, "qd.batch_size": 30}
