@@ -37,7 +37,7 @@ def test_surrogate_kinds_are_the_model_table_plus_none():
      "qd.emitter: must be 'map_elites', 'cma_me', 'random', 'gaussian', 'halton' or 'cross_entropy' (got 'map_elite'; "
      "did you mean 'map_elites'?)"),
     ({"selection.method": "downsampled"},
-     "selection.method: must be 'downsample', 'random' or 'full' (got 'downsampled'; did you mean 'downsample'?)"),
+     "selection.method: must be 'downsample', 'random', 'top' or 'full' (got 'downsampled'; did you mean 'downsample'?)"),
     ({"maze.objective": "failure"}, "(got 'failure'; did you mean 'failure_rate'?)"),
     ({"domain": "mario", "mario.objective": "incompleted"}, "(got 'incompleted'; did you mean 'incompletion'?)"),
     ({"surrogate.kind": "twostage"}, "surrogate.kind: must be 'two_stage', 'one_stage' or 'none' (got 'twostage'; "
