@@ -43,7 +43,7 @@ EmitterName = Literal["map_elites", "cma_me", "random", "gaussian", "halton", "c
 #: The emitters with a mutation, the keys of :data:`dsage_ray.qd.mutants.MUTATIONS` (``selection.elite_mutants``).
 MutatingEmitter = Literal["map_elites", "cma_me", "gaussian", "halton", "cross_entropy"]
 #: Keys of :data:`dsage_ray.qd.selection.SELECTION_METHODS`.
-SelectionMethod = Literal["downsample", "random", "top", "full"]
+SelectionMethod = Literal["downsample", "random", "full"]
 #: Surrogate kinds: ancillary occupancy (``two_stage``), without it (``one_stage``), none (plain QD).
 SurrogateKind = Literal["two_stage", "one_stage", "none"]
 #: Surrogate prediction arithmetic.
@@ -142,16 +142,12 @@ class QDConfig:
 class SelectionConfig:
     """Which surrogate elites get a real evaluation."""
 
-    #: ``top`` (not in the paper): the ``count`` elites expected to add most to the ground-truth archive, wherever
-    #: they are; it needs every measure known before an evaluation (the gym domain's parameter maps), and is
-    #: ``downsample`` otherwise.
-    method: SelectionMethod = key("downsample", status="paper",
-                                  note="how picks are taken from the surrogate archive (gym: top)")
+    method: SelectionMethod = key("downsample", status="paper", note="how picks are taken from the surrogate archive")
     #: Downsampling block in archive cells per measure.
     block: tuple[int, ...] = key((8, 6), status="paper", values="one size per measure",
                                  note="downsampling block, in archive cells per measure")
-    #: ``random`` and ``top``: how many elites to pick.
-    count: int = key(432, status="paper", values=">= 1", note="random and top selection: how many elites (gym: 40)")
+    #: ``random``: how many elites to pick.
+    count: int = key(432, status="paper", values=">= 1", note="random selection: how many elites")
     #: Each outer iteration after the first, also evaluate this many mutants of the ground-truth archive's best
     #: elites (``experimental.elite_share``), beside the surrogate's picks (not in the paper;
     #: :mod:`dsage_ray.qd.mutants`). The mutation is MAP-Elites' (``qd.mutation_cells``) for bitmaps, Gaussian

@@ -37,7 +37,7 @@ def test_surrogate_kinds_are_the_model_table_plus_none():
      "qd.emitter: must be 'map_elites', 'cma_me', 'random', 'gaussian', 'halton' or 'cross_entropy' (got 'map_elite'; "
      "did you mean 'map_elites'?)"),
     ({"selection.method": "downsampled"},
-     "selection.method: must be 'downsample', 'random', 'top' or 'full' (got 'downsampled'; did you mean 'downsample'?)"),
+     "selection.method: must be 'downsample', 'random' or 'full' (got 'downsampled'; did you mean 'downsample'?)"),
     ({"maze.objective": "failure"}, "(got 'failure'; did you mean 'failure_rate'?)"),
     ({"domain": "mario", "mario.objective": "incompleted"}, "(got 'incompleted'; did you mean 'incompletion'?)"),
     ({"surrogate.kind": "twostage"}, "surrogate.kind: must be 'two_stage', 'one_stage' or 'none' (got 'twostage'; "
@@ -76,6 +76,16 @@ def test_every_preset_and_variant_is_valid():
             for variant in variants(domain):
                 config = RunConfig.build({"domain": domain, "preset": preset, "variant": variant})
                 assert (config.domain, config.preset, config.variant) == (domain, preset, variant)
+
+
+@pytest.mark.parametrize("domain", ["maze", "mario", "gym"])
+def test_a_preset_sets_no_key_that_the_dsage_variant_overrides(domain):
+    """A variant is layered over the preset, so such a preset key never runs (the gym presets once set a ``top``
+    pick that no DSAGE audit used)."""
+    dsage = variants(domain)["dsage"]
+    for preset, keys in presets(domain).items():
+        overridden = {key: (keys[key], dsage[key]) for key in keys.keys() & dsage.keys() if keys[key] != dsage[key]}
+        assert not overridden, f"{domain} preset {preset!r}: (preset's, dsage's) {overridden}"
 
 
 def test_runtime_lookups_use_the_same_tables():

@@ -38,7 +38,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dsage_ray.config import RunConfig
+from dsage_ray.config import RunConfig, resumed_config
 from dsage_ray.domains import build_domain, domain_names, get_domain
 from dsage_ray.errors import InputError
 from dsage_ray.audit.collection_file import COLLECTION_FILE, FORMAT
@@ -46,6 +46,8 @@ from dsage_ray.audit.report import write_report
 from dsage_ray.io import atomic_write_json, replace_dir, staging_dir
 from dsage_ray.types import EvaluationResult, Evaluator, Solutions
 
+#: Keys an audit sets by its own rule, not the user's: a resumed audit keeps the values it began with.
+_AUDIT_DEFAULTS = frozenset({"selection.block", "experimental.holdout_levels"})
 _SEED_TAG = 0xC011EC7  # keeps collection seeds apart from the runner's evaluation seeds
 SEED_RULE = "seed = SeedSequence([run_seed, 0xC011EC7, rank in the search's worst-first order])"
 
@@ -92,9 +94,10 @@ def audit_config(
             a time budget runs as ``search = "auto"`` unless these name a ``search`` (or ``auto`` cannot run: with
             ``pipeline`` or ``surrogate.init``). ``search = "auto"`` runs as ``fixed`` where the registration's
             ``audit.auto_keeps_dsage`` says why (Maze).
-        started: The config of the search this audit continues (``--resume``). The registration's
-            ``audit.surrogate_keys`` then keep the values it was started with, so an audit begun under an
-            earlier default continues as it began; ``overrides`` still win.
+        started: The config of the search this audit continues (``--resume``, ``--collect-only``). Every key
+            the arguments here do not name (a preset's, a registration's ``audit.surrogate_keys``, the
+            search) then keeps the value it was started with, so an audit begun under an earlier default
+            continues as it began; a named key that differs is refused when the checkpoint loads.
 
     Raises:
         ValueError: An unknown domain, an agent of a kind the domain does not play, or an objective or
@@ -121,22 +124,20 @@ def audit_config(
     keys = {**values, **(overrides or {})}
     config = RunConfig.build(keys)
     if spec.audit.surrogate_keys and config.mutates_elites:
-        defaults = dict(spec.audit.surrogate_keys)
-        if started is not None:
-            begun = started.to_flat()
-            defaults = {key: begun[key] for key in defaults}
-        keys = {**values, **defaults, **(overrides or {})}
-    if "search" not in (overrides or {}) and config.uses_surrogate and not config.pipeline and not config.surrogate.init:
-        if started is not None:  # continues as it began
-            keys["search"] = started.search
-        elif config.time_budget > 0:
-            # With a time budget, DSAGE may not have the time to pay for its surrogate: in 5-minute Mario audits it
-            # did not get past its random levels, and auto found 1.7x its failing cells (equal_compute §26).
-            keys["search"] = "auto"
-    # An audit begun with auto before the domain kept DSAGE continues as it began, like the surrogate keys above.
+        keys = {**values, **spec.audit.surrogate_keys, **(overrides or {})}
+    if ("search" not in (overrides or {}) and config.time_budget > 0 and config.uses_surrogate
+            and not config.pipeline and not config.surrogate.init):
+        # With a time budget, DSAGE may not have the time to pay for its surrogate: in 5-minute Mario audits it
+        # did not get past its random levels, and auto found 1.7x its failing cells (equal_compute §26).
+        keys["search"] = "auto"
+    # An audit begun with auto before the domain kept DSAGE continues as it began, even when auto is asked again.
     if keys.get("search") == "auto" and spec.audit.auto_keeps_dsage and (started is None or started.search != "auto"):
         keys["search"] = "fixed"
-    return RunConfig.build(keys)
+    config = RunConfig.build(keys)
+    if started is None:
+        return config
+    given = {*values, *(overrides or {})} - _AUDIT_DEFAULTS
+    return resumed_config(config, started, given=given)
 
 
 def audit_spec(domain: str):

@@ -274,9 +274,8 @@ class SurrogateAssisted:
         self.prior_samples = 0
         #: Screens the picks and more surrogate elites before their evaluation (None: no screen).
         self.screen = ScreenStep.for_run(config=config, domain=domain, seeds=seeds)
-        #: Every measure is exact, so each pick's cell is known: the picks are the elites expected to add most to the
-        #: ground-truth archive (each block's with ``downsample``, the run's with ``top``), not uniform draws
-        #: (docs/results/gym_audit).
+        #: Every measure is exact, so each pick's cell is known: each block's pick is the elite expected to add most
+        #: to the ground-truth archive, not a uniform draw (docs/results/gym_audit).
         self.cells_known = self.surrogate.measures_exact
 
     def propose(self, *, outer_iteration: int) -> Proposal:

@@ -1,4 +1,4 @@
-"""Which surrogate elites get a real evaluation: downsample, random or full (SPEC §1), or top (not in the paper)."""
+"""Which surrogate elites get a real evaluation: downsample, random or full (SPEC §1)."""
 
 from __future__ import annotations
 
@@ -26,8 +26,6 @@ def select_solutions(
       be smaller when a block size does not divide the grid), and one occupied elite is chosen
       uniformly at random per occupied block (with ``priority``: the block's highest, ties uniformly).
     - ``random``: ``count`` elites uniformly without replacement (all of them if fewer).
-    - ``top``: the ``count`` elites of highest ``priority``, wherever they are (ties uniformly); without
-      ``priority`` (nothing to rank by), as ``downsample``.
     - ``full``: every elite.
 
     The result depends only on the archive's contents and ``rng``, not on the order in which elites
@@ -35,12 +33,12 @@ def select_solutions(
 
     Args:
         archive: The (surrogate) archive.
-        method: ``downsample``, ``random``, ``top`` or ``full``.
+        method: ``downsample``, ``random`` or ``full``.
         block: Cells per block along each measure (``downsample`` only).
-        count: Elites to pick (``random`` and ``top``).
+        count: Elites to pick (``random`` only).
         rng: Source of randomness; ``full`` does not draw from it.
         among: Archive indices to pick from (None: every elite); the method then sees only these elites.
-        priority: One value per index of ``among`` (``downsample`` and ``top``): what the picks maximise.
+        priority: One value per index of ``among`` (``downsample`` only): each block's pick is its highest.
 
     Returns:
         Sorted integer archive indices of the chosen elites; read their data with :func:`gather_elites`.
@@ -63,7 +61,6 @@ def select_solutions(
         raise ValueError("priority needs among: the indices it ranks")
     if priority is None:
         priority = np.zeros(len(indices))
-        method = "downsample" if method == "top" else method
     return np.sort(indices[SELECTION_METHODS[method](archive, indices, block, count, rng, priority)])
 
 
@@ -90,20 +87,11 @@ def _random(archive: GridArchive, indices: np.ndarray, block: Sequence[int], cou
     return rng.choice(len(indices), size=min(count, len(indices)), replace=False)
 
 
-def _top(archive: GridArchive, indices: np.ndarray, block: Sequence[int], count: int,
-         rng: np.random.Generator, priority: np.ndarray) -> np.ndarray:
-    if count < 0:
-        raise ValueError(f"count must be >= 0 (got {count})")
-    order = np.lexsort((rng.random(len(indices)), -priority))
-    return order[:count]
-
-
 #: Each ``selection.method``: ``pick(archive, sorted indices, block, count, rng, priority)`` → positions in the
 #: indices. Its keys are the config's :data:`~dsage_ray.config.SelectionMethod`.
 SELECTION_METHODS: dict[SelectionMethod, Callable[..., np.ndarray]] = {
     "downsample": _downsample,
     "random": _random,
-    "top": _top,
     "full": _full,
 }
 

@@ -212,6 +212,20 @@ def test_an_audit_resumes_with_the_defaults_it_began_with_and_names_a_changed_ke
     assert "different config: seed = 0, not 5" in capsys.readouterr().err
 
 
+def test_a_gym_audit_resumes_with_the_preset_values_it_began_with(tmp_path):
+    # Gym audits once took 15 elite mutants (an audit key) and another step size (a preset key, as if): an audit
+    # begun then continues as it began, not with today's values, and not with an error.
+    args = ["audit", "--domain", "gym", "--space", "cartpole", "--agent", "random", "--preset", "tiny", "--budget",
+            "24", "--local", "--out", str(tmp_path)]
+    assert main([*args, "--set", "qd.sigma0=0.3", "--set", "selection.elite_mutants=3"]) == 0
+    (tmp_path / "search" / "config.json").unlink()  # as an interrupted search, which has written only its checkpoint
+    assert main([*args, "--resume"]) == 0
+    config = load_collection(tmp_path / "collection")["config"]
+    assert (config["qd"]["sigma0"], config["selection"]["elite_mutants"]) == (0.3, 3)
+    fresh = audit_config(domain="gym", agent="random", preset="tiny", overrides={"gym.space": "cartpole"})
+    assert (fresh.qd.sigma0, fresh.selection.elite_mutants) == (0.2, 0)
+
+
 def test_a_search_on_disk_reports_its_config_from_the_checkpoint_header_or_an_older_checkpoints_state(
         collection, monkeypatch):
     from dsage_ray.audit.run import search_on_disk

@@ -57,7 +57,7 @@ def test_downsample_pick_is_uniform_within_a_block():
     assert counts.min() > 60 and counts.max() < 140  # expected 100 each
 
 
-@pytest.mark.parametrize("method", ["downsample", "random", "top", "full"])
+@pytest.mark.parametrize("method", ["downsample", "random", "full"])
 def test_deterministic_for_a_given_rng_and_independent_of_insertion_order(method):
     archive = _archive()
     data = archive.data()
@@ -73,7 +73,7 @@ def test_deterministic_for_a_given_rng_and_independent_of_insertion_order(method
 
 def test_empty_archive_and_bad_input():
     empty = make_archive(solution_dim=2, dims=(8, 6), ranges=[(0, 1), (0, 1)])
-    for method in ("downsample", "random", "top", "full"):
+    for method in ("downsample", "random", "full"):
         assert len(_select(empty, method)) == 0
     with pytest.raises(ValueError, match="block"):
         _select(empty, "downsample", block=(8,))
@@ -93,7 +93,7 @@ def test_gather_elites_returns_fields_in_requested_order():
         gather_elites(archive, free)
 
 
-@pytest.mark.parametrize("method", ["downsample", "random", "top", "full"])
+@pytest.mark.parametrize("method", ["downsample", "random", "full"])
 def test_among_restricts_every_method_to_the_given_elites(method):
     archive = _archive()
     among = np.sort(archive.data("index"))[::3]
@@ -116,21 +116,6 @@ def test_downsample_with_priority_picks_each_blocks_highest():
     with pytest.raises(ValueError, match="one value per index"):
         select_solutions(archive, method="downsample", block=(4, 4), count=0, rng=np.random.default_rng(0),
                          among=among, priority=priority[:3])
-
-
-def test_top_picks_the_highest_priorities_wherever_they_are():
-    archive = _archive(dims=(8, 8), n=500)
-    among = np.sort(archive.data("index"))
-    priority = np.random.default_rng(2).random(len(among))
-    picked = select_solutions(archive, method="top", block=(4, 4), count=7, rng=np.random.default_rng(0),
-                              among=among, priority=priority)
-    np.testing.assert_array_equal(picked, np.sort(among[np.argsort(-priority)[:7]]))
-    tied = select_solutions(archive, method="top", block=(4, 4), count=7, rng=np.random.default_rng(0),
-                            among=among, priority=np.r_[np.ones(3), np.zeros(len(among) - 3)])
-    assert set(among[:3]) <= set(tied) and len(tied) == 7
-    # Nothing to rank by (predicted cells): the paper's one pick per block.
-    np.testing.assert_array_equal(_select(archive, "top", block=(4, 4), count=1_000),
-                                  _select(archive, "downsample", block=(4, 4)))
 
 
 def test_additions_say_what_enters_and_what_it_adds_to_the_qd_score():
