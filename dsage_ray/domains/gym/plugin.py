@@ -79,8 +79,8 @@ class GymConfig:
 #: of it is replaced by the level's own value, and each 4 × 4 block's pick is the elite expected to add most to the
 #: archive. CMA-ME searches the continuous box in the inner loop. No elite mutants beside the picks (Maze audits
 #: take 150): on the LunarLander tuning seeds (1, 2) dropping the 15 that gym audits took raised the failing cells
-#: from 48 and 39 to 67 and 56, and a pick of the 40 highest gains wherever they are found no more (74 and 50;
-#: docs/results/gym_audit).
+#: from 48 and 39 to 67 and 56; a pick of the 40 highest gains wherever they are found no more (74 and 50, and 33
+#: against 65 on seed 3; docs/results/gym_audit).
 _SEARCH = {
     "surrogate.exact_level_values": True,
     "qd.emitter": "cma_me",
