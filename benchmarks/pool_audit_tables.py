@@ -5,8 +5,9 @@
 
 For each arm: mean ± standard error over every seed of every table, of the failing cells and the worst return;
 then, for each other arm, the paired difference (reference − arm) over the seeds both hold, with how many seeds it
-is below zero, and for the cells the reference's ratio of the means over those seeds. The tables are read, not the audits, so a comparison whose
-audit folders are gone can still be pooled with a later one; each table's "Per audit" rows are its numbers.
+is below zero, and for the cells the reference's ratio of the means over those seeds and its ratio on each seed.
+The tables are read, not the audits, so a comparison whose audit folders are gone can still be pooled with a later
+one; each table's "Per audit" rows are its numbers.
 """
 
 from __future__ import annotations
@@ -44,7 +45,10 @@ def pooled(paths: list[Path]) -> dict[str, dict[int, dict[str, float]]]:
             runs = arms.setdefault(row["Variant"], {})
             if seed in runs:
                 raise ValueError(f"{path}: {row['Variant']} seed {seed} is in another table too")
-            runs[seed] = {heading: float(row[heading].replace(",", "")) for heading, *_ in POOLED if heading in row}
+            missing = [heading for heading, *_ in POOLED if heading not in row]
+            if missing:
+                raise ValueError(f"{path}: no column {', '.join(map(repr, missing))} in its 'Per audit' table")
+            runs[seed] = {heading: float(row[heading].replace(",", "")) for heading, *_ in POOLED}
     return arms
 
 
@@ -55,19 +59,19 @@ def report(arms: dict[str, dict[int, dict[str, float]]], reference: str) -> str:
     for heading, name, has_ratio in POOLED:
         lines.append(f"{name}:")
         for arm, runs in arms.items():
-            values = [run[heading] for run in runs.values() if heading in run]
-            if not values:
-                continue
-            mean, se = mean_se(values)
-            line = f"  {arm:<18} {format_mean_se(mean, se, ',.1f'):>16}  ({len(values)} seeds)"
-            if arm != reference:
-                seeds = sorted(set(runs) & set(arms[reference]))
-                diff = [arms[reference][s][heading] - runs[s][heading] for s in seeds]
-                ref_mean = mean_se(arms[reference][s][heading] for s in seeds)[0]
-                ratio = f"{reference} {ref_mean / mean:.2f}×, " if has_ratio and mean else ""
+            mean, se = mean_se(run[heading] for run in runs.values())
+            line = f"  {arm:<18} {format_mean_se(mean, se, ',.1f'):>16}  ({len(runs)} seeds)"
+            seeds = sorted(set(runs) & set(arms[reference]))
+            if arm != reference and seeds:
+                ours = [arms[reference][s][heading] for s in seeds]
+                theirs = [runs[s][heading] for s in seeds]
+                diff = [a - b for a, b in zip(ours, theirs)]
                 gap, gap_se = mean_se(diff)
-                line += (f"  {ratio}{reference} − {arm} {gap:+,.1f} ± {gap_se:,.1f} paired "
+                line += (f"  {reference} − {arm} {gap:+,.1f} ± {gap_se:,.1f} paired "
                          f"(below 0 on {sum(d < 0 for d in diff)} of {len(diff)} seeds)")
+                if has_ratio and all(theirs):
+                    per_seed = ", ".join(f"{a / b:.2f}" for a, b in zip(ours, theirs))
+                    line += f"; {reference} {sum(ours) / sum(theirs):.2f}× (per seed {per_seed})"
             lines.append(line)
     return "\n".join(lines)
 

@@ -46,8 +46,6 @@ from dsage_ray.audit.report import write_report
 from dsage_ray.io import atomic_write_json, replace_dir, staging_dir
 from dsage_ray.types import EvaluationResult, Evaluator, Solutions
 
-#: Keys an audit sets by its own rule, not the user's: a resumed audit keeps the values it began with.
-_AUDIT_DEFAULTS = frozenset({"selection.block", "experimental.holdout_levels"})
 _SEED_TAG = 0xC011EC7  # keeps collection seeds apart from the runner's evaluation seeds
 SEED_RULE = "seed = SeedSequence([run_seed, 0xC011EC7, rank in the search's worst-first order])"
 
@@ -111,20 +109,21 @@ def audit_config(
     values: dict[str, Any] = {"name": name or f"audit_{agent_slug(agent)}", "domain": domain, "variant": variant,
                               "preset": preset, "seed": seed}
     values.update(cls.audit_values(agent=agent, reference=reference, objective=objective, measures=measures))
+    if budget is not None:
+        values["budget"] = budget
+    # The audit's own defaults, below the arguments: a resumed audit keeps the values it began with.
+    # The held-out levels are a diagnostic of the surrogate for research runs (about 10% of a cpu run's
+    # time); an audit wants failures, so it holds none out unless asked (--set experimental.holdout_levels=100).
+    defaults: dict[str, Any] = {"experimental.holdout_levels": 0}
     # A domain may leave the measures to its config section (the gym domain's space file names them).
     num_measures = len(values.get(f"{domain}.measures", ()))
     if num_measures not in (0, 2):
         # The presets' downsampling blocks are per measure for the usual two; keep their scale otherwise.
-        values["selection.block"] = (4,) * num_measures
-    if budget is not None:
-        values["budget"] = budget
-    # The held-out levels are a diagnostic of the surrogate for research runs (about 10% of a cpu run's
-    # time); an audit wants failures, so it holds none out unless asked (--set experimental.holdout_levels=100).
-    values["experimental.holdout_levels"] = 0
-    keys = {**values, **(overrides or {})}
+        defaults["selection.block"] = (4,) * num_measures
+    keys = {**defaults, **values, **(overrides or {})}
     config = RunConfig.build(keys)
     if spec.audit.surrogate_keys and config.mutates_elites:
-        keys = {**values, **spec.audit.surrogate_keys, **(overrides or {})}
+        keys = {**defaults, **spec.audit.surrogate_keys, **values, **(overrides or {})}
     if ("search" not in (overrides or {}) and config.time_budget > 0 and config.uses_surrogate
             and not config.pipeline and not config.surrogate.init):
         # With a time budget, DSAGE may not have the time to pay for its surrogate: in 5-minute Mario audits it
@@ -136,8 +135,7 @@ def audit_config(
     config = RunConfig.build(keys)
     if started is None:
         return config
-    given = {*values, *(overrides or {})} - _AUDIT_DEFAULTS
-    return resumed_config(config, started, given=given)
+    return resumed_config(config, started, given={*values, *(overrides or {})})
 
 
 def audit_spec(domain: str):

@@ -26,7 +26,7 @@ def test_two_tables_pool_into_one_mean_and_a_paired_difference_per_arm(tmp_path,
     assert bench.main([str(first), str(second)]) == 0
     out = capsys.readouterr().out
     assert "dsage                   70.0 ± 10.0  (2 seeds)" in out
-    assert "dsage 2.00×, dsage − dr_t +35.0 ± 5.0 paired (below 0 on 0 of 2 seeds)" in out
+    assert "dsage − dr_t +35.0 ± 5.0 paired (below 0 on 0 of 2 seeds); dsage 2.00× (per seed 2.00, 2.00)" in out
     assert "dsage − dr_t -250.0 ± 350.0 paired (below 0 on 1 of 2 seeds)" in out  # -1,200 parsed, not -1
     assert "dr_t" in out.split("worst return:")[1]
 
@@ -39,5 +39,8 @@ def test_a_seed_in_two_tables_and_a_file_without_per_audit_rows_are_refused(tmp_
     (tmp_path / "c.md").write_text("| Variant | Audits |\n|---|---|\n")
     assert bench.main([str(tmp_path / "c.md")]) == 2
     assert "no 'Per audit:' table" in capsys.readouterr().err
+    (tmp_path / "d.md").write_text("Per audit:\n\n| Variant | Seed | Worst return |\n|---|---|---|\n| dsage | 3 | -5 |\n")
+    assert bench.main([str(tmp_path / "d.md")]) == 2
+    assert "no column 'Cells with failure rate ≥ 0.5'" in capsys.readouterr().err
     assert bench.main([str(first), "--reference", "map_elites"]) == 2
     assert "--reference 'map_elites' is not an arm" in capsys.readouterr().err
