@@ -121,8 +121,11 @@ def fake_entry_points(monkeypatch, *points: importlib.metadata.EntryPoint) -> No
 
 
 @pytest.fixture
-def restore_scan():
+def restore_scan(monkeypatch):
     yield
+    # Fixtures are torn down in reverse order, so the fake entry points would still be patched in: undo them first,
+    # or the rescan caches them for every later test of this process.
+    monkeypatch.undo()
     registry._scan(refresh=True)
 
 
