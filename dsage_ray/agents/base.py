@@ -29,6 +29,11 @@ class Agent(abc.ABC):
 
     #: Human-readable identity (the spec it was loaded from).
     spec: str = ""
+    #: The mean return its own training record gives on the nominal environment (an RL Zoo folder's last
+    #: ``evaluations.npz`` row), or None where the agent brings none; the nominal check compares against it.
+    expected_return: float | None = None
+    #: Where :attr:`expected_return` was read from, for the nominal check's line (``"evaluations.npz"``).
+    expected_return_source: str = ""
 
     @abc.abstractmethod
     def initial_state(self, batch_size: int) -> AgentState:
