@@ -11,9 +11,12 @@ Layers, lowest first (:data:`LAYERS`; a module may import its own layer and the 
 
 The graph is read from the source with :mod:`ast` (nothing is imported): every ``import`` and ``from ...
 import`` of a dsage_ray module, at module level or inside a function (a lazy import is still a dependency),
-relative ones resolved, ``if TYPE_CHECKING:`` blocks left out (they never run). Importing ``a.b.c`` also runs
-the packages ``a.b`` and ``a``, so they count as imported too (except the importer's own packages, which are
-already running).
+relative ones resolved. Importing ``a.b.c`` also runs the packages ``a.b`` and ``a``, so they count as imported
+too (except the importer's own packages, which are already running).
+
+Two graphs are read. The layers are checked on the imports that run: ``if TYPE_CHECKING:`` blocks left out. Cycles
+are checked with those blocks too: a type-only import never runs, but a loop of them is still two modules that
+cannot be read, moved or tested one without the other.
 """
 
 from __future__ import annotations
@@ -84,17 +87,18 @@ def is_type_checking_block(node: ast.AST) -> bool:
     return getattr(test, "id", None) == "TYPE_CHECKING" or getattr(test, "attr", None) == "TYPE_CHECKING"
 
 
-def runtime_nodes(node: ast.AST) -> Iterator[ast.AST]:
-    """Every node below ``node`` that can run, function bodies included, ``if TYPE_CHECKING:`` bodies left out."""
+def import_nodes(node: ast.AST, *, type_checking: bool) -> Iterator[ast.AST]:
+    """Every node below ``node``, function bodies included; ``if TYPE_CHECKING:`` bodies only when
+    ``type_checking`` (otherwise only the nodes that can run)."""
     for child in ast.iter_child_nodes(node):
-        if is_type_checking_block(child):
+        if is_type_checking_block(child) and not type_checking:
             # Its ``else:`` runs; its body never does.
             for other in child.orelse:
                 yield other
-                yield from runtime_nodes(other)
+                yield from import_nodes(other, type_checking=False)
             continue
         yield child
-        yield from runtime_nodes(child)
+        yield from import_nodes(child, type_checking=type_checking)
 
 
 def absolute_base(node: ast.ImportFrom, module: str, is_package: bool) -> str:
@@ -106,11 +110,11 @@ def absolute_base(node: ast.ImportFrom, module: str, is_package: bool) -> str:
     return ".".join(parts + ([node.module] if node.module else []))
 
 
-def imported_names(source: str, module: str, is_package: bool) -> set[str]:
-    """Every dotted name ``source`` imports when it runs: modules, and ``module.name`` for each ``from`` import
-    (the name may be a submodule)."""
+def imported_names(source: str, module: str, is_package: bool, *, type_checking: bool = False) -> set[str]:
+    """Every dotted name ``source`` imports when it runs (and in its ``if TYPE_CHECKING:`` blocks when
+    ``type_checking``): modules, and ``module.name`` for each ``from`` import (the name may be a submodule)."""
     names: set[str] = set()
-    for node in runtime_nodes(ast.parse(source)):
+    for node in import_nodes(ast.parse(source), type_checking=type_checking):
         if isinstance(node, ast.Import):
             names.update(alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom):
@@ -127,12 +131,13 @@ def with_packages(name: str, importer: str) -> set[str]:
     return {".".join(parts[:i]) for i in range(1, len(parts) + 1)} - running
 
 
-def import_graph(root: Path) -> dict[str, set[str]]:
-    """Each module of the package at ``root`` and the package's modules it imports (itself left out)."""
+def import_graph(root: Path, *, type_checking: bool = False) -> dict[str, set[str]]:
+    """Each module of the package at ``root`` and the package's modules it imports (itself left out), with the
+    imports of its ``if TYPE_CHECKING:`` blocks when ``type_checking``."""
     modules = package_modules(root)
     graph = {}
     for module, path in modules.items():
-        names = imported_names(path.read_text(), module, path.name == "__init__.py")
+        names = imported_names(path.read_text(), module, path.name == "__init__.py", type_checking=type_checking)
         reached = set().union(*(with_packages(name, module) for name in names)) if names else set()
         graph[module] = {name for name in reached if name in modules and name != module}
     return graph
@@ -205,6 +210,12 @@ def graph() -> dict[str, set[str]]:
     return import_graph(PACKAGE)
 
 
+@pytest.fixture(scope="module")
+def typed_graph() -> dict[str, set[str]]:
+    """:func:`graph` with the type-only imports."""
+    return import_graph(PACKAGE, type_checking=True)
+
+
 def test_every_module_has_a_layer(graph):
     # A new top-level module must be placed in the map, so that it is checked.
     assert [module for module in graph if layer_of(module) is None] == []
@@ -214,8 +225,9 @@ def test_no_module_imports_a_higher_layer(graph):
     assert upward_imports(graph) == []
 
 
-def test_no_import_cycles(graph):
-    assert import_cycles(graph) == []
+def test_no_import_cycles_type_only_imports_included(typed_graph):
+    # The typed graph holds every edge of the runtime one, so this also covers the cycles that run.
+    assert import_cycles(typed_graph) == []
 
 
 def test_areas_kept_apart_do_not_import_each_other(graph):
@@ -276,3 +288,32 @@ def test_the_reader_sees_lazy_and_relative_imports_but_not_type_checking_ones(tm
     # ``import dsage_ray.core.loop`` runs the core package too.
     assert graph["dsage_ray.audit.report"] == {"dsage_ray.core", "dsage_ray.core.loop"}
     assert import_cycles(graph) == [["dsage_ray.audit.report", "dsage_ray.core", "dsage_ray.core.loop"]]
+    # With the type-only imports, core.loop also imports dsage_ray.types.
+    typed = import_graph(root, type_checking=True)
+    assert typed["dsage_ray.core.loop"] == graph["dsage_ray.core.loop"] | {"dsage_ray.types"}
+    assert typed["dsage_ray.audit.report"] == graph["dsage_ray.audit.report"]
+
+
+def test_a_cycle_of_type_only_imports_is_found_in_the_typed_graph_alone(tmp_path):
+    # The shape of the old core.outputs -> snapshot -> tensorboard_log -> outputs loop: two type-only imports
+    # and a lazy one.
+    root = tmp_path / "dsage_ray"
+    (root / "core").mkdir(parents=True)
+    (root / "__init__.py").write_text("")
+    (root / "core" / "__init__.py").write_text("")
+    (root / "core" / "outputs.py").write_text(
+        "from typing import TYPE_CHECKING\n"
+        "if TYPE_CHECKING:\n"
+        "    from dsage_ray.core.snapshot import RunSnapshot\n")
+    (root / "core" / "snapshot.py").write_text(
+        "import typing\n"
+        "if typing.TYPE_CHECKING:\n"
+        "    from .tensorboard_log import GrowthPoint\n"
+        "else:\n"
+        "    import json\n")
+    (root / "core" / "tensorboard_log.py").write_text(
+        "def log():\n"
+        "    from dsage_ray.core.outputs import heatmap_png\n")
+    loop = ["dsage_ray.core.outputs", "dsage_ray.core.snapshot", "dsage_ray.core.tensorboard_log"]
+    assert import_cycles(import_graph(root)) == []
+    assert import_cycles(import_graph(root, type_checking=True)) == [loop]

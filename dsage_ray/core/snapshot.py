@@ -13,7 +13,7 @@ from dsage_ray.types import Domain
 if TYPE_CHECKING:
     from ribs.archives import GridArchive
 
-    from dsage_ray.core.tensorboard_log import GrowthPoint
+    from dsage_ray.qd.growth import GrowthPoint
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -36,7 +36,7 @@ class RunSnapshot:
         done: The evaluation or the time budget is spent.
         last_predictions: ``(predicted, true)`` measures of the last batch a surrogate predicted, or None.
         growth: The archive's numbers within the last outer iteration, as its results arrived
-            (:func:`~dsage_ray.core.tensorboard_log.growth_curve`; empty before the first).
+            (:func:`~dsage_ray.qd.growth.growth_curve`; empty before the first).
     """
 
     config: RunConfig

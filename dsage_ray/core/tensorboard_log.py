@@ -8,9 +8,9 @@ batch sizes (DSAGE, MAP-Elites, a resumed run) line up on the same axis:
 * within an iteration, ``dsage/qd_score``, ``dsage/coverage`` and ``dsage/objective_max`` also every
   ``ceil(budget / GROWTH_POINTS)`` evaluations (every evaluation up to a 500-evaluation budget): the
   ground-truth archive's values had the batch's results entered it one at a time, in evaluation order
-  (:func:`growth_curve`). An outer iteration evaluates its whole batch before the archive takes it, so
-  without these a 300-evaluation demo's curves would have 2 or 3 points; with them they have about
-  300, and the last point of each iteration is the archive's own value. They are written when the
+  (:func:`dsage_ray.qd.growth.growth_curve`). An outer iteration evaluates its whole batch before the
+  archive takes it, so without these a 300-evaluation demo's curves would have 2 or 3 points; with
+  them they have about 300, and the last point of each iteration is the archive's own value. They are written when the
   iteration ends, not as the levels are evaluated;
 * every ``image_every`` outer iterations, and once the budget is spent, images: ``archive/heatmap``,
   ``levels/elite_K`` and ``surrogate/predicted_vs_true_measures``.
@@ -26,24 +26,21 @@ the same second share a step.
 
 from __future__ import annotations
 
-import dataclasses
 import io
-import math
 import numbers
 import os
 import shlex
 import shutil
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Mapping, Sequence
+from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
-from dsage_ray.qd.archives import archive_stats
+# Re-exported for core.runner, which still imports them from here; their home is dsage_ray.qd.growth.
+from dsage_ray.qd.growth import GrowthPoint, growth_curve  # noqa: F401
 
 if TYPE_CHECKING:
-    from ribs.archives import GridArchive
-
     from dsage_ray.core.snapshot import RunSnapshot
 
 #: Group of our scalars in TensorBoard (``dsage/qd_score``, ``dsage/coverage``, ...).
@@ -54,66 +51,13 @@ QD_SCORE_VS_WALL_TIME = f"{SCALAR_GROUP}/qd_score_vs_wall_time"
 
 #: Elite levels drawn per image step, spread along the first measure.
 ELITE_LEVELS = 4
-#: Points of the within-iteration curves over a whole run's budget (TensorBoard shows up to 1,000 per tag).
-GROWTH_POINTS = 500
 #: The scalars the within-iteration curves add points to (``dsage/<name>``).
 GROWTH_SCALARS = ("qd_score", "coverage", "objective_max")
 
 
-@dataclasses.dataclass(frozen=True)
-class GrowthPoint:
-    """The ground-truth archive's numbers after ``evals`` real evaluations, within an outer iteration."""
-
-    evals: int
-    qd_score: float
-    coverage: float
-    objective_max: float
-
-
-def growth_curve(archive: "GridArchive", *, measures: np.ndarray, objective: np.ndarray, evals_at: Sequence[int],
-                 budget: int) -> tuple[GrowthPoint, ...]:
-    """What ``archive`` would read as a batch's results entered it one at a time, every
-    ``ceil(budget / GROWTH_POINTS)`` evaluations.
-
-    Call it before the batch is added: it reads the archive (its numbers, and the elites of the cells the
-    batch falls in) and changes nothing, so the search is the same with or without it. A cell keeps its
-    best objective, as the ground-truth archive does, so after the whole batch the numbers are the ones
-    the archive then holds.
-
-    Args:
-        archive: The ground-truth archive, before the batch.
-        measures, objective: The batch's successful results, in evaluation order.
-        evals_at: The run's evaluation count once each of them was evaluated (failed ones are counted, not listed).
-        budget: The run's evaluation budget, which spaces the points.
-
-    Returns:
-        A point at each evaluation count in ``evals_at`` that is a multiple of the spacing.
-    """
-    if len(objective) == 0:
-        return ()
-    every = max(1, math.ceil(budget / GROWTH_POINTS))
-    stats = archive_stats(archive)
-    qd_score, elites, best = stats["qd_score"], stats["num_elites"], stats["objective_max"]
-    occupied, elites_data = archive.retrieve(measures)
-    cells = archive.index_of(measures)
-    # Only the cells the batch falls in can change: their current elites' objectives, then the batch's.
-    cell_objective = {int(c): float(o) for c, o, held in zip(cells, elites_data["objective"], occupied) if held}
-    points = []
-    for cell, value, at in zip(cells.tolist(), np.asarray(objective, dtype=np.float64).tolist(), evals_at):
-        old = cell_objective.get(cell)
-        if old is None or value > old:
-            qd_score += value - (old or 0.0)
-            elites += int(old is None)
-            cell_objective[cell] = value
-        best = value if math.isnan(best) else max(best, value)
-        if at % every == 0:
-            points.append(GrowthPoint(evals=int(at), qd_score=qd_score, coverage=elites / archive.cells,
-                                      objective_max=best))
-    return tuple(points)
-
-
 class RunTensorBoard:
-    """Writes one run's scalars every outer iteration (with the points of its :func:`growth_curve` before them)
+    """Writes one run's scalars every outer iteration (with the points of its
+    :func:`~dsage_ray.qd.growth.growth_curve` before them)
     and its images every ``image_every``.
 
     The event file is created on the first :meth:`log`, so a run that never steps leaves none.
