@@ -10,7 +10,7 @@ Every predictor is scored by its Spearman ρ with the agent's path length on the
 * **surrogate**: the Maze ``cpu`` preset's surrogate (``--set`` / ``--setting`` change it), ``--epochs`` epochs;
 * **optimal path**: the BFS shortest start-goal distance alone (no training);
 * **random walk**: the expected steps of a uniform random walker from the start to the goal, its hitting time
-  (no training; ``dsage_ray.surrogate.models.RandomWalkFields``);
+  (no training; ``dsage_ray.surrogate.grid_features.RandomWalkFields``);
 * **GBM**: scikit-learn's HistGradientBoostingRegressor on BFS features of the level (distances, dead ends,
   junctions, detours; trained on the same N levels);
 * **test-retest**: the agent's second evaluation (other seeds) where the data has one (``measures_retest``).
@@ -36,13 +36,13 @@ Usage:
 
 Benchmark-only keys of a setting (other keys are the run config's; ``surrogate.`` may be left out):
 
-* ``bench.distance_fields=true`` wraps the network with ``dsage_ray.surrogate.models.DistanceFields`` (BFS
+* ``bench.distance_fields=true`` wraps the network with ``dsage_ray.surrogate.grid_features.DistanceFields`` (BFS
   distance from the start, to the goal, and the detour, as three more input channels);
-* ``bench.level_statistics=true`` builds the network with ``dsage_ray.surrogate.models.LevelStatistics``: the
+* ``bench.level_statistics=true`` builds the network with ``dsage_ray.surrogate.grid_features.LevelStatistics``: the
   GBM's BFS features, computed inside the network, fed to its measure heads. The path length then needs a head
   (``occupancy_sum_measure=``), or:
 * ``bench.sum_residual=true`` keeps the occupancy-sum path length and adds its head's output to it;
-* ``bench.random_walk=true`` wraps the network with ``dsage_ray.surrogate.models.RandomWalkFields`` (the random
+* ``bench.random_walk=true`` wraps the network with ``dsage_ray.surrogate.grid_features.RandomWalkFields`` (the random
   walker's log expected visits per cell as one more input channel; after the distance fields when both are on);
 * ``bench.rotations=true`` trains on every level and its three rotations by 90° (the walls, start, goal and
   occupancy turned together, the measures kept). Sound only for an agent that ``bench_symmetry.py`` finds
@@ -310,7 +310,8 @@ class Model:
         from dsage_ray.domains.maze.encoding import EMPTY, GOAL, SPARE, START
         from dsage_ray.surrogate import Surrogate
         from dsage_ray.domains.maze.prior import walker_prior
-        from dsage_ray.surrogate.models import DistanceFields, LevelStatistics, RandomWalkFields, WithInputFields
+        from dsage_ray.surrogate.grid_features import DistanceFields, LevelStatistics, RandomWalkFields
+        from dsage_ray.surrogate.models import WithInputFields
 
         self.setting = setting
         self.data = data

@@ -30,8 +30,9 @@ from torch.nn import functional as F
 from dsage_ray import kernels
 from dsage_ray.config import SurrogateConfig
 from dsage_ray.surrogate.dataset import SurrogateDataset, Targets
-from dsage_ray.surrogate.models import (LevelStatistics, ModelOutput, OneStageModel, TwoStageModel, VectorTwoStageModel,
-                                       VectorOneStageModel, encode_solutions)
+from dsage_ray.surrogate.grid_features import LevelStatistics
+from dsage_ray.surrogate.models import (ModelOutput, OneStageModel, TwoStageModel, VectorOneStageModel,
+                                       VectorTwoStageModel, encode_solutions)
 from dsage_ray.types import EncodedLevels, EvaluationResult
 
 #: Encoded levels ``(n, C, S, S)`` → ``{measure name or "objective": (n,) values}``.
@@ -141,7 +142,7 @@ class Surrogate:
         config: Training and prediction settings.
         seed: Seeds the initial weights and the minibatch order.
         measure_names: The measures' names; required by ``config.occupancy_sum_measure``, which names one.
-        statistics: Per-level scalars fed to the measure heads (:class:`~dsage_ray.surrogate.models.LevelStatistics`).
+        statistics: Per-level scalars fed to the measure heads (:class:`~dsage_ray.surrogate.grid_features.LevelStatistics`).
         prior: With ``config.prior_measure``: the domain's parameter-free prior of that measure, encoded levels
             ``(n, C, S, S)`` → ``(n,)`` (Maze: :func:`~dsage_ray.domains.maze.prior.walker_prior`).
         sum_residual: The ``occupancy_sum_measure`` is the occupancy sum *plus* its head's output, which then

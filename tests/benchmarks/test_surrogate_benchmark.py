@@ -268,12 +268,13 @@ def test_the_random_walk_baseline_is_the_walkers_hitting_time_and_a_setting_can_
 
 
 def test_the_networks_level_statistics_are_the_gbms_features():
-    # models.LevelStatistics (torch, fed to a network's heads) must compute what the GBM reads (numpy), in its units.
+    # grid_features.LevelStatistics (torch, fed to a network's heads) must compute what the GBM reads (numpy), in its units.
     import bench_surrogate_ceiling
     import torch
 
     from dsage_ray.domains.maze.encoding import EMPTY, GOAL, SPARE, START, encode_levels
-    from dsage_ray.surrogate.models import DistanceFields, LevelStatistics, pad_to_power_of_two
+    from dsage_ray.surrogate.grid_features import DistanceFields, LevelStatistics
+    from dsage_ray.surrogate.models import pad_to_power_of_two
 
     walls = np.stack([level.walls for level in random_valid_levels(10, seed=4, height=10, width=12,
                                                                   density_range=(0.0, 0.7))])

@@ -1,4 +1,4 @@
-"""models.DistanceFields: BFS distance channels computed from one-hot Maze levels, checked against the domain's BFS."""
+"""grid_features.DistanceFields: BFS distance channels of one-hot Maze levels, checked against the domain's BFS."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ from dsage_ray.domains.maze.encoding import EMPTY, GOAL, SPARE, START, encode_le
 from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.domains.maze.level import path_distances
 from dsage_ray.surrogate import Surrogate, pad_to_power_of_two
-from dsage_ray.surrogate.models import DistanceFields, WithInputFields
+from dsage_ray.surrogate.grid_features import DistanceFields
+from dsage_ray.surrogate.models import WithInputFields
 from dsage_ray.config import SurrogateConfig
 
 

@@ -120,7 +120,8 @@ def test_width_and_blocks_are_configurable_and_default_to_the_paper():
 
 def test_a_model_with_level_statistics_feeds_them_to_its_heads_and_needs_them():
     from dsage_ray.domains.maze.encoding import EMPTY, GOAL, START
-    from dsage_ray.surrogate.models import DistanceFields, LevelStatistics, MeasurePredictor, TwoStageModel
+    from dsage_ray.surrogate.grid_features import DistanceFields, LevelStatistics
+    from dsage_ray.surrogate.models import MeasurePredictor, TwoStageModel
 
     fields = DistanceFields(free_channels=(EMPTY, START, GOAL), start_channel=START, goal_channel=GOAL, norm=32)
     statistics = LevelStatistics(fields=fields, norm=32)

@@ -1,4 +1,4 @@
-"""models.RandomWalkFields: a uniform random walker's expected visits before it finds the goal."""
+"""grid_features.RandomWalkFields: a uniform random walker's expected visits before it finds the goal."""
 
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ import torch
 from dsage_ray.domains.maze.encoding import EMPTY, GOAL, SPARE, START, WALL, encode_levels
 from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.surrogate import pad_to_power_of_two
-from dsage_ray.surrogate.models import DistanceFields, RandomWalkFields, WithInputFields
+from dsage_ray.surrogate.grid_features import DistanceFields, RandomWalkFields
+from dsage_ray.surrogate.models import WithInputFields
 
 
 def walker(norm: float = 1.0) -> RandomWalkFields:

@@ -12,7 +12,7 @@ from typing import Callable
 import torch
 
 from dsage_ray.domains.maze.encoding import EMPTY, GOAL, START
-from dsage_ray.surrogate.models import RandomWalkFields
+from dsage_ray.surrogate.grid_features import RandomWalkFields
 
 #: The measure each prior predicts, by name.
 PRIORS = ("mean_path_length",)
