@@ -8,7 +8,7 @@ leave the batch (:meth:`Agent.select_state`), which keeps later steps cheap.
 from __future__ import annotations
 
 import abc
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -51,17 +51,24 @@ class Agent(abc.ABC):
         actions may differ from this agent's now and then; None (the default): the agent has none."""
         return None
 
+    def wrap_env(self, env: Any) -> Any:
+        """The environment as the agent was trained in it: ``env`` inside the agent's training-time wrappers (an RL
+        Zoo folder's ``env_wrapper``); the default is ``env`` itself. Simulators call it on every environment they
+        build for this agent."""
+        return env
+
     def select_state(self, state: AgentState, index: np.ndarray) -> AgentState:
         """Keeps only the episodes at ``index`` (the ones still running)."""
-        return _tree_map(lambda x: x[index], state)
+        return tree_map(lambda x: x[index], state)
 
 
-def _tree_map(fn, tree):
+def tree_map(fn: Callable[[Any], Any], tree: Any) -> Any:
+    """``fn`` applied to every leaf of nested tuples, lists and dicts (None stays None)."""
     if tree is None:
         return None
     if isinstance(tree, (tuple, list)):
-        return type(tree)(_tree_map(fn, t) for t in tree)
+        return type(tree)(tree_map(fn, t) for t in tree)
     if isinstance(tree, dict):
-        return {k: _tree_map(fn, v) for k, v in tree.items()}
+        return {k: tree_map(fn, v) for k, v in tree.items()}
     return fn(tree)
 

@@ -24,7 +24,7 @@ import functools
 import io
 import pickle
 import sys
-from typing import Any
+from typing import Any, Callable
 
 #: The persistent-id tag of a tensor: ``("torch.tensor", dtype name, shape, bytes)``.
 _TENSOR = "torch.tensor"
@@ -74,15 +74,24 @@ def dumps(obj: Any) -> bytes:
     return buffer.getvalue()
 
 
-def loads(data: bytes) -> Any:
+#: ``resolve(module, name)``: the object a pickle may name beyond :func:`allowed_globals`, or None to refuse it.
+Resolver = Callable[[str, str], Any]
+
+
+def loads(data: bytes, *, also: Resolver | None = None, what: str = "a checkpoint") -> Any:
     """Restores what :func:`dumps` wrote, calling only :func:`allowed_globals`.
+
+    Args:
+        data: The pickle.
+        also: Resolves what a third-party file's pickle names beyond the allowlist (another library's data classes,
+            or stand-ins that record an object's state without calling its code); None: nothing more.
 
     Raises:
         UnsafePickleError: The bytes name a global outside the allowlist (it names the global), or hold a malformed
             tensor.
         pickle.UnpicklingError, EOFError, ValueError, TypeError: Bytes that are no pickle, or a truncated one.
     """
-    return _Unpickler(io.BytesIO(data)).load()
+    return _Unpickler(io.BytesIO(data), also=also, what=what).load()
 
 
 @functools.cache
@@ -140,10 +149,16 @@ class _Pickler(pickle.Pickler):
 
 
 class _Unpickler(pickle.Unpickler):
+    def __init__(self, file: io.BytesIO, *, also: Resolver | None, what: str) -> None:
+        super().__init__(file)
+        self._also, self._what = also, what
+
     def find_class(self, module: str, name: str) -> Any:
         found = allowed_globals().get((module, name))
+        if found is None and self._also is not None:
+            found = self._also(module, name)
         if found is None:
-            raise UnsafePickleError(f"it names {module}.{name}, which a checkpoint may not hold (only data "
+            raise UnsafePickleError(f"it names {module}.{name}, which {self._what} may not hold (only data "
                                     f"classes are read; nothing it names was called)")
         return found
 

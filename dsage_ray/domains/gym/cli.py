@@ -38,7 +38,8 @@ def run_eval(args: argparse.Namespace) -> int:
     space, values = read_level(args.level)
     env = make_env(space, values)
     try:
-        agent = load_gym_agent(args.agent, observation_space=env.observation_space, action_space=env.action_space)
+        agent = load_gym_agent(args.agent, observation_space=env.observation_space, action_space=env.action_space,
+                               env=env)
     finally:
         env.close()
     played = run_episodes(space, agent, values, seed=args.seed, episodes=args.episodes)

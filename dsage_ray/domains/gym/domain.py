@@ -13,10 +13,12 @@ from dsage_ray.domains.gym.plugin import DOMAIN, GymConfig
 from dsage_ray.domains.gym.simulator import (check_episode_memory, make_env, reset_env, run_episodes, signal_key,
                                              step_limit)
 from dsage_ray.domains.gym.space import EnvSpace, SpaceError, build_space, load_space
-from dsage_ray.types import EncodedLevels, EvaluationResult, Solution, Solutions
+from dsage_ray.types import EncodedLevels, EvaluationResult, NominalResult, Solution, Solutions
 
 #: The ``format`` of a gym level file: the space it belongs to and the level's values, as JSON.
 LEVEL_FORMAT = "dsage_ray.gym.level/1"
+#: Episodes of the nominal check (as many as the RL Zoo's evaluations.npz rows hold; docs/AUDIT.md).
+NOMINAL_EPISODES = 10
 
 
 class GymDomain:
@@ -90,7 +92,7 @@ class GymDomain:
             env = make_env(self.space, self.space.values(np.zeros(self.solution_dim)))
             try:
                 self._agent = load_gym_agent(self.config.agent, observation_space=env.observation_space,
-                                             action_space=env.action_space)
+                                             action_space=env.action_space, env=env)
             finally:
                 env.close()
         return self._agent
@@ -98,7 +100,7 @@ class GymDomain:
     def evaluate(self, solution: Solution, seed: int, *, episodes: int | None = None) -> EvaluationResult:
         """Plays the agent on the level; the objective is its failure rate (deterministic for ``seed``)."""
         values = self.space.values(solution)
-        played = run_episodes(self.space, self.agent, values, seed=seed, episodes=episodes or self.config.episodes,
+        played = run_episodes(self.space, self.agent, values, seed=seed, episodes=episodes or self.episodes,
                               signals=self._signals)
         success_rate = float(played.success.mean())
         return EvaluationResult(
@@ -112,7 +114,7 @@ class GymDomain:
 
     def work_counts(self, result: EvaluationResult) -> dict[str, float]:
         """Environment steps (what an evaluation's time grows with)."""
-        return {"steps": result.info["mean_length"] * self.config.episodes}
+        return {"steps": result.info["mean_length"] * self.episodes}
 
     work_names = GymConfig.work_names
 
@@ -154,12 +156,20 @@ class GymDomain:
 
     def preflight(self) -> None:
         """Checks everything before the search: the environment and its parameters (one reset at each corner of
-        the box and its centre), the agent against the environment's spaces, and the measures (one episode).
+        the box and its centre), the agent against the environment's spaces, and the measures (one episode); a
+        space declared deterministic plays that episode again with another seed, which must give the same return
+        and length. A space with a setup hook prints that it runs user code.
 
         Raises:
             SpaceError, AgentError: What is wrong, in one line.
             ResourceError: ``episodes`` side by side would not fit in memory.
         """
+        if self.space.setup:
+            import sys
+
+            from dsage_ray.domains.gym.setup_hook import user_code_notice
+
+            print(user_code_notice(self.space.setup), file=sys.stderr)
         check_episode_memory(self.config.episodes)
         for corner in (-1.0, 0.0, 1.0):
             values = self.space.values(np.full(self.solution_dim, corner))
@@ -169,7 +179,27 @@ class GymDomain:
                 reset_env(env, self.space, values, seed=0)
             finally:
                 env.close()
-        self.evaluate(np.zeros(self.solution_dim, dtype=self.solution_dtype), seed=0, episodes=1)
+        centre = np.zeros(self.solution_dim, dtype=self.solution_dtype)
+        first = self.evaluate(centre, seed=0, episodes=1)
+        if self.space.deterministic:
+            check_deterministic(self.space, first, self.evaluate(centre, seed=1, episodes=1))
+
+    def play_nominal(self, *, seed: int) -> NominalResult:
+        """The agent on the nominal level (:class:`~dsage_ray.types.NominalDomain`): the environment as registered,
+        with the space's fixed ``gym.make`` keywords and its ``[nominal]`` values, nothing else set."""
+        space, values = self.space.nominal_level()
+        episodes = 1 if self.space.deterministic else NOMINAL_EPISODES
+        played = run_episodes(space, self.agent, values, seed=seed, episodes=episodes)
+        settings = [f"{key}={value}" for key, value in {**space.env_args, **values}.items()]
+        agent = self.agent
+        return NominalResult(
+            level=f"{space.env_id} " + (f"with {', '.join(settings)}" if settings else "as registered"),
+            mean_return=float(played.returns.mean()),
+            return_std=float(played.returns.std(ddof=1)) if episodes > 1 else 0.0,
+            success_rate=float(played.success.mean()), episodes=episodes, seed=int(seed),
+            expected_return=agent.expected_return, expected_return_source=agent.expected_return_source,
+            causes=(f"observation preprocessing not applied (normalisation statistics, frame stacking, the training "
+                    f"wrappers) or an environment version other than the one it was trained on (here {space.env_id})"))
 
     @property
     def agent_spec(self) -> str:
@@ -181,7 +211,8 @@ class GymDomain:
 
     @property
     def episodes(self) -> int:
-        return self.config.episodes
+        """Episodes per evaluation: one where the space is declared deterministic (the others would repeat it)."""
+        return 1 if self.space.deterministic else self.config.episodes
 
     def is_valid(self, solution: Solution) -> bool:
         return True
@@ -215,7 +246,8 @@ class GymDomain:
             limit = step_limit(env, self.space)
         finally:
             env.close()
-        return {"env": self.space.env_id, "success": self.space.success.describe(), "max_steps": limit,
+        success = self.space.fault.describe() if self.space.fault is not None else self.space.success.describe()
+        return {"env": self.space.env_id, "success": success, "max_steps": limit,
                 "parameters": [p.describe() for p in self.space.params]}
 
     def entry_fields(self, solution: Solution, result: EvaluationResult, *, level_file: str) -> dict[str, Any]:
@@ -224,6 +256,20 @@ class GymDomain:
                    if isinstance(value, (int, float)) and not isinstance(value, bool)}
         return {"mean_return": result.info["mean_return"], "min_return": result.info["min_return"],
                 "mean_length": result.info["mean_length"], **numbers, "values": values}
+
+
+def check_deterministic(space: EnvSpace, first: EvaluationResult, again: EvaluationResult) -> None:
+    """Refuses a space declared deterministic whose level, played with two seeds, did two different things.
+
+    Raises:
+        SpaceError: The returns or lengths differ (one line naming both).
+    """
+    a, b = first.info, again.info
+    if a["mean_return"] != b["mean_return"] or a["mean_length"] != b["mean_length"]:
+        raise SpaceError(f"{space.source}: [env] deterministic = true, but the box's centre played with seeds 0 and 1 "
+                         f"returned {a['mean_return']:.6g} and {b['mean_return']:.6g} in {a['mean_length']:g} and "
+                         f"{b['mean_length']:g} steps: the environment or the agent is random given a level (fix the "
+                         f"reset with [env] reset_seed, play a greedy agent, or drop deterministic)")
 
 
 def read_level(path: str | Path) -> tuple[EnvSpace, dict[str, Any]]:
