@@ -43,8 +43,9 @@ from typing import Any, Mapping
 
 from ray.rllib.callbacks.callbacks import RLlibCallback
 
-from dsage_ray.integrations import (DEFAULT_AUDIT_BUDGET, DEFAULT_AUDIT_EVERY, DEFAULT_EPISODES, DEFAULT_PRESET,
-                                    SERIES_SUBDIR, SeriesAuditor, finite_scalars)
+from dsage_ray.integrations.auditor import SeriesAuditor, finite_scalars
+from dsage_ray.integrations.defaults import (DEFAULT_AUDIT_BUDGET, DEFAULT_AUDIT_EVERY, DEFAULT_EPISODES,
+                                             DEFAULT_PRESET, SERIES_SUBDIR)
 
 #: Result keys of the environment steps sampled so far, in the order they are tried.
 _STEP_KEYS = (("env_runners", "num_env_steps_sampled_lifetime"), ("num_env_steps_sampled_lifetime",),
@@ -108,7 +109,7 @@ class AuditCallback(RLlibCallback):
         **series_settings: ``background`` (default: audits in a Ray actor of their own, unless ``series``
             is an object), ``audit_cpus``, and the series' ``preset``, ``domain``, ``seed``, ``overrides``,
             ``local``, ``workers``, ``address``, ``episodes``, ``warm_start``
-            (:class:`~dsage_ray.integrations.SeriesAuditor`).
+            (:class:`~dsage_ray.integrations.auditor.SeriesAuditor`).
 
     Background audits report when they end: their scalars go into the result of the iteration that sees
     them end (``result["audit"]``, with ``checkpoint_iteration``, the iteration audited) and to the writer at

@@ -25,14 +25,14 @@ import tempfile
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-from dsage_ray.integrations import DEFAULT_EPISODES, DEFAULT_OVERRIDES
+from dsage_ray.integrations.defaults import DEFAULT_EPISODES, DEFAULT_OVERRIDES
 
 
 def check_audit_flags(args: Any, *, domain: str = "maze", overrides: Mapping[str, Any] | None = None) -> None:
     """Raises InputError, naming the flags, when the ``--audit-*`` flags cannot work together.
 
     With ``--audit-every`` set, the audits' config (``domain``, the preset, the budget, ``overrides`` over
-    :data:`~dsage_ray.integrations.DEFAULT_OVERRIDES`) is checked too, so that a budget below the search's
+    :data:`~dsage_ray.integrations.defaults.DEFAULT_OVERRIDES`) is checked too, so that a budget below the search's
     ``n_rand`` or an unknown preset stops the script before training rather than skipping every audit.
     """
     from dsage_ray.errors import InputError

@@ -36,7 +36,8 @@ from typing import Any, Callable, Mapping
 
 from ray.tune import Callback
 
-from dsage_ray.integrations import DEFAULT_AUDIT_BUDGET, DEFAULT_AUDIT_EVERY, SERIES_SUBDIR, SeriesAuditor
+from dsage_ray.integrations.auditor import SeriesAuditor
+from dsage_ray.integrations.defaults import DEFAULT_AUDIT_BUDGET, DEFAULT_AUDIT_EVERY, SERIES_SUBDIR
 
 
 def rllib_module_dir(checkpoint: str | os.PathLike[str], *, policy: str = "default_policy") -> Path:
@@ -127,7 +128,7 @@ class AuditCheckpointsCallback(Callback):
         try:
             auditor = self.auditor(trial)
         except Exception as exc:  # noqa: BLE001 - never stop the experiment
-            from dsage_ray.integrations import describe, log
+            from dsage_ray.integrations.faults import describe, log
 
             log.warning("audit of %s skipped: %s", label, describe(exc))
             self.audits.append((trial_id, label, None))
