@@ -1,10 +1,11 @@
 """Plays an agent on one level of a Gymnasium environment: the episodes run side by side, one batched action per step.
 
 Each episode has its own environment instance (built with the level's ``gym.make`` keywords), reset with its
-own seed and the level's reset options; then the level's attributes are set on ``env.unwrapped``, the space's
-derived attributes recomputed, and, where the space says so, the first observation re-read. The agent acts on
-the observations of the episodes still running, so a neural policy costs one forward pass per step, not one per
-episode.
+own seed (or the space's ``reset_seed``) and the level's reset options; then the level's attributes are set on
+``env.unwrapped``, the space's derived attributes recomputed, where the space says so the first observation
+re-read, and the space's setup hook called (user code, which may return a new first observation). The agent acts
+on the observations of the episodes still running, so a neural policy costs one forward pass per step, not one per
+episode. A space declared deterministic plays one episode per level: the others would repeat it.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from dsage_ray.domains.gym.readings import StepReadings, read_signal, signal_key
 from dsage_ray.domains.gym.space import EnvSpace, Signal, SpaceError, evaluate_expression
 from dsage_ray.memory import require_memory
 
@@ -40,11 +42,6 @@ class Episodes:
     success: np.ndarray
     signals: dict[str, np.ndarray]
     occupancy: np.ndarray
-
-
-def signal_key(signal: Signal) -> str:
-    """A signal's key in :attr:`Episodes.signals` (``info:x:end``)."""
-    return f"{signal.source}:{signal.key}:{signal.at}"
 
 
 def make_env(space: EnvSpace, values: Mapping[str, Any], *, render_mode: str | None = None):
@@ -90,16 +87,37 @@ def reset_env(env, space: EnvSpace, values: Mapping[str, Any], *, seed: int) -> 
             set_attribute(unwrapped, p.key, values[p.name], env_id=space.env_id)
     for name, expression in space.derived.items():
         try:
-            setattr(unwrapped, name, evaluate_expression(expression, _Attributes(unwrapped)))
+            value = evaluate_expression(expression, _Attributes(unwrapped))
         except KeyError as exc:
             raise SpaceError(f"environment {space.env_id!r}: derived attribute {name} = {expression!r} names "
                              f"{exc.args[0]!r}, which the environment lacks") from None
+        except (ArithmeticError, ValueError, IndexError) as exc:
+            raise SpaceError(f"environment {space.env_id!r}: derived attribute {name} = {expression!r} cannot be "
+                             f"computed ({type(exc).__name__}: {exc})") from None
+        if not np.isfinite(value):
+            raise SpaceError(f"environment {space.env_id!r}: derived attribute {name} = {expression!r} is {value}")
+        setattr(unwrapped, name, value)
     if space.observation_attr:
         if not hasattr(unwrapped, space.observation_attr):
             raise SpaceError(f"environment {space.env_id!r} has no attribute {space.observation_attr!r} "
                              f"(observation_attr)")
         observation = np.asarray(getattr(unwrapped, space.observation_attr),
                                  dtype=env.observation_space.dtype).reshape(env.observation_space.shape)
+    if space.setup:
+        from dsage_ray.domains.gym.setup_hook import call_setup
+
+        returned = call_setup(space.setup, env, dict(values))
+        if returned is not None:
+            observation = _first_observation(returned, env, space)
+    return observation
+
+
+def _first_observation(observation: Any, env, space: EnvSpace) -> Any:
+    """What a setup hook returned, checked against the observation space's shape (a Box's)."""
+    shape = getattr(env.observation_space, "shape", None)
+    if shape and np.shape(observation) != tuple(shape):
+        raise SpaceError(f"[env] setup {space.setup!r} returned an observation of shape {np.shape(observation)}, "
+                         f"not the environment's {tuple(shape)} (return the new first observation or None)")
     return observation
 
 
@@ -157,17 +175,6 @@ def step_limit(env, space: EnvSpace) -> int:
     return int(limit)
 
 
-def read_signal(signal: Signal, observation: Any, info: Mapping[str, Any]) -> float:
-    """One step's value of an ``info`` or ``obs`` signal.
-
-    Raises:
-        KeyError, IndexError: The ``info`` key or observation entry is missing (:func:`run_episodes` names it).
-    """
-    if signal.source == "info":
-        return float(np.asarray(info[signal.key], dtype=np.float64).ravel()[0])
-    return float(np.asarray(observation, dtype=np.float64).ravel()[int(signal.key)])
-
-
 #: A floor on the memory one running episode takes (its environment, observation and record); a Box2D or MuJoCo
 #: environment takes more, so this only turns an absurd ``episodes`` into one line instead of an out-of-memory kill.
 EPISODE_BYTES = 64_000
@@ -187,26 +194,26 @@ def run_episodes(space: EnvSpace, agent, values: Mapping[str, Any], *, seed: int
         space: The parameter space.
         agent: A batched :class:`~dsage_ray.agents.base.Agent` of this environment's spaces.
         values: ``{parameter name: value}`` of the level.
-        seed: Draws each episode's reset seed and the agent's random numbers.
-        episodes: Episodes played side by side.
+        seed: Draws each episode's reset seed (unless the space fixes one) and the agent's random numbers.
+        episodes: Episodes played side by side; a space declared deterministic plays one.
         signals: Per-episode values to record beside the episode statistics (measures' and occupancy's).
 
     Raises:
         SpaceError: A missing ``info`` key or observation entry, named.
     """
-    from dsage_ray.domains.gym.agents import stack_observations
+    from dsage_ray.agents.spaces import stack_observations
 
+    episodes = 1 if space.deterministic else episodes
     check_episode_memory(episodes)
     seeds = np.random.SeedSequence(seed).spawn(2)
-    reset_seeds = seeds[0].generate_state(episodes).tolist()
+    reset_seeds = ([space.reset_seed] * episodes if space.reset_seed is not None
+                   else seeds[0].generate_state(episodes).tolist())
     rng = np.random.default_rng(seeds[1])
-    envs = [make_env(space, values) for _ in range(episodes)]
+    envs = [agent.wrap_env(make_env(space, values)) for _ in range(episodes)]  # as the agent was trained
     try:
         limit = step_limit(envs[0], space)
         observations = [reset_env(env, space, values, seed=s) for env, s in zip(envs, reset_seeds)]
-        stepped = [s for s in signals if s.source in ("info", "obs")]
-        sums = {signal_key(s): np.zeros(episodes) for s in stepped}
-        last = {signal_key(s): np.zeros(episodes) for s in stepped}
+        readings = StepReadings(signals, episodes=episodes, env_id=space.env_id)
         returns, lengths = np.zeros(episodes), np.zeros(episodes, dtype=np.int64)
         terminated, truncated = np.zeros(episodes, bool), np.zeros(episodes, bool)
         success = np.zeros(episodes, bool)
@@ -222,21 +229,14 @@ def run_episodes(space: EnvSpace, agent, values: Mapping[str, Any], *, seed: int
                 observations[i] = observation
                 returns[i] += float(reward)
                 lengths[i] += 1
-                for s in stepped:
-                    key = signal_key(s)
-                    try:
-                        last[key][i] = read_signal(s, observation, info)
-                    except (KeyError, IndexError):
-                        raise SpaceError(f"environment {space.env_id!r}: {s.describe()} is not there "
-                                         f"(info keys: {', '.join(sorted(info)) or 'none'}; observation size "
-                                         f"{np.asarray(observation).size})") from None
-                    sums[key][i] += last[key][i]
+                readings.record(i, step=int(lengths[i]), observation=observation, reward=float(reward), info=info)
                 if space.occupancy:
                     occupancy[_bin(space, observation, info)] += 1.0
                 if term or trunc or lengths[i] >= limit:
                     terminated[i], truncated[i] = bool(term), not term
-                    success[i] = (bool(info.get(space.success.info_key, False)) if space.success.info_key
-                                  else returns[i] >= space.success.return_at_least)
+                    success[i] = _succeeded(space, reward=float(reward), episode_return=returns[i],
+                                            length=int(lengths[i]), terminated=bool(term), info=info,
+                                            observation=observation)
                     finished.append(row)
             if finished:
                 keep = np.setdiff1d(np.arange(len(active)), finished)
@@ -253,7 +253,7 @@ def run_episodes(space: EnvSpace, agent, values: Mapping[str, Any], *, seed: int
     for s in signals:
         key = signal_key(s)
         if s.source in ("info", "obs"):
-            recorded[key] = last[key] if s.at == "end" else sums[key] / np.maximum(lengths, 1)
+            recorded[key] = readings.values(s, lengths)
         elif s.source == "param":  # a choice counts as its index, as the measure's range does
             parameter = next(p for p in space.params if p.name == s.key)
             recorded[key] = np.full(episodes, float(parameter.numbers(parameter.unit(values[s.key]))))
@@ -262,6 +262,19 @@ def run_episodes(space: EnvSpace, agent, values: Mapping[str, Any], *, seed: int
                              "truncated": truncated}[s.source].astype(np.float64)
     return Episodes(returns=returns, lengths=lengths, terminated=terminated, truncated=truncated, success=success,
                     signals=recorded, occupancy=occupancy.astype(np.float32))
+
+
+def _succeeded(space: EnvSpace, *, reward: float, episode_return: float, length: int, terminated: bool,
+               info: Mapping[str, Any], observation: Any) -> bool:
+    """Whether an episode that ended so succeeded: it is no fault, where the space declares one, else it passes
+    the success test."""
+    if space.fault is not None:
+        return not space.fault.happened(last_reward=reward, episode_return=episode_return, length=length,
+                                        terminated=terminated, truncated=not terminated, info=info,
+                                        observation=observation)
+    if space.success.info_key:
+        return bool(info.get(space.success.info_key, False))
+    return episode_return >= space.success.return_at_least
 
 
 def _bin(space: EnvSpace, observation: Any, info: Mapping[str, Any]) -> tuple[int, int]:

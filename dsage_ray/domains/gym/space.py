@@ -5,7 +5,9 @@ environment takes it, the measures (episode statistics, ``info`` keys, observati
 themselves), the success test and, optionally, two state coordinates whose visitation histogram is the
 surrogate's ancillary target (the paper's occupancy). It comes from a TOML file (:func:`load_space_file`), a
 shipped name (``cartpole``, ``lunarlander``) or command-line strings (:func:`parse_param`,
-:func:`parse_env_arg`), and is plain data: reading it runs no code.
+:func:`parse_env_arg`), and is plain data: reading it runs no code, and its expressions are bounded
+(:mod:`~dsage_ray.domains.gym.expressions`). The one exception is ``[env] setup = "python:FILE.py:FUNCTION"``: a
+space naming a setup hook runs that code when it plays a level (never when it is read).
 
 A space file::
 
@@ -29,8 +31,15 @@ A space file::
     [measures.length]                     # episode statistics: return, length, terminated, truncated
     range = [0, 1000]
 
+    [measures.contact_x]                  # a value at an event: obs[0] at the first step where a leg touches,
+    obs = 0                               # ... else (it never does) at the end ("mean", "min", "max" or a number)
+    at = "first"
+    when = "obs[6] > 0 or obs[7] > 0"
+    otherwise = "end"
+    range = [-1.0, 1.0]
+
     [success]
-    return_at_least = 200.0               # or: info = "is_success"
+    return_at_least = 200.0               # or: info = "is_success"; or a [fault] table instead (fault.py)
 
     [occupancy]                           # optional: the two-stage surrogate's visitation histogram
     x = {obs = 0, range = [-1.5, 1.5]}
@@ -39,16 +48,17 @@ A space file::
     [audit]
     measures = ["landing_x", "length"]    # the default audit's archive measures
 
+    [nominal]                             # optional: the level the agent was trained on, played before a search
+    gravity = -10.0                       # (default: the environment as registered, no parameter set)
+
 Solutions are points of ``[-1, 1]^P`` (one coordinate per parameter, in declaration order): the box's centre is
 every range's midpoint, so CMA-ME's search from the origin starts in the middle of the space.
 """
 
 from __future__ import annotations
 
-import ast
 import dataclasses
 import math
-import operator
 import re
 import tomllib
 from pathlib import Path
@@ -56,12 +66,19 @@ from typing import Any, Literal, Mapping, Sequence
 
 import numpy as np
 
-from dsage_ray.errors import InputError, did_you_mean
+from dsage_ray.domains.gym.errors import SpaceError
+from dsage_ray.domains.gym.expressions import (ExpressionError, check_expression, evaluate_expression,
+                                               parse_condition)
+from dsage_ray.domains.gym.fault import Fault, parse_fault
+from dsage_ray.errors import did_you_mean
 
-#: Where a parameter goes: a ``gym.make`` keyword, a ``reset(options=...)`` entry, or an attribute of
-#: ``env.unwrapped`` set after each reset.
-Target = Literal["make", "reset", "attr"]
-TARGETS: tuple[str, ...] = ("make", "reset", "attr")
+__all__ = ["EnvSpace", "ExpressionError", "Fault", "Measure", "Parameter", "Signal", "SpaceError", "Success",
+           "build_space", "check_expression", "evaluate_expression", "load_space", "read_space_tables"]
+
+#: Where a parameter goes: a ``gym.make`` keyword, a ``reset(options=...)`` entry, an attribute of
+#: ``env.unwrapped`` set after each reset, or only the setup hook (``setup = true``), which gets every value.
+Target = Literal["make", "reset", "attr", "setup"]
+TARGETS: tuple[str, ...] = ("make", "reset", "attr", "setup")
 #: Episode statistics a measure may name directly.
 EPISODE_STATISTICS: tuple[str, ...] = ("return", "length", "terminated", "truncated")
 #: Spaces shipped with the package, by name (``--space cartpole``).
@@ -71,10 +88,12 @@ DEFAULT_CELLS = 20
 #: Default histogram bins per occupancy coordinate.
 DEFAULT_BINS = 8
 _ATTRIBUTE = re.compile(r"^([A-Za-z_]\w*)(?:\[(\d+)\])?$")
-
-
-class SpaceError(InputError):
-    """A space file or ``--param`` string that does not describe a parameter space; the message says where."""
+#: How a signal is read off an episode's steps (``first``: at the first step where its ``when`` holds).
+READINGS: tuple[str, ...] = ("end", "mean", "min", "max", "first")
+#: The names a measure's ``when`` condition may use, read after each step (``step``: 1 at the first).
+STEP_NAMES: tuple[str, ...] = ("obs", "reward", "info", "step")
+#: The ``python:`` prefix of a setup hook, as of a ``python:`` agent.
+SETUP_PREFIX = "python:"
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -150,6 +169,8 @@ class Parameter:
         """``name in [low, high] (attribute state[2])``: one line for messages and help."""
         span = "{" + ", ".join(map(str, self.choices)) + "}" if self.kind == "choice" else (
             f"[{self.low:g}, {self.high:g}]" + (" integers" if self.kind == "int" else ""))
+        if self.target == "setup":
+            return f"{self.name} in {span} (read by the setup hook)"
         where = {"make": "gym.make keyword", "reset": "reset option", "attr": "attribute"}[self.target]
         return f"{self.name} in {span} ({where} {self.key})"
 
@@ -161,18 +182,30 @@ class Signal:
     Attributes:
         source: ``return``, ``length``, ``terminated``, ``truncated``, ``info``, ``obs`` or ``param``.
         key: The ``info`` key, the observation index (as text) or the parameter name.
-        at: ``end`` (the last step's value) or ``mean`` (over the episode's steps); info and observations only.
+        at: How the steps' values make one (info and observations only, :data:`READINGS`): ``end`` (the last
+            step's), ``mean``, ``min`` or ``max`` over the steps, or ``first``: the value at the first step where
+            ``when`` holds.
+        when: ``at = "first"``'s condition over :data:`STEP_NAMES` (``obs[6] > 0 or obs[7] > 0``).
+        otherwise: ``at = "first"``'s value when ``when`` never holds: ``end``, ``mean``, ``min``, ``max`` (as
+            ``at``) or a number.
     """
 
     source: str
     key: str = ""
-    at: Literal["end", "mean"] = "end"
+    at: Literal["end", "mean", "min", "max", "first"] = "end"
+    when: str = ""
+    otherwise: str | float = ""
 
     def describe(self) -> str:
         if self.source in EPISODE_STATISTICS:
             return f"episode {self.source}"
         where = {"info": f"info[{self.key!r}]", "obs": f"observation[{self.key}]", "param": f"parameter {self.key}"}
-        return where[self.source] + ("" if self.source == "param" else f" at the {'end' if self.at == 'end' else 'mean'}")
+        if self.source == "param":
+            return where["param"]
+        if self.at == "first":
+            return f"{where[self.source]} at the first step where {self.when} (else {self.otherwise})"
+        return where[self.source] + {"end": " at the end", "mean": " (mean)", "min": " (minimum)",
+                                     "max": " (maximum)"}[self.at]
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -229,6 +262,14 @@ class EnvSpace:
         observation_attr: An attribute of ``env.unwrapped`` the first observation is re-read from after the
             parameters are set (CartPole's ``state``), for parameters that move the initial state.
         max_episode_steps: The episode's step limit (default: the environment's registered one).
+        setup: ``python:FILE.py:FUNCTION`` or ``python:MODULE:FUNCTION``, called after each reset as
+            ``FUNCTION(env, values)`` (it may return a new first observation), or ``""``. User code.
+        fault: What makes an episode a failure; replaces :attr:`success` when set.
+        deterministic: The space declares the environment and the agent deterministic given a level: an
+            evaluation plays one episode (checked before the search by playing one level twice).
+        reset_seed: The seed every episode resets with (a fixed terrain, as testers of LunarLander use), or None.
+        nominal: ``{parameter name: value}`` of the nominal level the audit plays before its search (the
+            ``[nominal]`` table); the parameters it leaves out are not set (the environment's own values).
         audit_measures: The default audit's measures.
         source: Where the space came from, for messages.
     """
@@ -243,6 +284,11 @@ class EnvSpace:
     derived: Mapping[str, str] = dataclasses.field(default_factory=dict)
     observation_attr: str = ""
     max_episode_steps: int | None = None
+    setup: str = ""
+    fault: Fault | None = None
+    deterministic: bool = False
+    reset_seed: int | None = None
+    nominal: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     audit_measures: tuple[str, ...] = ()
     source: str = "command line"
 
@@ -254,6 +300,13 @@ class EnvSpace:
     def occupancy_shape(self) -> tuple[int, int]:
         """The histogram's shape, ``(1, 1)`` without coordinates (then it holds the share of the step limit used)."""
         return tuple(self.bins) if self.occupancy else (1, 1)
+
+    def nominal_level(self) -> tuple["EnvSpace", dict[str, Any]]:
+        """The space and values that play the nominal level: only the ``[nominal]`` parameters, set to their values,
+        and no setup hook (it sets a level), so without a ``[nominal]`` table the environment as registered with
+        the fixed ``gym.make`` keywords."""
+        params = tuple(p for p in self.params if p.name in self.nominal)
+        return dataclasses.replace(self, params=params, setup=""), dict(self.nominal)
 
     def values(self, solution: np.ndarray) -> dict[str, Any]:
         """``{parameter name: value}`` of a solution (a point of ``[-1, 1]^P``, clipped)."""
@@ -287,7 +340,12 @@ class EnvSpace:
         def signal(s: Signal) -> dict[str, Any]:
             if s.source in EPISODE_STATISTICS:
                 return {"stat": s.source}
-            return {s.source: int(s.key) if s.source == "obs" else s.key, **({"at": s.at} if s.source != "param" else {})}
+            entry = {s.source: int(s.key) if s.source == "obs" else s.key}
+            if s.source != "param":
+                entry["at"] = s.at
+            if s.at == "first":
+                entry.update(when=s.when, otherwise=s.otherwise)
+            return entry
 
         params = {}
         for p in self.params:
@@ -295,13 +353,18 @@ class EnvSpace:
                                      else {"range": [int(p.low), int(p.high)] if p.kind == "int" else [p.low, p.high]})
             if p.kind == "int":
                 entry["int"] = True
-            if p.target != "make" or p.key != p.name:
+            if p.target == "setup":
+                entry["setup"] = True
+            elif p.target != "make" or p.key != p.name:
                 entry[p.target] = p.key
             params[p.name] = entry
         space: dict[str, Any] = {
             "env": {"id": self.env_id, "args": dict(self.env_args), "derived": dict(self.derived),
                     **({"observation_attr": self.observation_attr} if self.observation_attr else {}),
-                    **({"max_episode_steps": self.max_episode_steps} if self.max_episode_steps else {})},
+                    **({"max_episode_steps": self.max_episode_steps} if self.max_episode_steps else {}),
+                    **({"setup": self.setup} if self.setup else {}),
+                    **({"deterministic": True} if self.deterministic else {}),
+                    **({"reset_seed": self.reset_seed} if self.reset_seed is not None else {})},
             "params": params,
             "measures": {m.name: {**signal(m.signal), "range": [m.low, m.high], "cells": m.cells}
                          for m in self.measures.values()},
@@ -309,6 +372,10 @@ class EnvSpace:
                         else {"return_at_least": self.success.return_at_least}),
             "audit": {"measures": list(self.audit_measures)},
         }
+        if self.fault is not None:
+            space["fault"] = self.fault.to_dict()
+        if self.nominal:
+            space["nominal"] = dict(self.nominal)
         if self.occupancy:
             space["occupancy"] = {axis: {**signal(c.signal), "range": [c.low, c.high], **({"label": c.name} if c.name else {})}
                                   for axis, c in zip("xy", self.occupancy)}
@@ -341,7 +408,7 @@ def read_space_tables(space: str) -> tuple[dict[str, Any], str]:
         raise SpaceError(f"space file {str(path)!r}: not found")
     try:
         return tomllib.loads(path.read_text()), str(path)
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+    except (ValueError, UnicodeDecodeError) as exc:  # a TOMLDecodeError, or an integer of over 4300 digits
         raise SpaceError(f"space file {str(path)!r}: not TOML ({exc})") from None
 
 
@@ -381,7 +448,7 @@ def parse_param(text: str) -> tuple[str, dict[str, Any]]:
     target, dot, key = name.partition(".")
     entry = parse_range(name, text_range.strip())
     if dot and target in TARGETS:
-        entry[target] = key
+        entry[target] = True if target == "setup" else key
         return key, entry
     return name, entry
 
@@ -416,12 +483,13 @@ def build_space(tables: Mapping[str, Any] | None = None, *, env_id: str = "", pa
         SpaceError: Anything malformed, named by its table and key.
     """
     tables = dict(tables or {})
-    unknown = sorted(set(tables) - {"env", "params", "measures", "success", "occupancy", "audit"})
+    unknown = sorted(set(tables) - {"env", "params", "measures", "success", "fault", "occupancy", "audit", "nominal"})
     if unknown:
         raise SpaceError(f"{source}: unknown table(s) {', '.join(unknown)} (known: env, params, measures, success, "
-                         f"occupancy, audit)")
+                         f"fault, occupancy, audit, nominal)")
     env = _table(tables, "env", source)
-    _known_keys(env, ("id", "args", "derived", "observation_attr", "max_episode_steps"), f"{source} [env]")
+    _known_keys(env, ("id", "args", "derived", "observation_attr", "max_episode_steps", "setup", "deterministic",
+                      "reset_seed"), f"{source} [env]")
     env_id = env_id or str(env.get("id", ""))
     if not env_id:
         raise SpaceError(f"{source}: no environment id (give --env ID or [env] id in a space file)")
@@ -443,7 +511,11 @@ def build_space(tables: Mapping[str, Any] | None = None, *, env_id: str = "", pa
                                                        low=p.low, high=p.high))
     for name in EPISODE_STATISTICS[2:]:
         measures.setdefault(name, Measure(name=name, signal=Signal(source=name), low=0.0, high=1.0))
-    success = _success(_table(tables, "success", source), source)
+    # A fault replaces the success test: a space file can then leave [success] out, and a --space-set fault
+    # over a shipped space's [success] needs no way to delete it.
+    fault = parse_fault(tables["fault"], where=f"{source} [fault]") if "fault" in tables else None
+    success = (_success(_table(tables, "success", source), source) if fault is None or "success" in tables
+               else Success(return_at_least=0.0))
     occupancy_table = dict(_table(tables, "occupancy", source))
     bins = occupancy_table.pop("bins", [DEFAULT_BINS, DEFAULT_BINS])
     if not (isinstance(bins, list) and len(bins) == 2 and all(isinstance(b, int) and b >= 1 for b in bins)):
@@ -459,13 +531,52 @@ def build_space(tables: Mapping[str, Any] | None = None, *, env_id: str = "", pa
     derived = dict(_table(env, "derived", f"{source} [env]"))
     for name, expression in derived.items():
         check_expression(expression, where=f"{source} [env.derived] {name}")
+    setup = _setup(env.get("setup", ""), f"{source} [env] setup")
+    hooked = [p.name for p in parameters if p.target == "setup"]
+    if hooked and not setup:
+        raise SpaceError(f"{source}: parameter(s) {', '.join(hooked)} go to the setup hook (setup = true), but [env] "
+                         f"names none (setup = \"python:FILE.py:FUNCTION\")")
     for p in parameters:
         if p.target == "attr" and p.key in derived:
             raise SpaceError(f"{source}: parameter {p.name!r} sets {p.key!r}, which [env.derived] also computes")
+    deterministic = env.get("deterministic", False)
+    if not isinstance(deterministic, bool):
+        raise SpaceError(f"{source} [env] deterministic: must be true or false, got {deterministic!r}")
+    reset_seed = env.get("reset_seed")
+    if reset_seed is not None and (isinstance(reset_seed, bool) or not isinstance(reset_seed, int)
+                                   or not 0 <= reset_seed < 2**63):
+        raise SpaceError(f"{source} [env] reset_seed: must be a non-negative integer, got {reset_seed!r}")
     return EnvSpace(env_id=env_id, env_args=args, params=parameters, measures=measures, success=success,
                     occupancy=occupancy, bins=tuple(bins), derived=derived,
                     observation_attr=str(env.get("observation_attr", "")), max_episode_steps=steps,
+                    setup=setup, fault=fault,
+                    deterministic=deterministic, reset_seed=reset_seed,
+                    nominal=_nominal(_table(tables, "nominal", source), parameters, source),
                     audit_measures=audit_measures, source=source)
+
+
+def _nominal(table: Mapping[str, Any], params: Sequence[Parameter], source: str) -> dict[str, Any]:
+    """The ``[nominal]`` table checked: every name a parameter of the space, every value in its range."""
+    by_name = {p.name: p for p in params}
+    for name, value in table.items():
+        if name not in by_name:
+            raise SpaceError(f"{source} [nominal] {name}: not a parameter of the space (its parameters: "
+                             f"{', '.join(by_name)})" + did_you_mean(name, list(by_name)))
+        try:
+            by_name[name].unit(value)
+        except SpaceError as exc:
+            raise SpaceError(f"{source} [nominal] {name}: {exc}") from None
+    return dict(table)
+
+
+def _setup(spec: Any, where: str) -> str:
+    """A setup hook's spec, checked for its form only: reading a space imports nothing."""
+    if spec == "":
+        return ""
+    location, sep, function = spec[len(SETUP_PREFIX):].rpartition(":") if isinstance(spec, str) else ("", "", "")
+    if not (isinstance(spec, str) and spec.startswith(SETUP_PREFIX) and sep and location and function.isidentifier()):
+        raise SpaceError(f"{where}: expected \"python:FILE.py:FUNCTION\" or \"python:MODULE:FUNCTION\", got {spec!r}")
+    return spec
 
 
 def _table(tables: Mapping[str, Any], name: str, source: str) -> Mapping[str, Any]:
@@ -499,9 +610,11 @@ def _parameter(name: str, entry: Any, source: str) -> Parameter:
     _known_keys(entry, ("range", "int", "choices", *TARGETS), where)
     targets = [t for t in TARGETS if t in entry]
     if len(targets) > 1:
-        raise SpaceError(f"{where}: give one of make, reset, attr, not {' and '.join(targets)}")
+        raise SpaceError(f"{where}: give one of make, reset, attr, setup, not {' and '.join(targets)}")
     target = targets[0] if targets else "make"
-    key = str(entry.get(target, name))
+    if target == "setup" and entry["setup"] is not True:
+        raise SpaceError(f"{where}: setup = true sends the parameter to the setup hook only, got {entry['setup']!r}")
+    key = name if target == "setup" else str(entry.get(target, name))
     if "choices" in entry:
         if "range" in entry:
             raise SpaceError(f"{where}: give range or choices, not both")
@@ -527,8 +640,9 @@ def _signal(entry: Mapping[str, Any], where: str, *, name: str = "") -> Signal:
     if len(sources) > 1:
         raise SpaceError(f"{where}: give one of stat, info, obs, param, not {' and '.join(sources)}")
     at = entry.get("at", "end")
-    if at not in ("end", "mean"):
-        raise SpaceError(f"{where}: at must be 'end' or 'mean', got {at!r}")
+    if at not in READINGS:
+        raise SpaceError(f"{where}: at must be one of {', '.join(map(repr, READINGS))}, got {at!r}")
+    when, otherwise = _event(entry, at, where)
     if not sources:
         if name in EPISODE_STATISTICS:
             return Signal(source=name)
@@ -544,14 +658,35 @@ def _signal(entry: Mapping[str, Any], where: str, *, name: str = "") -> Signal:
         raise SpaceError(f"{where}: obs must be a non-negative index, got {value!r}")
     if source in ("info", "param") and not (isinstance(value, str) and value):
         raise SpaceError(f"{where}: {source} must name a key, got {value!r}")
-    return Signal(source=source, key=str(value), at=at)
+    if source == "param" and ("at" in entry or when):
+        raise SpaceError(f"{where}: a parameter is known before the episode: no at, when or otherwise")
+    return Signal(source=source, key=str(value), at=at, when=when, otherwise=otherwise)
+
+
+def _event(entry: Mapping[str, Any], at: str, where: str) -> tuple[str, str | float]:
+    """``at = "first"``'s ``when`` condition and ``otherwise`` fallback, checked (both only with it)."""
+    if at != "first":
+        if "when" in entry or "otherwise" in entry:
+            raise SpaceError(f"{where}: when and otherwise go with at = \"first\" (the first step where WHEN holds)")
+        return "", ""
+    if "when" not in entry or "otherwise" not in entry:
+        raise SpaceError(f"{where}: at = \"first\" needs when = \"CONDITION\" (e.g. \"obs[6] > 0\") and otherwise "
+                         f"(the value when it never holds: \"end\", \"mean\", \"min\", \"max\" or a number)")
+    parse_condition(entry["when"], where=f"{where} when", names=STEP_NAMES)
+    otherwise = entry["otherwise"]
+    if isinstance(otherwise, bool) or not (otherwise in READINGS[:-1] or isinstance(otherwise, (int, float))):
+        raise SpaceError(f"{where}: otherwise must be \"end\", \"mean\", \"min\", \"max\" or a number, "
+                         f"got {otherwise!r}")
+    if isinstance(otherwise, (int, float)) and not math.isfinite(otherwise):
+        raise SpaceError(f"{where}: otherwise must be a finite number, got {otherwise!r}")
+    return entry["when"], float(otherwise) if isinstance(otherwise, (int, float)) else otherwise
 
 
 def _measure(name: str, entry: Any, source: str, params: Sequence[Parameter], steps: int | None) -> Measure:
     where = f"{source} [measures.{name}]"
     if not isinstance(entry, Mapping):
         raise SpaceError(f"{where}: expected a table")
-    _known_keys(entry, ("stat", "info", "obs", "param", "at", "range", "cells"), where)
+    _known_keys(entry, ("stat", "info", "obs", "param", "at", "when", "otherwise", "range", "cells"), where)
     signal = _signal(entry, where, name=name)
     if "range" in entry:
         low, high = _pair(entry["range"], where)
@@ -604,43 +739,6 @@ def _success(entry: Mapping[str, Any], source: str) -> Success:
     return Success(return_at_least=float(threshold))
 
 
-# ------------------------------------------------------------------------- derived attributes
-
-_OPERATORS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,
-              ast.Pow: operator.pow, ast.USub: operator.neg, ast.UAdd: operator.pos}
-
-
-def check_expression(expression: Any, *, where: str) -> None:
-    """Refuses anything but arithmetic (``+ - * / **``, numbers, attribute names) in a derived attribute."""
-    if not isinstance(expression, str):
-        raise SpaceError(f"{where}: expected an arithmetic expression as a string, got {expression!r}")
-    try:
-        tree = ast.parse(expression, mode="eval")
-    except SyntaxError:
-        raise SpaceError(f"{where}: {expression!r} is not an expression") from None
-    for node in ast.walk(tree):
-        if not isinstance(node, (ast.Expression, ast.BinOp, ast.UnaryOp, ast.Name, ast.Load, ast.Constant,
-                                 *_OPERATORS)) or (isinstance(node, ast.Constant)
-                                                   and not isinstance(node.value, (int, float))):
-            raise SpaceError(f"{where}: {expression!r} may hold only numbers, attribute names and + - * / **")
-
-
-def evaluate_expression(expression: str, names: Mapping[str, Any]) -> float:
-    """The value of a checked arithmetic expression (:func:`check_expression`) with ``names`` as its variables."""
-    def value(node: ast.AST) -> float:
-        if isinstance(node, ast.Constant):
-            return node.value
-        if isinstance(node, ast.Name):
-            if node.id not in names:
-                raise KeyError(node.id)
-            return names[node.id]
-        if isinstance(node, ast.UnaryOp):
-            return _OPERATORS[type(node.op)](value(node.operand))
-        return _OPERATORS[type(node.op)](value(node.left), value(node.right))
-
-    return float(value(ast.parse(expression, mode="eval").body))
-
-
 def merge_space_lines(tables: Mapping[str, Any], lines: Sequence[str]) -> dict[str, Any]:
     """``tables`` with each line of a space file (``success.return_at_least = 200``,
     ``measures.speed = {info = "speed", range = [0, 1]}``) set over it, as ``--space-set`` gives them.
@@ -652,7 +750,7 @@ def merge_space_lines(tables: Mapping[str, Any], lines: Sequence[str]) -> dict[s
     for line in lines:
         try:
             update = tomllib.loads(line)
-        except tomllib.TOMLDecodeError as exc:
+        except ValueError as exc:  # a TOMLDecodeError, or an integer of over 4300 digits
             raise SpaceError(f"--space-set {line!r}: not a line of a space file, KEY = VALUE in TOML ({exc})") from None
         _deep_update(merged, update)
     return merged

@@ -74,7 +74,26 @@ def test_shipped_spaces_load():
     ({"params": {"n": {"range": [0.5, 3], "int": True}}}, "an integer range needs integer bounds"),
     ({"measures": {"x": {"range": [0, 1]}}}, "say what it reads"),
     ({"measures": {"x": {"obs": 0}}}, "needs range = [LOW, HIGH]"),
-    ({"measures": {"x": {"info": "k", "at": "middle", "range": [0, 1]}}}, "at must be 'end' or 'mean'"),
+    ({"measures": {"x": {"info": "k", "at": "middle", "range": [0, 1]}}}, "at must be one of 'end', 'mean', 'min', 'max', 'first'"),
+    ({"measures": {"x": {"obs": 0, "at": "first", "range": [0, 1]}}}, "at = \"first\" needs when"),
+    ({"measures": {"x": {"obs": 0, "when": "obs[0] > 0", "otherwise": "end", "range": [0, 1]}}},
+     "when and otherwise go with at = \"first\""),
+    ({"measures": {"x": {"obs": 0, "at": "first", "when": "speed > 0", "otherwise": "end", "range": [0, 1]}}},
+     "names 'speed' (known: obs, reward, info, step)"),
+    ({"measures": {"x": {"obs": 0, "at": "first", "when": "obs[1] > 0", "otherwise": "later", "range": [0, 1]}}},
+     "otherwise must be"),
+    ({"measures": {"x": {"param": "length", "at": "mean"}}}, "a parameter is known before the episode"),
+    ({"fault": {}}, "declare at least one test"),
+    ({"fault": {"last_reward_below": -100}}, "unknown key(s) last_reward_below"),
+    ({"fault": {"last_reward_at_most": "low"}}, "last_reward_at_most must be a number"),
+    ({"fault": {"terminated": 1}}, "terminated must be true or false"),
+    ({"fault": {"condition": "import os"}}, "is not an expression"),
+    ({"env": {"id": "CartPole-v1", "setup": "hook.py:f"}}, "expected \"python:FILE.py:FUNCTION\""),
+    ({"env": {"id": "CartPole-v1", "setup": "python:hook.py"}}, "expected \"python:FILE.py:FUNCTION\""),
+    ({"env": {"id": "CartPole-v1", "deterministic": "yes"}}, "deterministic: must be true or false"),
+    ({"env": {"id": "CartPole-v1", "reset_seed": -1}}, "reset_seed: must be a non-negative integer"),
+    ({"params": {"force": {"range": [0, 1], "setup": True}}}, "go to the setup hook (setup = true), but [env] names"),
+    ({"params": {"force": {"range": [0, 1], "setup": "force"}}}, "setup = true sends the parameter"),
     ({"success": {}}, "say how an episode succeeds"),
     ({"audit": {"measures": ["nope"]}}, "unknown measure 'nope'"),
     ({"env": {"id": "CartPole-v1", "derived": {"x": "__import__('os')"}}}, "may hold only numbers"),
@@ -112,3 +131,44 @@ def test_derived_expressions_are_arithmetic_only():
     assert evaluate_expression("a * b + 2 ** 2 - -1", {"a": 2.0, "b": 3.0}) == 11.0
     with pytest.raises(KeyError):
         evaluate_expression("a + c", {"a": 1.0})
+
+
+def test_a_fault_replaces_the_success_test_and_round_trips():
+    tables = {key: value for key, value in SPACE.items() if key != "success"}
+    space = build_space({**tables, "fault": {"last_reward_at_most": -100, "terminated": True}})
+    assert space.fault.describe() == "fault: last reward <= -100 and terminated"
+    assert build_space(space.to_dict()).fault == space.fault
+    crash = dict(last_reward=-100.0, episode_return=-250.0, length=80, terminated=True, truncated=False, info={},
+                 observation=np.zeros(8))
+    assert space.fault.happened(**crash)
+    assert not space.fault.happened(**{**crash, "last_reward": -99.0})
+    assert not space.fault.happened(**{**crash, "terminated": False, "truncated": True})
+
+
+def test_a_fault_condition_and_info_key_are_read_off_the_last_step():
+    space = build_space({**SPACE, "fault": {"info": "collided", "condition": "obs[0] > 1"}})
+    last = dict(last_reward=0.0, episode_return=0.0, length=5, terminated=True, truncated=False,
+                observation=np.array([2.0, 0.0]))
+    assert space.fault.happened(info={"collided": True}, **last)
+    assert not space.fault.happened(info={"collided": False}, **last)
+    assert not space.fault.happened(info={"collided": True}, **{**last, "observation": np.array([0.5, 0.0])})
+
+
+def test_setup_hooks_deterministic_spaces_and_event_measures_round_trip():
+    space = build_space({**SPACE,
+                         "env": {"id": "LunarLander-v3", "setup": "python:hook.py:push", "deterministic": True,
+                                 "reset_seed": 0},
+                         "params": {"force_x": {"range": [-1000, 1000], "setup": True}},
+                         "measures": {"contact_x": {"obs": 0, "at": "first", "when": "obs[6] > 0 or obs[7] > 0",
+                                                    "otherwise": "min", "range": [-1, 1]},
+                                      "late": {"obs": 1, "at": "first", "when": "step >= 3", "otherwise": -2,
+                                               "range": [-1, 1]}},
+                         "audit": {"measures": ["contact_x", "late"]}})
+    assert (space.setup, space.deterministic, space.reset_seed) == ("python:hook.py:push", True, 0)
+    assert space.params[0].target == "setup" and "setup hook" in space.params[0].describe()
+    signal = space.measure("contact_x").signal
+    assert (signal.at, signal.when, signal.otherwise) == ("first", "obs[6] > 0 or obs[7] > 0", "min")
+    assert space.measure("late").signal.otherwise == -2.0
+    again = build_space(space.to_dict())
+    assert again.measures == space.measures and again.params == space.params
+    assert (again.setup, again.deterministic, again.reset_seed) == (space.setup, True, 0)
