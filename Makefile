@@ -18,7 +18,7 @@ $(STAMP): pyproject.toml Makefile
 	$(BIN)/pip install --quiet torch==2.13.0
 	# An old egg-info at the root would shadow the installed metadata, and with it the domain entry points.
 	rm -rf dsage_ray.egg-info
-	$(BIN)/pip install --quiet -e '.[mario,dev,bench,gym,sb3]'
+	$(BIN)/pip install --quiet -e '.[mario,dev,bench,gym,sb3,sb3_contrib]'
 	# mario-gpt ships the Mario AI jar and the human levels; its own deps (transformers) are not needed.
 	$(BIN)/pip install --quiet --no-deps mario-gpt==0.1.3
 	touch $(STAMP)

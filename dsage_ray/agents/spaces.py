@@ -89,7 +89,19 @@ def check_space(agent_space: Any, env_space: gymnasium.Space, *, which: str, lab
                 fits: Callable[[Any, gymnasium.Space], bool] = same_space) -> None:
     """AgentError naming both spaces unless ``fits(agent_space, env_space)``."""
     if not fits(agent_space, env_space):
-        raise AgentError(f"{label}: {which} space {agent_space} does not match the environment's {env_space}")
+        raise AgentError(f"{label}: {which} space {describe_space(agent_space)} does not match the environment's "
+                         f"{describe_space(env_space)}")
+
+
+def describe_space(space: Any) -> str:
+    """A space in one short line: a Box by its shape and dtype (its bounds can fill a screen), others as printed."""
+    if isinstance(space, spaces.Box):
+        return f"Box(shape={space.shape}, {space.dtype})"
+    if isinstance(space, spaces.Dict):
+        return "Dict(" + ", ".join(f"{k}: {describe_space(v)}" for k, v in space.spaces.items()) + ")"
+    if isinstance(space, spaces.Tuple):
+        return "Tuple(" + ", ".join(describe_space(v) for v in space.spaces) + ")"
+    return " ".join(str(space).split())
 
 
 def require_discrete_or_box(action_space: gymnasium.Space, *, label: str) -> None:
