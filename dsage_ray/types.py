@@ -190,6 +190,57 @@ class AuditableDomain(Domain, Protocol):
         """The domain's own numbers of one collection entry: every key its registration's ``columns`` name."""
 
 
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class NominalResult:
+    """What the audited agent did on its domain's nominal level: the level it was trained for, with nothing varied.
+
+    The audit plays it before every search (:mod:`dsage_ray.audit.nominal`), so that an agent played other than
+    as trained (its observation preprocessing missing, another environment version) is caught before the search
+    reports failures that are artefacts of the loader.
+
+    Attributes:
+        level: The nominal level in words, for the printed line and the report (``"CartPole-v1 as registered"``).
+        return_name: What :attr:`mean_return` is in this domain (``"return"``, ``"MiniGrid reward"``,
+            ``"completion"``), for the printed line.
+        mean_return: The mean over the episodes of an episode's return.
+        return_std: The sample standard deviation of the episodes' returns (0 for one episode).
+        success_rate: The share of the episodes the domain's success test passed, in ``[0, 1]``.
+        episodes: Episodes played (an A* run that is deterministic counts once).
+        seed: The seed the episodes were played with.
+        expected_return: The return the agent's own training record expects there
+            (:attr:`~dsage_ray.agents.base.Agent.expected_return`), or None.
+        expected_return_source: Where :attr:`expected_return` was read from.
+        causes: The likely causes of a failing check in this domain, for the one-line stop.
+    """
+
+    level: str
+    return_name: str = "return"
+    mean_return: float
+    return_std: float
+    success_rate: float
+    episodes: int
+    seed: int
+    expected_return: float | None = None
+    expected_return_source: str = ""
+    causes: str = ""
+
+
+@runtime_checkable
+class NominalDomain(Protocol):
+    """An optional capability of an :class:`AuditableDomain`: a nominal level to play the agent on before a search.
+
+    Gym: the environment as registered (only the space's fixed ``gym.make`` keywords), or the values of the space's
+    ``[nominal]`` table; Maze: an open room; Mario: a flat level. A domain without one skips the check.
+    """
+
+    def play_nominal(self, *, seed: int) -> NominalResult:
+        """Plays the audited agent for a few episodes of the nominal level, deterministic for ``seed``.
+
+        Raises:
+            ValueError: The agent or the level cannot be played (one line).
+        """
+
+
 #: Evaluates a batch of solutions, one seed each, returning results in submission order. An evaluator may
 #: also offer ``evaluate_until(solutions, seeds, *, deadline, progress)`` (stop starting levels once
 #: ``time.perf_counter()`` passes ``deadline``; return the evaluated prefix) and ``runs_elsewhere = True``

@@ -52,6 +52,16 @@ def add_subparser(subparsers) -> None:
                       help="maze: search where --agent does worse than this agent, on the same seeds "
                            "(objective regression)")
     add_gym_arguments(audit)
+    nominal = audit.add_argument_group(
+        "the nominal check", "Before the search the agent plays the domain's nominal level (gym: the environment as "
+        "registered, or the space's [nominal] values; maze: an open room; mario: a flat level). The audit stops "
+        "where it does far worse there than expected (below E - max(0.25*|E|, 3 standard errors)), or never "
+        "succeeds there when no return is expected (docs/GUIDE.md)")
+    nominal.add_argument("--expect-return", type=float, metavar="X",
+                         help="the agent's mean return on the nominal level (default: its own training record, e.g. "
+                              "an RL Zoo folder's evaluations.npz)")
+    nominal.add_argument("--allow-failing-nominal", action="store_true",
+                         help="go on with the search after a failing nominal check (it is printed and recorded)")
     search = audit.add_argument_group("the search")
     add_config_arguments(search)
     search.add_argument("--variant",
@@ -176,7 +186,8 @@ def run_audit_command(args: argparse.Namespace) -> int:
         objective=args.objective, measures=measures, budget=args.budget, seed=args.seed,
         overrides=overrides, out=args.out, local=args.local,
         workers=args.workers, address=args.address, resume=args.resume, episodes=args.episodes,
-        max_levels=args.max_levels, collect_only=args.collect_only)
+        max_levels=args.max_levels, collect_only=args.collect_only, expect_return=args.expect_return,
+        allow_failing_nominal=args.allow_failing_nominal)
     print(f"collection: {collection.path}")
     print(collection.summary_line)
     for level in collection.levels[:5]:

@@ -196,6 +196,7 @@ def build_collection(
     evaluator: Evaluator | None = None,
     max_levels: int | None = None,
     search_dir: str | Path | None = None,
+    nominal: dict[str, Any] | None = None,
 ) -> Path:
     """Re-evaluates the valid elites of ``archive`` and writes the collection folder (module docstring).
 
@@ -217,6 +218,8 @@ def build_collection(
             (the Ray simulator pool fits here too).
         max_levels: Keep only the elites the search rated worst (all by default).
         search_dir: Recorded in the collection for provenance.
+        nominal: The audit's nominal check (:meth:`dsage_ray.audit.nominal.NominalCheck.to_dict`), recorded as
+            ``nominal`` for the report's header.
 
     Returns:
         ``out_dir``.
@@ -318,6 +321,8 @@ def build_collection(
         "levels": records,
         **domain.collection_fields(),
     }
+    if nominal is not None:
+        collection["nominal"] = nominal
     atomic_write_json(staging / COLLECTION_FILE, collection)
     write_report(staging)
     replace_dir(staging, out_dir)

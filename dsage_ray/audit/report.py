@@ -43,6 +43,7 @@ from typing import Any, Callable, Collection, Sequence
 import numpy as np
 
 from dsage_ray.audit.collection_file import audit_declaration, load_collection
+from dsage_ray.audit.nominal import record_summary
 from dsage_ray.audit.summary import FAILURE_CELL_RATE, failure_summary, grid_indices
 from dsage_ray.domains import ReportField
 from dsage_ray.io import atomic_write_text
@@ -570,6 +571,7 @@ def _metadata(c: dict[str, Any], collection_dir: Path) -> str:
         ("domain", _esc(c["domain"])),
         ("agent", f"<code>{_esc(c['agent'])}</code>"),
         ("reference", f"<code>{_esc(c['reference'])}</code>" if c.get("reference") else "none"),
+        *([("nominal check", _nominal(c))] if "nominal" in c else []),
         ("objective", _esc(c["objective"])),
         ("measures", _esc(ranges)),
         ("preset", _esc(config.get("preset", "?"))),
@@ -586,6 +588,20 @@ def _metadata(c: dict[str, Any], collection_dir: Path) -> str:
     if c.get("notes"):
         items.append(("notes", _esc(c["notes"])))
     return "<dl class='meta'>" + "".join(f"<dt>{k}</dt><dd>{v}</dd>" for k, v in items) + "</dl>"
+
+
+def _nominal(c: dict[str, Any]) -> str:
+    """The header's text of the audit's nominal check (the agent on the domain's nominal level before the search),
+    marked where it failed."""
+    record = c["nominal"]
+    text = _esc(record_summary(record)) if isinstance(record, dict) else "?"
+    passed = isinstance(record, dict) and record.get("verdict") == "ok"
+    return text if passed else f"<span class='bad'>{text}</span>"
+
+
+def _nominal_failed(c: dict[str, Any]) -> bool:
+    record = c.get("nominal")
+    return isinstance(record, dict) and record.get("verdict") != "ok"
 
 
 def _summary(s: dict[str, Any]) -> str:
@@ -919,6 +935,9 @@ def write_report(collection_dir: str | Path) -> Path:
     else:
         title = f"Audit of {c['agent']}"
         lead = f"Levels where <code>{_esc(c['agent'])}</code> fails, worst first."
+    if _nominal_failed(c):
+        lead += (" <span class='bad'>The agent failed its nominal check (see Run below): the failures here may be "
+                 "artefacts of how it was played.</span>")
     lead += (f" Every number was measured again after the search with the level's recorded seed and "
              f"{_esc(c['episodes'])} episodes; each level's command prints it again. The terms are explained "
              f"<a href='#terms'>below</a>.")

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from dsage_ray.audit.collection import agent_slug, audit_config, audit_spec, build_collection
+from dsage_ray.audit.nominal import NOMINAL_FILE, audit_nominal, check_expect_return, play_nominal
 from dsage_ray.audit.results import Collection
 from dsage_ray.config import RunConfig, presets
 from dsage_ray.errors import InputError
@@ -55,6 +56,8 @@ def run_audit(
     episodes: int | None = None,
     max_levels: int | None = None,
     collect_only: bool = False,
+    expect_return: float | None = None,
+    allow_failing_nominal: bool = False,
 ) -> Collection:
     """Searches for levels where ``agent`` fails and saves them reproducibly: ``dsage-ray audit`` from Python.
 
@@ -84,6 +87,11 @@ def run_audit(
         episodes: Episodes (Mario: runs) per re-evaluation in the collection (default: the config's).
         max_levels: Keep only this many of the worst levels.
         collect_only: Skip the search; build the collection from the last checkpoint of the search in ``out``.
+        expect_return: The return the agent reaches on the domain's nominal level, over its own
+            ``expected_return`` (an RL Zoo folder's ``evaluations.npz``). Before the search the agent plays that
+            level (:mod:`dsage_ray.audit.nominal`), and the audit stops where it does far worse than this, or,
+            with no figure known, never succeeds there.
+        allow_failing_nominal: Go on after a failing nominal check (printing it).
 
     Returns:
         The collection (levels worst first, their seeds and numbers, the summary, the report's path).
@@ -91,6 +99,8 @@ def run_audit(
     Raises:
         InputError: Bad arguments, an agent that does not load, an ``out`` that already holds an audit
             (without ``resume``/``collect_only``) or holds none (with them).
+        NominalCheckFailed: The agent does far worse on the nominal level than expected, or never succeeds
+            there (an :class:`InputError`; nothing is searched or written).
         ResourceError: The search's trial does not fit the machine.
         TrialFailed: The Tune trial of the search failed.
     """
@@ -101,6 +111,7 @@ def run_audit(
         raise InputError(f"workers must be >= 0 (0: simulate in the trial process), got {workers}")
     if collect_only and out is None:
         raise InputError("collect_only needs the out folder of the search to collect from")
+    check_expect_return(expect_return)
     spec = audit_spec(domain)  # an unknown domain, or one without audits, before its presets are read
     started = _started(out) if resume or collect_only else None
     config = audit_config(domain=domain, agent=agent, reference=reference,
@@ -112,7 +123,8 @@ def run_audit(
     if out is None:
         out = default_audit_folder(agent, domain=domain)
     return search_and_collect(config, out_dir=out, local=local, workers=workers, address=address, resume=resume,
-                              episodes=episodes, max_levels=max_levels, collect_only=collect_only)
+                              episodes=episodes, max_levels=max_levels, collect_only=collect_only,
+                              expect_return=expect_return, allow_failing_nominal=allow_failing_nominal)
 
 
 def default_audit_folder(agent: str | None, *, domain: str = "maze") -> Path:
@@ -163,26 +175,32 @@ def search_and_collect(
     episodes: int | None = None,
     max_levels: int | None = None,
     collect_only: bool = False,
+    expect_return: float | None = None,
+    allow_failing_nominal: bool = False,
 ) -> Collection:
     """The audit of an audit config: the search (:func:`dsage_ray.run`), then :func:`build_collection`.
 
     Args:
         config: An audit config (:func:`~dsage_ray.audit.collection.audit_config`).
-        out_dir, local, workers, address, resume, episodes, max_levels, collect_only: As in :func:`run_audit`.
+        out_dir, local, workers, address, resume, episodes, max_levels, collect_only, expect_return,
+            allow_failing_nominal: As in :func:`run_audit`.
 
     Raises:
         As :func:`run_audit`.
     """
     out_dir = Path(out_dir)
+    check_expect_return(expect_return)
     check_audit_folder(out_dir, resume=resume, collect_only=collect_only)
     with folder_lock(out_dir, what="audit"):  # also: an --out that cannot be written fails before the search
         recover_replaced_dir(out_dir / COLLECTION_DIR)  # what an audit killed while writing its collection left
         return _search_and_collect(config, out_dir=out_dir, local=local, workers=workers, address=address,
-                                   resume=resume, episodes=episodes, max_levels=max_levels, collect_only=collect_only)
+                                   resume=resume, episodes=episodes, max_levels=max_levels, collect_only=collect_only,
+                                   expect_return=expect_return, allow_failing_nominal=allow_failing_nominal)
 
 
 def _search_and_collect(config: RunConfig, *, out_dir: Path, local: bool, workers: int | None, address: str | None,
-                        resume: bool, episodes: int | None, max_levels: int | None, collect_only: bool) -> Collection:
+                        resume: bool, episodes: int | None, max_levels: int | None, collect_only: bool,
+                        expect_return: float | None, allow_failing_nominal: bool) -> Collection:
     from dsage_ray.domains import get_domain
     from dsage_ray.preflight import preflight
     from dsage_ray.runs import run
@@ -194,14 +212,24 @@ def _search_and_collect(config: RunConfig, *, out_dir: Path, local: bool, worker
                          else config.replace(**{get_domain(config.domain).audit.episodes_key: int(episodes)}))
     if collect_only or episodes is not None:  # the collection's own episodes are checked before the search
         preflight(collection_config)
+    played_now = not ((resume or collect_only) and (out_dir / NOMINAL_FILE).is_file())
+    nominal = audit_nominal(lambda: _play_nominal(config, expect_return=expect_return), folder=out_dir,
+                            reuse=resume or collect_only, allow_failing=allow_failing_nominal)
     if collect_only:
         search = search_on_disk(search_dir, config=config)
     else:
-        search = run(config, local=local, out=search_dir, address=address, resume=resume)
+        try:
+            search = run(config, local=local, out=search_dir, address=address, resume=resume)
+        except BaseException:
+            if nominal is not None and played_now and not search_dir.exists():
+                # Stopped before the search began (a preflight error): leave the folder as it was.
+                (out_dir / NOMINAL_FILE).unlink(missing_ok=True)
+            raise
+    record = None if nominal is None else nominal.to_dict()
     collection_dir = out_dir / COLLECTION_DIR
     if local or collection_config.ray.num_workers == 0:
         build_collection(search.archive, config=collection_config, out_dir=collection_dir, max_levels=max_levels,
-                         search_dir=search.path)
+                         search_dir=search.path, nominal=record)
         return Collection.load(collection_dir)
 
     from dsage_ray.ray.pool import SimulatorPool
@@ -211,10 +239,20 @@ def _search_and_collect(config: RunConfig, *, out_dir: Path, local: bool, worker
     pool = SimulatorPool(config=collection_config)
     try:
         build_collection(search.archive, config=collection_config, out_dir=collection_dir, evaluator=pool,
-                         max_levels=max_levels, search_dir=search.path)
+                         max_levels=max_levels, search_dir=search.path, nominal=record)
     finally:
         pool.close()
     return Collection.load(collection_dir)
+
+
+def _play_nominal(config: RunConfig, *, expect_return: float | None):
+    """The nominal check of ``config``'s agent (None for a domain without a nominal level), after the preflight, so
+    that an agent that does not load fails with the preflight's line."""
+    from dsage_ray.domains import build_domain
+    from dsage_ray.preflight import preflight
+
+    preflight(config)
+    return play_nominal(build_domain(config), run_seed=config.seed, expect_return=expect_return)
 
 
 def search_on_disk(search_dir: Path, *, config: RunConfig | None = None) -> RunResult:

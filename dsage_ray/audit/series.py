@@ -397,9 +397,12 @@ class AuditSeries:
             overrides["surrogate.init"] = warm_from
         if audit_dir.exists():  # an audit of this checkpoint that was interrupted before it was recorded
             shutil.rmtree(audit_dir)
+        # A series follows training, whose early checkpoints fail the nominal level by rights: their check is
+        # printed and recorded in their collection, and does not stop the series.
         collection = run_audit(agent=agent, domain=self.domain, preset=self.preset, budget=self.budget,
                                seed=self.seed + index, overrides=overrides, out=audit_dir, local=self.local,
-                               workers=self.workers, address=self.address, episodes=self.episodes)
+                               workers=self.workers, address=self.address, episodes=self.episodes,
+                               allow_failing_nominal=True)
 
         # 3. Its failing levels that the suite does not hold yet.
         known = {np.asarray(level.solution, dtype=domain.solution_dtype).tobytes() for level in self.suite}

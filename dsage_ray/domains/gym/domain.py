@@ -199,7 +199,8 @@ class GymDomain:
             success_rate=float(played.success.mean()), episodes=episodes, seed=int(seed),
             expected_return=agent.expected_return, expected_return_source=agent.expected_return_source,
             causes=(f"observation preprocessing not applied (normalisation statistics, frame stacking, the training "
-                    f"wrappers) or an environment version other than the one it was trained on (here {space.env_id})"))
+                    f"wrappers), an environment version other than the one it was trained on (here {space.env_id}), "
+                    f"or actions sampled from a policy meant to be played greedily (?greedy=1)"))
 
     @property
     def agent_spec(self) -> str:

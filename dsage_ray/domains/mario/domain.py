@@ -12,8 +12,9 @@ from dsage_ray.domains.mario.encoding import PADDED_SIZE, one_hot_levels
 from dsage_ray.domains.mario.evaluate import MEASURES, MarioEvaluation, evaluate_level
 from dsage_ray.domains.mario.plugin import DOMAIN, MarioConfig
 from dsage_ray.domains.mario.render import level_png
-from dsage_ray.domains.mario.tiles import EMPTY, LEVEL_HEIGHT, LEVEL_WIDTH, NUM_TILES, SKY_ROWS, indices_to_string
-from dsage_ray.types import EncodedLevels, EvaluationResult, Solution, Solutions
+from dsage_ray.domains.mario.tiles import (CHAR_TO_INDEX, EMPTY, LEVEL_HEIGHT, LEVEL_WIDTH, NUM_TILES, SKY_ROWS,
+                                           indices_to_string)
+from dsage_ray.types import EncodedLevels, EvaluationResult, NominalResult, Solution, Solutions
 
 #: Natural range of each measure, used when the config gives no ``measure_ranges``.
 #: Sky tiles and jumps follow the paper; kills follow its appendix ([0, 25]).
@@ -25,6 +26,13 @@ NATURAL_RANGES: dict[str, tuple[float, float]] = {
 
 #: The agent specs a Mario audit accepts (the domain has one agent: the A* planner).
 AGENT_SPECS = ("astar", "astar:ITERATIONS")
+
+
+def flat_level(width: int = LEVEL_WIDTH) -> np.ndarray:
+    """The nominal Mario level: ``width`` columns of sky over two rows of ground, nothing else."""
+    level = np.full((LEVEL_HEIGHT, width), EMPTY, dtype=np.int64)
+    level[-2:] = CHAR_TO_INDEX["X"]
+    return level
 
 
 def parse_agent_spec(spec: str) -> int | None:
@@ -245,6 +253,27 @@ class MarioDomain:
             raise ValueError("mario: no Java runtime found (install a JDK 17, or set JAVA_HOME)") from None
         except (SimulatorError, GeneratorError) as exc:
             raise ValueError(f"mario: {exc}") from None
+
+    def play_nominal(self, *, seed: int) -> NominalResult:
+        """A* on a flat level (:func:`flat_level`, :class:`~dsage_ray.types.NominalDomain`), ``config.runs`` runs
+        (one where the iteration-count timer makes them alike); its return is the completion. ``seed`` is unused,
+        as in :meth:`run`.
+
+        Raises:
+            ValueError: The runs failed in Java or timed out.
+        """
+        played = evaluate_level(flat_level(), simulator=self.simulator, runs=self.config.runs)
+        if played.failed:
+            raise ValueError(f"mario: A* on the flat level failed ({played.error})")
+        completion = np.array([episode.completion for episode in played.episodes], dtype=np.float64)
+        return NominalResult(
+            level=f"a flat level ({LEVEL_WIDTH} columns of ground)", return_name="completion",
+            mean_return=float(completion.mean()),
+            return_std=float(completion.std(ddof=1)) if len(completion) > 1 else 0.0,
+            success_rate=float(np.mean([episode.status == "WIN" for episode in played.episodes])),
+            episodes=len(completion), seed=int(seed),
+            causes=(f"a game timer too short to cross a level (mario.timer = {self.config.timer} s) or too few A* "
+                    f"iterations per tick (mario.astar_iterations = {self.config.astar_iterations})"))
 
     @property
     def agent_spec(self) -> str:
