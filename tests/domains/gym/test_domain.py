@@ -196,3 +196,20 @@ def test_with_parameter_measures_dsage_picks_only_elites_that_would_enter_the_ar
     picks, _ = proposer._select(surrogate_archive, {}, {})
     allowed = {tuple(row) for row in elites["solution"][adding]}
     assert len(picks) and all(tuple(row) in allowed for row in picks)
+
+
+def test_the_nominal_level_is_the_environment_as_registered_or_the_spaces_nominal_values(policy_file):
+    from dsage_ray.types import NominalDomain
+
+    domain = build_domain(config(**{"gym.agent": policy_file}))
+    assert isinstance(domain, NominalDomain)
+    registered = domain.play_nominal(seed=4)
+    assert registered.level == "CartPole-v1 as registered" and registered.episodes == 10
+    space, values = domain.space.nominal_level()
+    played = run_episodes(space, domain.agent, values, seed=4, episodes=10)
+    assert registered.mean_return == pytest.approx(played.returns.mean())
+    assert registered.success_rate == pytest.approx(played.success.mean())
+    assert space.params == () and values == {}  # no parameter set: CartPole's own 0.5 m pole
+    heavy = build_domain(config(**{"gym.agent": policy_file, "gym.space_set": ("nominal.length = 2.0",)}))
+    long_pole = heavy.play_nominal(seed=4)
+    assert long_pole.level == "CartPole-v1 with length=2.0" and long_pole.mean_return != registered.mean_return

@@ -94,6 +94,11 @@ def test_shipped_spaces_load():
     ({"env": {"id": "CartPole-v1", "reset_seed": -1}}, "reset_seed: must be a non-negative integer"),
     ({"params": {"force": {"range": [0, 1], "setup": True}}}, "go to the setup hook (setup = true), but [env] names"),
     ({"params": {"force": {"range": [0, 1], "setup": "force"}}}, "setup = true sends the parameter"),
+    # Bounds a file from someone else cannot pass: memory allocated away, an episode played for ever.
+    ({"measures": {"x": {"obs": 0, "range": [0, 1], "cells": 10**6}}}, "cells must be an integer in [1, 1,000]"),
+    ({"occupancy": {"x": {"obs": 0, "range": [0, 1]}, "y": {"obs": 1, "range": [0, 1]}, "bins": [10**5, 8]}},
+     "bins: expected two integers in [1, 256]"),
+    ({"env": {"id": "CartPole-v1", "max_episode_steps": 10**15}}, "max_episode_steps: must be an integer in [1, 1,000,000]"),
     ({"success": {}}, "say how an episode succeeds"),
     ({"audit": {"measures": ["nope"]}}, "unknown measure 'nope'"),
     ({"env": {"id": "CartPole-v1", "derived": {"x": "__import__('os')"}}}, "may hold only numbers"),
@@ -172,3 +177,27 @@ def test_setup_hooks_deterministic_spaces_and_event_measures_round_trip():
     again = build_space(space.to_dict())
     assert again.measures == space.measures and again.params == space.params
     assert (again.setup, again.deterministic, again.reset_seed) == (space.setup, True, 0)
+
+
+def test_a_nominal_table_names_parameters_with_values_in_their_ranges():
+    space = build_space({**SPACE, "nominal": {"length": 0.5, "mode": "a"}})
+    assert space.nominal == {"length": 0.5, "mode": "a"}
+    assert build_space(space.to_dict()).nominal == space.nominal  # level files keep it
+    nominal, values = space.nominal_level()
+    assert [p.name for p in nominal.params] == ["length", "mode"] and values == {"length": 0.5, "mode": "a"}
+    bare, none = build_space(SPACE).nominal_level()
+    assert bare.params == () and none == {} and bare.env_id == "CartPole-v1"  # the environment as registered
+    for table, message in (({"lenght": 0.5}, r"\[nominal\] lenght: not a parameter of the space .*did you mean"),
+                           ({"length": 3.0}, r"\[nominal\] length: .*3 is outside its range \[0.25, 2\]"),
+                           ({"mode": "d"}, r"\[nominal\] mode: .*'d' is not one of \['a', 'b', 'c'\]"),
+                           ({"n": "2"}, r"\[nominal\] n: .*'2' is not a number")):
+        with pytest.raises(SpaceError, match=message):
+            build_space({**SPACE, "nominal": table}, source="s.toml")
+    with pytest.raises(SpaceError, match="nominal must be a table"):
+        build_space({**SPACE, "nominal": 1})
+
+
+def test_the_shipped_lunarlander_is_nominally_windless():
+    tables, source = read_space_tables("lunarlander")
+    space = build_space(tables, source=source)
+    assert space.env_args == {"enable_wind": True} and space.nominal == {"wind_power": 0.0, "turbulence_power": 0.0}

@@ -125,3 +125,25 @@ def test_cli_sample_writes_text_and_png(tmp_path, capsys):
     capsys.readouterr()
     assert run_cli(["mario", "sample", "--n", "2", "--out", str(out), "--generator", str(tmp_path / "none.pt")]) == 2
     assert "generator weights not found" in capsys.readouterr().err
+
+
+def test_the_nominal_level_is_flat_ground():
+    from dsage_ray.domains.mario.domain import flat_level
+    from dsage_ray.domains.mario.tiles import to_string
+
+    rows = to_string(flat_level()).splitlines()
+    assert rows[:14] == ["-" * 56] * 14 and rows[14:] == ["X" * 56] * 2
+
+
+@needs_java
+@needs_javac
+def test_astar_crosses_the_flat_level_unless_its_timer_is_too_short():
+    from dsage_ray.types import NominalDomain
+
+    domain = MarioDomain(config=MarioConfig(runs=3, timer=5, astar_iterations=400))
+    assert isinstance(domain, NominalDomain)
+    played = domain.play_nominal(seed=0)
+    # The iteration-count timer makes the three runs one episode.
+    assert (played.mean_return, played.success_rate, played.episodes) == (1.0, 1.0, 1)
+    short = MarioDomain(config=MarioConfig(runs=1, timer=1, astar_iterations=400)).play_nominal(seed=0)
+    assert short.success_rate == 0.0 and 0.0 < short.mean_return < 1.0 and "mario.timer = 1 s" in short.causes

@@ -133,3 +133,35 @@ def test_an_agent_without_a_reduced_copy_screens_as_it_is(loads):
     full = domain.screen(levels, episodes=2, seed=4, precision="fp32")
     reduced = domain.screen(levels, episodes=2, seed=4, precision="bf16")
     assert [r.measures.tolist() for r in full] == [r.measures.tolist() for r in reduced]
+
+
+def test_the_nominal_level_is_an_open_room_scored_with_minigrids_reward():
+    from dsage_ray.agents.builtin import WallFollowerAgent
+    from dsage_ray.types import NominalDomain
+
+    domain = MazeDomain(config=MazeConfig(height=6, width=5, agent="builtin:wall_follower"))
+    assert isinstance(domain, NominalDomain)
+    played = domain.play_nominal(seed=3)
+    assert played.level == "an open 6x5 room (start (0, 0), goal (5, 4))" and played.return_name == "MiniGrid reward"
+    assert played.success_rate == 1.0 and played.episodes == 50 and played.expected_return is None
+    # MiniGrid's reward, 1 - 0.9 steps / max_steps, over the same episodes as an evaluation of the open room plays.
+    from dsage_ray.domains.maze.evaluate import evaluate
+    from dsage_ray.domains.maze.level import MazeLevel
+
+    run = evaluate(MazeLevel.from_bitmap(np.zeros((6, 5))), WallFollowerAgent(), episodes=50, seed=3)
+    rewards = 1.0 - 0.9 * run.episode_lengths / run.max_steps
+    assert played.mean_return == pytest.approx(rewards.mean()) and played.return_std == pytest.approx(rewards.std(ddof=1))
+    assert domain.play_nominal(seed=3) == played and domain.play_nominal(seed=4) != played
+
+
+def test_an_agent_that_never_reaches_the_goal_scores_nothing_in_the_open_room(monkeypatch):
+    from .conftest import UniformRandomAgent
+
+    class Spinner(UniformRandomAgent):
+        def act(self, obs, state, rng):
+            return np.zeros(len(state), dtype=np.int64), state  # turns left for ever
+
+    monkeypatch.setattr(dsage_ray.agents, "load_agent", lambda spec: Spinner(), raising=False)
+    played = MazeDomain(config=MazeConfig(height=4, width=4)).play_nominal(seed=0)
+    assert (played.success_rate, played.mean_return, played.return_std) == (0.0, 0.0, 0.0)
+    assert "see_through_walls = true" in played.causes
