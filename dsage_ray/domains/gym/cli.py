@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from dsage_ray.domains.agent_help import agent_kinds_help
 from dsage_ray.errors import InputError
@@ -36,6 +37,10 @@ def run_eval(args: argparse.Namespace) -> int:
     if args.episodes < 1:
         raise InputError(f"--episodes must be positive, got {args.episodes}")
     space, values = read_level(args.level)
+    if space.setup:  # a level file received from someone else may name one: say so before it runs
+        from dsage_ray.domains.gym.setup_hook import user_code_notice
+
+        print(user_code_notice(space.setup), file=sys.stderr)
     env = make_env(space, values)
     try:
         agent = load_gym_agent(args.agent, observation_space=env.observation_space, action_space=env.action_space,
@@ -43,7 +48,7 @@ def run_eval(args: argparse.Namespace) -> int:
     finally:
         env.close()
     played = run_episodes(space, agent, values, seed=args.seed, episodes=args.episodes)
-    summary = {"env": space.env_id, "values": values, "episodes": args.episodes, "seed": args.seed,
+    summary = {"env": space.env_id, "values": values, "episodes": len(played.returns), "seed": args.seed,
                "success_rate": float(played.success.mean()), "failure_rate": float(1 - played.success.mean()),
                "mean_return": float(played.returns.mean()), "min_return": float(played.returns.min()),
                "mean_length": float(played.lengths.mean())}
@@ -52,7 +57,8 @@ def run_eval(args: argparse.Namespace) -> int:
         return 0
     print(f"environment   {space.env_id}  ({', '.join(f'{k}={v:.4g}' if isinstance(v, float) else f'{k}={v}' for k, v in values.items())})")
     print(f"agent         {args.agent}")
-    print(f"episodes      {args.episodes} (seed {args.seed}); success: {space.success.describe()}")
+    test = space.fault.describe() if space.fault is not None else f"success: {space.success.describe()}"
+    print(f"episodes      {summary['episodes']} (seed {args.seed}); {test}")
     print(f"success rate  {summary['success_rate']:.3f}")
     print(f"return        mean {summary['mean_return']:.1f}, worst {summary['min_return']:.1f}")
     print(f"length        mean {summary['mean_length']:.1f}")

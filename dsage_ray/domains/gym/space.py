@@ -87,6 +87,12 @@ SHIPPED_DIR = Path(__file__).resolve().parent / "spaces"
 DEFAULT_CELLS = 20
 #: Default histogram bins per occupancy coordinate.
 DEFAULT_BINS = 8
+# Bounds on what a space file may ask for, so that a file received from someone else cannot make the audit allocate
+# the machine's memory away or play one episode for ever (each well past any published task's: 50 cells a measure,
+# 16 bins, 108,000 steps for Atari).
+MAX_CELLS = 1_000
+MAX_BINS = 256
+MAX_EPISODE_STEPS = 1_000_000
 _ATTRIBUTE = re.compile(r"^([A-Za-z_]\w*)(?:\[(\d+)\])?$")
 #: How a signal is read off an episode's steps (``first``: at the first step where its ``when`` holds).
 READINGS: tuple[str, ...] = ("end", "mean", "min", "max", "first")
@@ -501,8 +507,10 @@ def build_space(tables: Mapping[str, Any] | None = None, *, env_id: str = "", pa
         raise SpaceError(f"{source}: no parameters to search (declare [params.NAME] tables or give --param NAME=LOW:HIGH)")
     parameters = tuple(_parameter(name, entry, where) for name, (entry, where) in declared.items())
     steps = env.get("max_episode_steps")
-    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int) or steps < 1):
-        raise SpaceError(f"{source} [env] max_episode_steps: must be a positive integer, got {steps!r}")
+    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int)
+                              or not 1 <= steps <= MAX_EPISODE_STEPS):
+        raise SpaceError(f"{source} [env] max_episode_steps: must be an integer in [1, {MAX_EPISODE_STEPS:,}], "
+                         f"got {steps!r}")
     measures = {name: _measure(name, entry, source, parameters, steps)
                 for name, entry in _table(tables, "measures", source).items()}
     # Every parameter is also a measure (param.NAME), without declaring it.
@@ -518,8 +526,9 @@ def build_space(tables: Mapping[str, Any] | None = None, *, env_id: str = "", pa
                else Success(return_at_least=0.0))
     occupancy_table = dict(_table(tables, "occupancy", source))
     bins = occupancy_table.pop("bins", [DEFAULT_BINS, DEFAULT_BINS])
-    if not (isinstance(bins, list) and len(bins) == 2 and all(isinstance(b, int) and b >= 1 for b in bins)):
-        raise SpaceError(f"{source} [occupancy] bins: expected two positive integers, got {bins!r}")
+    if not (isinstance(bins, list) and len(bins) == 2
+            and all(isinstance(b, int) and not isinstance(b, bool) and 1 <= b <= MAX_BINS for b in bins)):
+        raise SpaceError(f"{source} [occupancy] bins: expected two integers in [1, {MAX_BINS}], got {bins!r}")
     if occupancy_table and set(occupancy_table) != {"x", "y"}:
         raise SpaceError(f"{source} [occupancy]: declare exactly x and y (and bins), got {', '.join(occupancy_table)}")
     occupancy = tuple(_coordinate(axis, occupancy_table[axis], source) for axis in "xy") if occupancy_table else ()
@@ -702,8 +711,8 @@ def _measure(name: str, entry: Any, source: str, params: Sequence[Parameter], st
     else:
         raise SpaceError(f"{where}: needs range = [LOW, HIGH]")
     cells = entry.get("cells", DEFAULT_CELLS)
-    if isinstance(cells, bool) or not isinstance(cells, int) or cells < 1:
-        raise SpaceError(f"{where}: cells must be a positive integer, got {cells!r}")
+    if isinstance(cells, bool) or not isinstance(cells, int) or not 1 <= cells <= MAX_CELLS:
+        raise SpaceError(f"{where}: cells must be an integer in [1, {MAX_CELLS:,}], got {cells!r}")
     if signal.source == "param" and signal.key not in {p.name for p in params}:
         raise SpaceError(f"{where}: param {signal.key!r} is not a parameter of the space")
     return Measure(name=name, signal=signal, low=low, high=high, cells=cells)

@@ -1,6 +1,7 @@
 """Mazouni et al.'s LunarLander task as a space file: the setup hook's initial force, the crash fault, the measures
 read at the first leg contact, and a deterministic space's one episode per evaluation."""
 
+import json
 import textwrap
 
 import numpy as np
@@ -138,3 +139,18 @@ def test_a_hook_that_fails_or_is_missing_is_named_in_one_line(tmp_path):
     with pytest.raises(SpaceError, match="not found"):
         reset_env(env, missing, {"p": 0.5}, seed=0)
     env.close()
+
+
+def test_gym_eval_of_a_level_with_a_hook_says_it_runs_user_code(heuristic_agent, tmp_path, capsys):
+    from dsage_ray.cli import main
+
+    domain = build_domain(config(heuristic_agent))
+    solution = np.array([0.5, 0.5], dtype=np.float32)
+    level = tmp_path / "level.txt"
+    level.write_text(domain.level_text(solution))
+    assert main(["gym", "eval", "--agent", heuristic_agent, "--level", str(level), "--episodes", "4", "--json"]) == 0
+    captured = capsys.readouterr()
+    assert "this space runs user code" in captured.err and "lunarlander_force:initial_force" in captured.err
+    summary = json.loads(captured.out)
+    result = domain.evaluate(solution, seed=0)
+    assert summary["episodes"] == 1 and summary["mean_return"] == result.info["mean_return"]
