@@ -1,13 +1,20 @@
 """The GridPath example domain (examples/dsage_ray_gridpath), installed as a package, runs with DSAGE.
 
-The proof that a user brings an environment without touching dsage_ray/: the package is installed into
-this environment like any plug-in (its ``dsage_ray.domains`` entry point is all dsage_ray learns of it),
-then run through ``dsage-ray run --local`` in a fresh process and ``dsage-ray ablate --grid`` on the
-session's Ray cluster, whose trial and simulator actors find it the same way.
+The proof that a user brings an environment without touching dsage_ray/: the package is installed like any
+plug-in (its ``dsage_ray.domains`` entry point is all dsage_ray learns of it), then run through ``dsage-ray run
+--local`` in a fresh process, ``dsage-ray ablate --grid`` in a fresh process on a Ray cluster of its own, whose
+trial and simulator actors find it the same way, and the audit and config commands in this process.
+
+It is installed into a folder of its own (``pip install --target``), not into this environment: the suite
+leaves the environment as it found it (a user's own install of the example stays, and another pytest worker
+never sees this one). The folder is on ``sys.path`` here while this module's tests run, and on ``PYTHONPATH``
+for the processes they start.
 """
 
 from __future__ import annotations
 
+import contextlib
+import importlib
 import importlib.util
 import json
 import os
@@ -15,6 +22,7 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
+from typing import Iterator
 
 import pytest
 
@@ -30,25 +38,68 @@ def pip(*args: str) -> None:
     assert proc.returncode == 0, f"pip {' '.join(args)} failed:\n{proc.stdout[-2000:]}{proc.stderr[-2000:]}"
 
 
-@pytest.fixture(scope="module")
-def gridpath(tmp_path_factory):
-    """Installs the example into this environment for the module's tests, then uninstalls it."""
+def with_path(folder: Path) -> dict[str, str]:
+    """This process's environment with ``folder`` first on ``PYTHONPATH``, for a process a test starts."""
+    paths = [str(folder), *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(paths), "RAY_AUTH_MODE": "disabled"}
+
+
+@contextlib.contextmanager
+def example_installed(build: Path) -> Iterator[Path]:
+    """The example installed into ``build/site`` (yielded): this process sees it while the block runs, and
+    forgets it after."""
     # pip builds in the source folder (build/, *.egg-info): build a copy, not the repository's.
-    source = tmp_path_factory.mktemp("gridpath") / "dsage_ray_gridpath"
+    source = build / "dsage_ray_gridpath"
     shutil.copytree(EXAMPLE, source)
+    target = build / "site"
     # Offline with the environment's setuptools when it has one; else pip's isolated build (its cache).
     offline = ["--no-build-isolation", "--no-index"] if importlib.util.find_spec("setuptools") else []
-    # Not editable: a Ray worker started before the install sees a new package in site-packages, but
-    # not a new .pth file (read at start-up only).
-    pip("install", "--quiet", "--no-deps", *offline, str(source))
-    yield EXAMPLE
-    pip("uninstall", "--quiet", "--yes", "dsage-ray-gridpath")
-    unregister_domain("gridpath")
+    pip("install", "--quiet", "--no-deps", *offline, "--target", str(target), str(source))
+    # Last on the path: the folder holds only the example, and must shadow nothing installed.
+    sys.path.append(str(target))
+    importlib.invalidate_caches()  # so that the entry-point scan reads the new folder
+    try:
+        yield target
+    finally:
+        sys.path.remove(str(target))
+        for module in [name for name in sys.modules if name.partition(".")[0] == "dsage_ray_gridpath"]:
+            del sys.modules[module]
+        importlib.invalidate_caches()
+        unregister_domain("gridpath")  # forgets the spec and rescans the entry points, now without the example
+
+
+@pytest.fixture(scope="module")
+def gridpath(tmp_path_factory):
+    """The example installed into a folder of its own for the module's tests: the folder."""
+    with example_installed(tmp_path_factory.mktemp("gridpath")) as target:
+        yield target
+
+
+def test_the_example_is_seen_only_while_its_tests_run(tmp_path):
+    """The install is the tests' own: after it, neither this process nor the environment knows the domain
+    (unless the environment itself has the example installed: then it still has)."""
+    from dsage_ray.domains import domain_names
+
+    def installed_here() -> bool:
+        return importlib.util.find_spec("dsage_ray_gridpath") is not None
+
+    environment_has_it = installed_here()
+    with example_installed(tmp_path) as target:
+        assert "gridpath" in domain_names() and installed_here()
+        probe = [sys.executable, "-c", "import dsage_ray_gridpath; print(dsage_ray_gridpath.__file__)"]
+        seen = subprocess.run(probe, env=with_path(target), capture_output=True, text=True, timeout=60)
+        assert seen.stdout.startswith(str(target)), seen.stderr
+    assert str(target) not in sys.path and "dsage_ray_gridpath" not in sys.modules
+    assert ("gridpath" in domain_names()) == installed_here() == environment_has_it
+    # The environment itself: a new process without the folder finds the example only if it is installed there.
+    probe = [sys.executable, "-c", "import importlib.util; print(importlib.util.find_spec('dsage_ray_gridpath'))"]
+    fresh = subprocess.run(probe, capture_output=True, text=True, timeout=60).stdout.strip()
+    assert (fresh != "None") == environment_has_it
 
 
 def test_run_local_in_a_fresh_process(gridpath, tmp_path):
     out = tmp_path / "run"
-    env = {**os.environ, "RAY_AUTH_MODE": "disabled"}
+    env = with_path(gridpath)
     proc = subprocess.run([sys.executable, "-m", "dsage_ray.cli", "run", str(CONFIG), "--local", "--preset", "tiny",
                            "--out", str(out)], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
@@ -67,11 +118,14 @@ def test_config_shows_the_plugins_section(gridpath, capsys):
     assert not any(key.startswith(("maze.", "mario.")) for key in flat)
 
 
-def test_ablate_grids_a_key_of_the_plugins_section_on_ray(gridpath, ray_session, tmp_path, capsys):
-    code = main(["ablate", str(CONFIG), "--preset", "tiny", "--grid", "gridpath.density=0.2,0.4", "--seeds", "1",
-                 "--workers", "1", "--set", "ray.cpus_per_worker=0.5", "--set", "ray.trial_cpus=0.5",
-                 "--out", str(tmp_path)])
-    assert code == 0, capsys.readouterr().err
+def test_ablate_grids_a_key_of_the_plugins_section_on_ray(gridpath, tmp_path):
+    # In a process of its own: the Ray cluster it starts passes PYTHONPATH on to its actors, where this
+    # session's cluster, started before the install, would not.
+    proc = subprocess.run([sys.executable, "-m", "dsage_ray.cli", "ablate", str(CONFIG), "--preset", "tiny",
+                           "--grid", "gridpath.density=0.2,0.4", "--seeds", "1", "--workers", "1",
+                           "--set", "ray.cpus_per_worker=0.5", "--set", "ray.trial_cpus=0.5", "--out", str(tmp_path)],
+                          cwd=tmp_path, env=with_path(gridpath), capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     trials = sorted(p.parent for p in (tmp_path / "gridpath_dsage").glob("*/params.json"))
     assert len(trials) == 2
     densities = sorted(json.loads((trial / "params.json").read_text())["gridpath.density"] for trial in trials)
