@@ -14,7 +14,7 @@ import numpy as np
 
 from dsage_ray.domains.gym.errors import SpaceError
 from dsage_ray.domains.gym.expressions import Expression, parse_condition
-from dsage_ray.domains.gym.space import STEP_NAMES, Signal
+from dsage_ray.domains.gym.space_model import STEP_NAMES, Signal
 
 
 def signal_key(signal: Signal) -> str:
