@@ -47,12 +47,13 @@ from dsage_ray.agents.base import Agent, AgentError
 #: ``factory(target, options) -> Agent``; it reads its options through :class:`SpecOptions`.
 AgentFactory = Callable[[str, "SpecOptions"], Agent]
 
-#: Kinds whose loading runs code the file brings: RLlib checkpoints (pickles), TorchScript programs, Stable-Baselines3
-#: zips (pickles) and ``python:`` modules. The others load data (``dcd:`` weights with ``weights_only``) or nothing
-#: (``builtin:``, ``random``, Mario's ``astar``). A plug-in kind is code the user installed.
-KINDS_RUNNING_CODE: tuple[str, ...] = ("rllib", "torchscript", "sb3", "python")
+#: Kinds whose loading runs code the file brings: RLlib checkpoints (pickles), TorchScript programs and ``python:``
+#: modules. The others load data (``dcd:`` weights with ``weights_only``, ``sb3:`` saves and zoo folders through the
+#: allowlist reader, :mod:`dsage_ray.agents.sb3_files`) or nothing (``builtin:``, ``random``, Mario's ``astar``). A
+#: plug-in kind is code the user installed.
+KINDS_RUNNING_CODE: tuple[str, ...] = ("rllib", "torchscript", "python")
 #: One line for help texts and the docs.
-RUNS_CODE_NOTE = ("loading rllib, torchscript, sb3 and python agents runs their code: use only files you trust "
+RUNS_CODE_NOTE = ("loading rllib, torchscript and python agents runs their code: use only files you trust "
                   "(docs/TRUST.md)")
 #: ``{path as a spec names it: the copy of it this process reads}``, filled by :mod:`dsage_ray.agents.shipping`.
 LOCAL_COPIES: dict[str, str] = {}

@@ -15,8 +15,9 @@ applies, and refuses what cannot be applied as trained (a wrapper that is neithe
 
 ``config.yml`` and ``args.yml`` are YAML with a ``!!python/object/apply:collections.OrderedDict`` tag: they are read
 with a safe loader that builds that one class and nothing else (any other ``!!python`` tag is refused, so a forged
-file runs nothing). ``normalize`` may be a string of a Python dict (``"{'norm_obs': True, 'norm_reward': False}"``),
-read with :func:`ast.literal_eval`, never ``eval``. ``evaluations.npz`` is read with ``allow_pickle=False``.
+file runs nothing). ``normalize`` may be a string of a Python dict (``"{'norm_obs': True, 'norm_reward': False}"`` or
+``"dict(norm_obs=True, norm_reward=False)"``), parsed with :mod:`ast`, never ``eval``. ``evaluations.npz`` is read
+with ``allow_pickle=False``.
 """
 
 from __future__ import annotations
@@ -174,10 +175,10 @@ def _normalize_options(value: Any, *, label: str) -> dict[str, Any]:
     """config.yml's ``normalize`` as VecNormalize keywords: {} for off, ``{"norm_obs": ...}`` otherwise."""
     if isinstance(value, str):
         try:
-            value = ast.literal_eval(value)
+            value = _literal(value)
         except (ValueError, SyntaxError):
-            raise AgentError(f"{label}: config.yml's normalize {value!r} is not a literal (true, false or a dict)") \
-                from None
+            raise AgentError(f"{label}: config.yml's normalize {value!r} is not a literal (true, false, a dict or "
+                             f"dict(key=literal, ...))") from None
     if value is True:
         return {"norm_obs": True}
     if not value:
@@ -185,6 +186,14 @@ def _normalize_options(value: Any, *, label: str) -> dict[str, Any]:
     if isinstance(value, dict):
         return {"norm_obs": True, **value}
     raise AgentError(f"{label}: config.yml's normalize {value!r} is not true, false or a dict")
+
+
+def _literal(text: str) -> Any:
+    """A Python literal, or ``dict(key=literal, ...)`` as the zoo writes ``normalize``; parsed, never evaluated."""
+    tree = ast.parse(text.strip(), mode="eval").body
+    if isinstance(tree, ast.Call) and isinstance(tree.func, ast.Name) and tree.func.id == "dict" and not tree.args:
+        return {keyword.arg: ast.literal_eval(keyword.value) for keyword in tree.keywords if keyword.arg}
+    return ast.literal_eval(tree)
 
 
 def _wrappers(value: Any, *, label: str) -> tuple[tuple[str, dict[str, Any]], ...]:
@@ -217,8 +226,7 @@ def _last_evaluation(path: Path, *, label: str) -> float | None:
             results = np.asarray(npz["results"], dtype=np.float64)
     except (OSError, KeyError, ValueError) as exc:
         raise AgentError(f"{label}: {str(path)!r} does not read as data ({describe_exception(exc)})") from None
-    if results.ndim == 1:
-        results = results[:, None]
-    if results.ndim != 2 or not len(results) or not np.all(np.isfinite(results[-1])):
+    results = results.reshape(len(results), -1) if results.ndim else results  # (evaluations, episodes[, 1])
+    if results.ndim != 2 or not results.size or not np.all(np.isfinite(results[-1])):
         raise AgentError(f"{label}: {str(path)!r} holds no finite evaluation returns (shape {results.shape})")
     return float(results[-1].mean())

@@ -139,7 +139,10 @@ def read_save(path: Path, *, label: str) -> Save:
             version = (archive.read("_stable_baselines3_version").decode(errors="replace").strip()
                        if "_stable_baselines3_version" in names else "")
     except zipfile.BadZipFile:
-        raise AgentError(f"{label}: not a zip file (expected a Stable-Baselines3 .zip save)") from None
+        head = path.read_bytes()[:64]
+        what = ("an empty file" if not head else "a Git LFS pointer, not the file itself (git lfs pull)"
+                if head.startswith(b"version https://git-lfs") else "not a zip file")
+        raise AgentError(f"{label}: {what} (expected a Stable-Baselines3 .zip save)") from None
     except KeyError:
         raise AgentError(f"{label}: no 'data' entry in the zip (not a Stable-Baselines3 save)") from None
     except (OSError, ValueError) as exc:
