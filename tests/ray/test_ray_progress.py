@@ -72,7 +72,7 @@ def test_a_local_run_writes_the_same_tensorboard_events_and_points_at_them(tmp_p
     history = json.loads((out / "metrics.json").read_text())
     ours = tensorboard_scalars(out, prefix="dsage/")
     assert [step for step, _ in ours["dsage/outer_iteration"]] == [int(m["evals"]) for m in history]
-    # The archive's numbers also within each iteration (core.tensorboard_log.growth_curve).
+    # The archive's numbers also within each iteration (qd.growth.growth_curve).
     assert {int(m["evals"]) for m in history} < {step for step, _ in ours["dsage/coverage"]}
     _, images = tensorboard_tags(out)
     assert "archive/heatmap" in images

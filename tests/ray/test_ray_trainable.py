@@ -113,7 +113,7 @@ def test_tune_run_grid_writes_tensorboard_scalars_and_images(tmp_path, capsys):
             assert {"archive/heatmap", "surrogate/predicted_vs_true_measures", "levels/elite_0"} <= images
             assert (trial_dir / "archive.csv").exists() and (trial_dir / "metrics.json").exists()
             # Ours: the runner's metrics under dsage/, one point per outer iteration at its evaluation count
-            # (the QD-score also within each iteration: core.tensorboard_log.growth_curve).
+            # (the QD-score also within each iteration: qd.growth.growth_curve).
             history = json.loads((trial_dir / "metrics.json").read_text())
             ours = tensorboard_scalars(trial_dir, prefix="dsage/")
             assert {"dsage/qd_score", "dsage/coverage", "dsage/archive_size", "dsage/surrogate_loss",
