@@ -239,7 +239,7 @@ class GymDomain:
 
     def reproduce_command(self, level_file: str | Path, *, seed: int) -> str:
         return shlex.join(["dsage-ray", "gym", "eval", "--agent", self.config.agent, "--level", str(level_file),
-                           "--seed", str(seed), "--episodes", str(self.config.episodes)])
+                           "--seed", str(seed), "--episodes", str(self.episodes)])
 
     def collection_fields(self) -> dict[str, Any]:
         env = make_env(self.space, self.space.values(np.zeros(self.solution_dim)))
