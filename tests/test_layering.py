@@ -2,8 +2,9 @@
 
 Layers, lowest first (:data:`LAYERS`; a module may import its own layer and the ones below):
 
-- **base**: what every other part stands on: errors, types (the Domain protocol), plug-in scanning, io,
-  memory, kernels, the run config, and the two registries that inject domains and agents by name
+- **base**: what every other part stands on: errors, types (the Domain protocol), plug-in scanning, io, the
+  allowlist unpickler (safe_pickle), memory, kernels, the run config, and the two registries that inject domains and
+  agents by name
   (``dsage_ray.domains`` and ``domains.registry``, ``agent_registry``), which import no domain and no agent.
 - **algorithm**: DSAGE itself: ``qd``, ``surrogate``, ``core``.
 - **domains and agents**: each domain (``dsage_ray.domains.<name>``) and the agent loaders (``dsage_ray.agents``).
@@ -37,7 +38,7 @@ BASE, ALGORITHM, DOMAINS_AND_AGENTS, PRODUCT = range(len(LAYERS))
 SUBTREES: dict[str, int] = {
     "dsage_ray.agent_registry": BASE, "dsage_ray.config": BASE, "dsage_ray.domains.registry": BASE,
     "dsage_ray.errors": BASE, "dsage_ray.io": BASE, "dsage_ray.kernels": BASE, "dsage_ray.memory": BASE,
-    "dsage_ray.plugins": BASE, "dsage_ray.types": BASE,
+    "dsage_ray.plugins": BASE, "dsage_ray.safe_pickle": BASE, "dsage_ray.types": BASE,
     "dsage_ray.core": ALGORITHM, "dsage_ray.qd": ALGORITHM, "dsage_ray.surrogate": ALGORITHM,
     "dsage_ray.agents": DOMAINS_AND_AGENTS, "dsage_ray.domains": DOMAINS_AND_AGENTS,
     "dsage_ray.api": PRODUCT, "dsage_ray.audit": PRODUCT, "dsage_ray.checkpoint_cli": PRODUCT, "dsage_ray.cli": PRODUCT,

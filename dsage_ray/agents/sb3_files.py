@@ -3,7 +3,7 @@
 An SB3 ``.zip`` stores its constructor arguments as JSON, with every object JSON cannot hold (the policy class, the
 spaces, the schedules, numpy arrays) as a base64 cloudpickle. SB3's own loader unpickles them, which runs whatever
 the file names, and fails on SB3 1.x saves whose spaces are ``gym``'s (``No module named 'gym'``). Here each pickle
-is read with the allowlist reader (:mod:`dsage_ray.core.safe_pickle`), which resolves only:
+is read with the allowlist reader (:mod:`dsage_ray.safe_pickle`), which resolves only:
 
 * the SB3 and sb3-contrib policy classes, torch's activation and optimiser classes and SB3's feature extractors
   (what ``policy_class`` and ``policy_kwargs`` name), and SB3's ``TrainFreq``;
@@ -32,7 +32,7 @@ from gymnasium import spaces
 
 from dsage_ray.agents.base import AgentError
 from dsage_ray.agents.loader import describe_exception
-from dsage_ray.core import safe_pickle
+from dsage_ray import safe_pickle
 
 #: Keys a policy does not use, given fixed values instead of being read (schedules are cloudpickled functions).
 REPLACED_KEYS: dict[str, Any] = {

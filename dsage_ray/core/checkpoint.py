@@ -7,11 +7,11 @@ A file is three parts::
 
     dsage_ray checkpoint\\n      magic line: a foreign file is recognised before anything is read
     {"format": 3, ...}\\n         JSON header: format version, library versions, payload size and sha256
-    <data pickle>                the state (:mod:`~dsage_ray.core.safe_pickle`)
+    <data pickle>                the state (:mod:`~dsage_ray.safe_pickle`)
 
 **Opening a checkpoint runs no code.** The state holds pyribs archives and emitters with their internal
 ``numpy.random.Generator`` states, which pickle exactly and nothing else stores, so the payload is a pickle, read
-by :mod:`~dsage_ray.core.safe_pickle`: only an allowlist of data classes is resolved, torch tensors are stored as
+by :mod:`~dsage_ray.safe_pickle`: only an allowlist of data classes is resolved, torch tensors are stored as
 raw bytes, and a pickle naming anything else is refused before it is called. A checkpoint can be shared like any
 data file. Format 2 (dsage_ray before this) was a plain pickle, which runs code when opened; it is refused, and
 ``dsage-ray checkpoint convert PATH --trust`` rewrites it once for whoever trusts where it came from.
@@ -44,7 +44,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping
 
-from dsage_ray.core import safe_pickle
+from dsage_ray import safe_pickle
 from dsage_ray.errors import InputError
 from dsage_ray.io import atomic_write_bytes
 
