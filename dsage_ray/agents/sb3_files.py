@@ -6,7 +6,7 @@ the file names, and fails on SB3 1.x saves whose spaces are ``gym``'s (``No modu
 is read with the allowlist reader (:mod:`dsage_ray.safe_pickle`), which resolves only:
 
 * the SB3 and sb3-contrib policy classes, torch's activation and optimiser classes and SB3's feature extractors
-  (what ``policy_class`` and ``policy_kwargs`` name), and SB3's ``TrainFreq``;
+  (what ``policy_class`` and ``policy_kwargs`` name), ``torch.device`` and SB3's ``TrainFreq``;
 * stand-ins (:class:`Recorded`) for spaces, ``VecNormalize`` and ``RunningMeanStd``: an object's class name and
   state, with none of its code called.
 
@@ -77,6 +77,10 @@ def _resolve(module: str, name: str) -> Any:
     """What an SB3 pickle may name beyond the allowlist (module docstring); None refuses it."""
     if module.startswith(_RECORDED_MODULES) and name.isidentifier():
         return _recorded_class(module, name)
+    if (module, name) == ("torch", "device"):  # some zoo saves keep device=torch.device("cpu") in policy_kwargs
+        import torch
+
+        return torch.device
     if not module.startswith(_CLASS_MODULES) or not name.isidentifier():
         return None
     try:
