@@ -12,7 +12,7 @@ for a few episodes, and the audit stops in one line where it does far worse ther
   is three standard errors of ``E − m`` when ``E`` is itself a mean of about ``n`` episodes (the RL Zoo
   evaluates 5 to 10), so episode noise alone does not stop an audit; it stands in for an absolute floor, which
   would have the units of each environment's return (MiniGrid's is at most 1, LunarLander's in the hundreds).
-  Measured on the RL Zoo's ``evaluations.npz`` (docs/AUDIT.md, ``benchmarks/nominal_rule.py``): 0.25·|E| alone
+  Measured on the RL Zoo's ``evaluations.npz`` (docs/GUIDE.md, ``benchmarks/nominal_rule.py``): 0.25·|E| alone
   stops the zoo's own DQN LunarLander agent in 10% of 10-episode checks (its episodes spread 32 to 225), the rule
   in 0.6%; every random agent is stopped.
 * without one: where no episode succeeds.

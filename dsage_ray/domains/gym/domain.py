@@ -17,7 +17,7 @@ from dsage_ray.types import EncodedLevels, EvaluationResult, NominalResult, Solu
 
 #: The ``format`` of a gym level file: the space it belongs to and the level's values, as JSON.
 LEVEL_FORMAT = "dsage_ray.gym.level/1"
-#: Episodes of the nominal check (as many as the RL Zoo's evaluations.npz rows hold; docs/AUDIT.md).
+#: Episodes of the nominal check (as many as the RL Zoo's evaluations.npz rows hold; docs/GUIDE.md).
 NOMINAL_EPISODES = 10
 
 
