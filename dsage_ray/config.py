@@ -70,12 +70,12 @@ def key(default: Any, *, status: str, values: str = "", note: str = "") -> Any:
 
 @dataclasses.dataclass
 class SurrogateConfig:
-    """The deep surrogate model (SPEC §4)."""
+    """The deep surrogate model (SPEC: the surrogate)."""
 
     kind: SurrogateKind = key("two_stage", status="paper",
                               note="two_stage predicts the agent's occupancy first (ancillary data); none: plain QD")
     epochs: int = key(200, status="paper", values=">= 1", note="epochs of each training on the recent window")
-    batch_size: int = key(64, status="paper", values=">= 1")
+    batch_size: int = key(64, status="paper", values=">= 1", note="Adam's minibatch size in each training")
     lr: float = key(1e-3, status="paper", values="> 0", note="Adam's learning rate")
     occupancy_weight: float = key(10.0, status="paper", values=">= 0",
                                   note="weight of the occupancy loss in the two-stage model's loss")
@@ -84,7 +84,7 @@ class SurrogateConfig:
     #: blocks' cost grows as its square (benchmarks/bench_surrogate.py prints FLOPs and predictions/s).
     channels: int = key(64, status="paper", values=">= 1",
                         note="network width; 16 cut the surrogate's share of a Maze cpu run from ≈50% to 17% for "
-                             "5% less QD-score (equal_compute §1)")
+                             "5% less QD-score (docs/DECISIONS.md)")
     #: Prediction arithmetic: ``fp32``, ``bf16`` (the two-stage model's residual blocks, most of its work,
     #: under bf16 autocast) or ``auto`` (bf16 on CUDA and on CPUs with native bf16, else fp32). Training is
     #: always fp32. ``auto`` resolves per machine, as ``device`` does.
@@ -104,7 +104,8 @@ class SurrogateConfig:
     #: through the domain's ``level_values``. The network still trains on them. Off (the paper): everything is
     #: predicted, so a pick can land a few wall counts away from the cell the inner loop chose it for.
     exact_level_values: bool = key(False, status="default-on",
-                                   note="take measures a level fixes by itself from the level (audits; equal_compute §11)")
+                                   note="take measures a level fixes by itself from the level "
+                                        "(audits; docs/DECISIONS.md)")
     #: Name of a measure that equals the sum of the occupancy grid (Maze: ``mean_path_length``, since
     #: the grid counts the agent's steps); a two-stage surrogate then predicts it as the sum of its
     #: predicted occupancy instead of with its own head. Empty (the paper): every measure has a head.
@@ -128,7 +129,7 @@ class QDConfig:
     #: vectors in a box (the domain's ``solution_bounds``, else [-1, 1]): ``gaussian`` (MAP-Elites with Gaussian
     #: mutation of ``sigma0``), ``halton`` (quasi-random samples) or ``cross_entropy`` (a cross-entropy falsifier).
     emitter: EmitterName = key("map_elites", status="paper", note="the QD search, in the inner loop or alone")
-    num_emitters: int = key(5, status="paper", values=">= 1")
+    num_emitters: int = key(5, status="paper", values=">= 1", note="emitters asking in parallel each step")
     batch_size: int = key(30, status="paper", values=">= 1", note="solutions each emitter asks for per step")
     #: MAP-Elites: cells mutated per offspring.
     mutation_cells: int = key(10, status="paper", values=">= 1", note="MAP-Elites: tiles changed per mutation")
@@ -155,21 +156,21 @@ class SelectionConfig:
     #: never-solved levels are the best elites, and a mutant of one is often never solved too, which the surrogate
     #: cannot predict within a cell. 0 (the paper): only the surrogate's picks.
     elite_mutants: int = key(0, status="default-on", values=">= 0",
-                             note="mutants of the best elites beside the picks (audits; equal_compute §13)")
+                             note="mutants of the best elites beside the picks (audits; docs/DECISIONS.md)")
     #: Before the real evaluation, screen the picks and more candidates with this many episodes each (the domain's
     #: ``screen``: Maze only) and evaluate, up to the selection's size, those whose screened result adds to the
     #: ground truth (not in the paper; :mod:`dsage_ray.qd.screen`). MAP-Elites (``qd.emitter = "map_elites"``
     #: without a surrogate) screens mutants of its elites instead, once its random start-up is over. 0 (the
     #: paper): evaluate the picks as chosen.
     screen_episodes: int = key(0, status="opt-in", values=">= 0",
-                               note="play candidates this many episodes before evaluating (Maze; equal_compute §15-17)")
+                               note="play candidates this many episodes before evaluating (Maze; docs/DECISIONS.md)")
     #: With ``screen_episodes``: keep the screened candidates expected to add most to the ground truth per expected
     #: cost, judged by the screen's errors on recently evaluated levels and the domain's cost model
     #: (``evaluation_cost`` of its config section: Maze's grows with the mean path length), instead of those whose
     #: screened cell alone would add, in the order screened (not in the paper; :func:`dsage_ray.qd.screen.keep_screened`).
     screen_gain: bool = key(False, status="opt-in",
                             note="rank screened candidates by expected gain per cost (on in the Maze cpu preset: "
-                                 "1.15× MAP-Elites at equal CPU time, equal_compute §19)")
+                                 "1.15× MAP-Elites at equal CPU time, docs/DECISIONS.md)")
 
 
 @dataclasses.dataclass
@@ -206,14 +207,14 @@ class ExperimentalConfig:
     #: ``selection.screen_episodes``: candidates screened per pick (the picks, then other elites predicted to add),
     #: or per level of a MAP-Elites batch.
     screen_pool: float = key(4.0, status="experimental", values=">= 1",
-                             note="candidates screened per pick; 3 and 6 level with 4 (equal_compute §17)")
+                             note="candidates screened per pick; 3 and 6 level with 4 (docs/DECISIONS.md)")
     #: ``selection.screen_episodes``: the agent's arithmetic in the screen. ``fp32``: the agent as it is
     #: evaluated; ``bf16``: its matrix products in bf16, where the agent has such a copy
     #: (``Agent.reduced_precision``: the ``dcd`` agents); ``auto``: bf16 on a CPU with native bf16 arithmetic,
     #: else fp32. Evaluations always run the agent as it is.
     screen_precision: Precision = key("auto", status="experimental",
                                       note="the screen's agent arithmetic; bf16 cut the screen's share 6.7% → 4.8% "
-                                           "(equal_compute §17)")
+                                           "(docs/DECISIONS.md)")
     #: ``selection.screen_gain``: how many of the latest evaluated levels' screen errors are kept.
     gain_window: int = key(1000, status="experimental", values=">= 1",
                            note="screen_gain: recent levels whose screen errors are kept (not tuned)")
@@ -241,7 +242,7 @@ class RunConfig:
     #: :data:`~dsage_ray.core.auto_search.BREAK_EVEN_COST_RATIO` times a random one, surrogate time included.
     search: SearchMode = key("fixed", status="opt-in",
                              note="auto: DSAGE, or the domain's direct search where the surrogate costs more than it "
-                                  "buys (equal_compute §21, §27); audits with a time budget take it unless told")
+                                  "buys (docs/DECISIONS.md); audits with a time budget take it unless told")
     preset: str = key("paper", status="tool", values="a preset of the domain",
                       note="the scale: paper, cpu, demo or tiny (sets other keys)")
     seed: int = key(0, status="tool", note="the run's seed; the same seed and config give the same archive")
@@ -273,7 +274,7 @@ class RunConfig:
     #: gives the same archive in-process and through Tune. The price: each selection is made by a
     #: surrogate one batch behind.
     pipeline: bool = key(False, status="opt-in",
-                         note="train and pick while the last picks are evaluated by Ray actors (equal_compute §7)")
+                         note="train and pick while the last picks are evaluated by Ray actors (docs/DECISIONS.md)")
     surrogate: SurrogateConfig = dataclasses.field(default_factory=SurrogateConfig)
     qd: QDConfig = dataclasses.field(default_factory=QDConfig)
     selection: SelectionConfig = dataclasses.field(default_factory=SelectionConfig)
@@ -510,9 +511,9 @@ _NOT_HELPING = "measured not to help"
 #: Removed keys. A stored run (or a file) holding an accepted value loads as before; any other value is refused
 #: with the reason, since today's code would run something else.
 REMOVED_KEYS: dict[str, RemovedKey] = {
-    "selection.expected_gain": RemovedKey((False,), f"{_NOT_HELPING} (docs/results/equal_compute §9, §10, §12)"),
+    "selection.expected_gain": RemovedKey((False,), f"{_NOT_HELPING} (docs/DECISIONS.md)"),
     "selection.min_gain": RemovedKey((0.0,), f"{_NOT_HELPING}: expected_gain's threshold"),
-    "selection.prefer_new_cells": RemovedKey((False,), f"{_NOT_HELPING} (equal_compute §12)"),
+    "selection.prefer_new_cells": RemovedKey((False,), f"{_NOT_HELPING} (docs/DECISIONS.md)"),
     "selection.skip_filled": RemovedKey((False,), f"{_NOT_HELPING}: the dsage_novel variant was level with dsage "
                                                   "(docs/results/maze_cpu_accel)"),
     "surrogate.init_first_picks": RemovedKey((0,), f"{_NOT_HELPING} (docs/results/audit_during_training)"),
@@ -523,7 +524,7 @@ REMOVED_KEYS: dict[str, RemovedKey] = {
     "surrogate.betas": RemovedKey(([0.9, 0.999], (0.9, 0.999)), "Adam's betas are the paper's, fixed"),
     "qd.ranker": RemovedKey(("2imp",), "CMA-ME's ranker is the paper's two-stage improvement ranker, fixed"),
     "qd.initial_random_batches": RemovedKey((4,), "MAP-Elites starts with the paper's 4 random batches, fixed: 1 and "
-                                                  "2 were no better (equal_compute §1)"),
+                                                  "2 were no better (docs/DECISIONS.md)"),
     "surrogate.incremental_epochs": RemovedKey((0,), "every training runs surrogate.epochs; shorter later trainings "
                                                      "were never measured to help"),
     # The screen's cost model is the domain's now (the Maze's: the mean path length plus 200).

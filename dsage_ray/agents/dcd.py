@@ -3,7 +3,7 @@
 ``dcd:accel`` loads the ACCEL checkpoint shipped with the package (``dsage_ray/assets/agents/accel/``: the DSAGE
 authors' agent, MIT-licensed, sha256-verified on load); any other target is a checkpoint path.
 
-The network (SPEC §2) is rebuilt here with the checkpoint's exact parameter names so the weights load with
+The network (SPEC: the Maze) is rebuilt here with the checkpoint's exact parameter names so the weights load with
 strict key matching::
 
     image (n, 5, 5, 3) uint8, indexed [x, y, channel]
@@ -15,7 +15,7 @@ strict key matching::
       (critic.0.0 / critic.1: the value head; loaded for strictness, never evaluated)
 
 Inference runs one step at a time on matrices precomputed from those weights (:class:`_StepWeights`), because
-at evaluation batch sizes (≤ 50 rows) per-call overhead, not arithmetic, dominates (SPEC §8): the conv becomes
+at evaluation batch sizes (≤ 50 rows) per-call overhead, not arithmetic, dominates (SPEC: speed): the conv becomes
 one (75→144) matmul, the heading embedding and both LSTM biases one table row per heading one-hot, and each LSTM
 step two ``addmm`` into one gate buffer. It is the same network with float32 sums taken in a different order,
 so logits match the module-by-module computation to ~1e-6, not bit for bit (``tests/agents/test_dcd_step.py``

@@ -2,7 +2,7 @@
 
 Sampling happens in numpy from the caller's ``rng`` rather than through ``torch.distributions``: it keeps
 evaluations reproducible from one seed, and it avoids the distribution object's per-call overhead, which
-dominates at the small batch sizes of an evaluation (SPEC §8).
+dominates at the small batch sizes of an evaluation (SPEC: speed).
 """
 
 from __future__ import annotations

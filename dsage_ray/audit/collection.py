@@ -127,7 +127,7 @@ def audit_config(
     if ("search" not in (overrides or {}) and config.time_budget > 0 and config.uses_surrogate
             and not config.pipeline and not config.surrogate.init):
         # With a time budget, DSAGE may not have the time to pay for its surrogate: in 5-minute Mario audits it
-        # did not get past its random levels, and auto found 1.7x its failing cells (equal_compute §26).
+        # did not get past its random levels, and auto found 1.7x its failing cells (docs/DECISIONS.md).
         keys["search"] = "auto"
     # An audit begun with auto before the domain kept DSAGE continues as it began, even when auto is asked again.
     if keys.get("search") == "auto" and spec.audit.auto_keeps_dsage and (started is None or started.search != "auto"):

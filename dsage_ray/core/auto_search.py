@@ -7,11 +7,11 @@ falsifier) evaluates many more levels in the same time and finds more. The bench
 pick costs, all of that included, over what a random level's evaluation costs:
 
 * Maze (the ``cpu`` preset, ACCEL): 1.7-2.4×, and DSAGE led MAP-Elites at equal CPU time (1.15×,
-  docs/results/equal_compute §19, §21);
+  docs/DECISIONS.md);
 * CartPole and LunarLander (the published audits): 1.5-2.0×, and DSAGE was the better search at equal CPU time
   (docs/results/gym_audit);
 * Mario (A*, the ``cpu`` preset): about 16×, and CMA-ME found twice DSAGE's QD-score at equal CPU time
-  (equal_compute §6, §18, and §27 without JPype's collector link: DSAGE 0.51 ± 0.11× CMA-ME).
+  (docs/DECISIONS.md; without JPype's collector link: DSAGE 0.51 ± 0.11× CMA-ME).
 
 With a time budget, the choice can come before the surrogate ever trains. First, during the random iteration: after
 every :data:`RANDOM_LEVELS_TIMED` of its levels, the rest are projected at the seconds of the levels so far, and
@@ -26,16 +26,16 @@ cheapest (that proposal, then its picks at a random level's seconds each) agains
 DSAGE's first model has seen only random levels, and it cannot pay for its training in the one or two iterations left
 to it. On Mario at 10 minutes the probe below comes 4-7 minutes into the run, too late for the direct search to catch
 up (0.32-0.72× CMA-ME), while the same random levels followed at once by CMA-ME did as well as CMA-ME from the start
-(docs/results/equal_compute §22). Where the random levels themselves take much of the budget, the look after them
-comes too late as well (Mario seeds 96-98: they took 35-57% of 10 minutes, and ``auto`` reached 0.51× CMA-ME, §24),
-hence the look during them (Mario seeds 108-110: a switch 22-32 s in, 1.00 ± 0.07× CMA-ME, §27). Without a time
+(docs/DECISIONS.md). Where the random levels themselves take much of the budget, the look after them
+comes too late as well (Mario seeds 96-98: they took 35-57% of 10 minutes, and ``auto`` reached 0.51× CMA-ME),
+hence the look during them (Mario seeds 108-110: a switch 22-32 s in, 1.00 ± 0.07× CMA-ME). Without a time
 budget nothing limits the iterations, and only the probe decides.
 
 Whichever look chooses, the direct search that takes over asks what a run of it from the start would have asked
 (:class:`~dsage_ray.core.proposers.DirectQD` with ``handover``): it draws that run's seed, and CMA-ME ranks its levels
 against, and restarts from, an archive of its own finds, while every level still enters the run's archive. So ``auto``
 trails the fixed direct search by the time spent before the switch and keeps the levels played before it (on Mario
-seeds 108-110 it played 1,262 ± 52 levels in 10 minutes, CMA-ME from the start 1,236 ± 52, §27). Before, it
+seeds 108-110 it played 1,262 ± 52 levels in 10 minutes, CMA-ME from the start 1,236 ± 52). Before, it
 continued on the run's archive with another seed, and restarted from DSAGE's random levels.
 
 Otherwise the first outer iteration that uses the surrogate is measured as it runs: its first :data:`PROBE_PICKS` picks
@@ -69,7 +69,7 @@ BREAK_EVEN_COST_RATIO = 3.0
 #: its cheapest: the projected proposal, then its picks at a random level's seconds) sends the run to the direct
 #: search before the surrogate trains; fewer are needed where fewer spend the rest of the evaluation budget. Not tuned
 #: (set before any run read it): on Mario with 10 minutes 0.9-1.5 fit, on the Maze's ``cpu`` preset with 10 minutes 32,
-#: in a CartPole ``demo`` audit with 5 minutes 4.2 (docs/results/equal_compute §22; counted then at
+#: in a CartPole ``demo`` audit with 5 minutes 4.2 (docs/DECISIONS.md; counted then at
 #: ``selection.count`` picks an iteration, 432 where the gym archive has 25 blocks, so more fit in that audit now).
 MIN_SURROGATE_ITERATIONS = 3
 
@@ -80,7 +80,7 @@ PROBE_PICKS = 8
 #: if more), with a look after each: where the rest, at the seconds of the levels so far, would leave room for fewer
 #: than :data:`MIN_SURROGATE_ITERATIONS` surrogate iterations even at no surrogate cost, the rest is dropped and the
 #: direct search continues from the levels evaluated. Mario's random levels took 35-57% of 10 minutes on seeds 96-98
-#: (equal_compute §24), and the look after them came too late.
+#: (docs/DECISIONS.md), and the look after them came too late.
 RANDOM_LEVELS_TIMED = 8
 
 #: The phases of a surrogate proposal that its cost counts (``Proposal.times``; held-out levels are not the search's).

@@ -29,6 +29,16 @@ from dsage_ray.plugins import scan as scan_plugins
 ENTRY_POINT_GROUP = "dsage_ray.domains"
 
 
+def domain_key(default: Any, *, note: str) -> Any:
+    """A field of a domain's config section, with the one line ``dsage-ray config`` and docs/CONFIG.md print for it.
+
+    Args:
+        default: The default value (a tuple stays immutable; no factory needed).
+        note: One line: what the key does.
+    """
+    return dataclasses.field(default=default, metadata={"note": note})
+
+
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class ReportField:
     """A number the audit report shows: a column of the levels (``AuditSpec.columns``) or a setting of the

@@ -63,7 +63,7 @@ def make_archive(
 def archive_stats(archive: GridArchive) -> dict[str, float | int]:
     """Paper metrics of an archive.
 
-    The QD-score is the plain sum of elite objectives (offset 0, SPEC §1), computed here rather than
+    The QD-score is the plain sum of elite objectives (offset 0, SPEC: DSAGE), computed here rather than
     read from ``archive.stats`` so that it does not depend on the archive's ``qd_score_offset``.
 
     Returns:

@@ -76,7 +76,7 @@ def mutate_bitmaps(parents: np.ndarray, *, cells: int, rng: np.random.Generator)
 
 
 class MapElitesBitmapEmitter(EmitterBase):
-    """MAP-Elites for binary bitmaps, as DSAGE's Maze baseline and inner loop (SPEC §5).
+    """MAP-Elites for binary bitmaps, as DSAGE's Maze baseline and inner loop (SPEC: the QD searches).
 
     The first ``initial_random_batches`` calls to :meth:`ask` (and any call while the archive is
     empty) return uniformly random 0/1 bitmaps. Every later offspring is a uniformly sampled elite

@@ -12,10 +12,10 @@ is the candidate's expected gain.
 Evaluations do not all cost the same: a Maze evaluation steps the agent about as many times as its mean path
 length, so a level the agent solves in 20 steps costs about an eighth of one it fails. With an
 :class:`EvaluationCost` the same neighbours' real measures say what a candidate's evaluation will cost, and the
-gain is counted per evaluation of average cost (docs/results/equal_compute §16: the ranked screen).
+gain is counted per evaluation of average cost (docs/DECISIONS.md: the ranked screen).
 
 Choosing the surrogate's picks the same way (the removed ``dsage_gain`` variant) was level with uniform
-downsampling (equal_compute §9, §10).
+downsampling (docs/DECISIONS.md).
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ DEFAULT_BOX: tuple[float, float] = (-1.0, 1.0)
 #: ``cross_entropy``: the share of each batch its distribution is refitted to (a constant, not a config key).
 CROSS_ENTROPY_ELITE_FRACTION = 0.2
 #: ``map_elites``: batches of uniform random solutions before it mutates, the paper's 4 (1 and 2 were no better per
-#: evaluation and behind at equal CPU time: docs/results/equal_compute §1).
+#: evaluation and behind at equal CPU time: docs/DECISIONS.md).
 MAP_ELITES_RANDOM_BATCHES = 4
 #: ``cma_me``: the paper's two-stage improvement ranking.
 CMA_ME_RANKER = "2imp"
@@ -51,7 +51,7 @@ def _map_elites(archive: ArchiveBase, config: QDConfig, solution_dim: int, rando
 
 def _cma_me(archive: ArchiveBase, config: QDConfig, solution_dim: int, random_solutions: Sampler,
             seed: int | None, bounds: tuple[float, float] | None) -> EmitterBase:
-    # CMA-ME's improvement emitter (SPEC §5): CMA-ES from the origin, two-stage improvement ranking. Unbounded even
+    # CMA-ME's improvement emitter (SPEC: CMA-ME): CMA-ES from the origin, two-stage improvement ranking. Unbounded even
     # where the domain has a box: pyribs' CMA-ES redraws every solution outside the box until none is, which after
     # its step size has grown went on for hundreds of rounds in a gym audit; such a domain clips when it decodes.
     return EvolutionStrategyEmitter(archive, x0=np.zeros(solution_dim), sigma0=config.sigma0, ranker=CMA_ME_RANKER,

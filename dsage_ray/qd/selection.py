@@ -1,4 +1,4 @@
-"""Which surrogate elites get a real evaluation: downsample, random or full (SPEC §1)."""
+"""Which surrogate elites get a real evaluation: downsample, random or full (SPEC: DSAGE)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Every real evaluation DSAGE has made, as training data for the surrogate (SPEC §1, §4).
+"""Every real evaluation DSAGE has made, as training data for the surrogate (SPEC: DSAGE and the surrogate).
 
 Levels are stored bit-packed: the surrogate's inputs are one-hot (0/1), so one bit per value
 holds them exactly. A 5×16×16 Maze level takes 160 bytes instead of 5 KiB as float32 (100k Maze

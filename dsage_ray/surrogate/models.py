@@ -1,4 +1,4 @@
-"""The DSAGE surrogate networks (SPEC §4, paper appendix "Deep Surrogate Model").
+"""The DSAGE surrogate networks (SPEC: the surrogate, paper appendix "Deep Surrogate Model").
 
 Inputs are one-hot levels ``(n, channels, size, size)`` with ``size`` a power of two ≥ 8, so that the
 measure predictor's stride-2 convolutions reach exactly 4×4. Domains whose levels are not such a

@@ -1,4 +1,4 @@
-"""Training and prediction around a surrogate network, with exact checkpoint/resume (SPEC §1, §4).
+"""Training and prediction around a surrogate network, with exact checkpoint/resume (SPEC: DSAGE and the surrogate).
 
 The network and its ONE Adam optimizer live as long as the :class:`Surrogate`: DSAGE keeps
 training the same model every outer iteration and never re-initialises it. All randomness

@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Callable, ClassVar, Literal
 
-from dsage_ray.domains.registry import AgentKinds, AuditSpec, DomainSpec, ReportField
+from dsage_ray.domains.registry import AgentKinds, AuditSpec, DomainSpec, ReportField, domain_key
 
 #: ``failure_rate``: the share of the level's episodes that fail the space's success test.
 GymObjective = Literal["failure_rate"]
@@ -25,28 +25,32 @@ class GymConfig:
     work_names: ClassVar[tuple[str, ...]] = ("steps",)
 
     #: A shipped space's name (``cartpole``, ``lunarlander``), a space file (TOML), or "" (``params`` only).
-    space: str = "cartpole"
+    space: str = domain_key("cartpole",
+                            note="a shipped space (cartpole, lunarlander), a space file (TOML), or empty (params only)")
     #: The Gymnasium id; "" takes the space's ``[env] id``.
-    env: str = ""
+    env: str = domain_key("", note="the Gymnasium id; empty: the space's [env] id")
     #: ``--param`` strings over the space's parameters: ``NAME=LOW:HIGH`` (a gym.make keyword), ``attr.NAME=...``
     #: (an attribute of env.unwrapped after reset), ``reset.NAME=...`` (a reset option); ``LOW:HIGH:int``, ``A|B|C``.
-    params: tuple[str, ...] = ()
+    params: tuple[str, ...] = domain_key((),
+                                         note="--param NAME=LOW:HIGH strings (gym.make; attr.NAME=..., reset.NAME=...)")
     #: ``--env-arg KEY=VALUE`` strings: fixed gym.make keywords over the space's ``[env] args``.
-    env_args: tuple[str, ...] = ()
+    env_args: tuple[str, ...] = domain_key((), note="--env-arg KEY=VALUE strings: fixed gym.make keywords")
     #: ``--space-set`` lines of a space file set over it (``success.return_at_least = 200``): anything a space
     #: file declares, so a one-off audit needs no file.
-    space_set: tuple[str, ...] = ()
+    space_set: tuple[str, ...] = domain_key((), note="--space-set lines set over the space file")
     #: The agent spec (:data:`dsage_ray.domains.gym.agents.GYM_AGENT_FORMS`).
-    agent: str = "rllib:ppo_cartpole"
-    objective: GymObjective = "failure_rate"
-    #: Episodes per evaluation, played side by side.
-    episodes: int = 10
+    agent: str = domain_key("rllib:ppo_cartpole",
+                            note="the agent spec audited (rllib:, torchscript:, sb3:, python:...)")
+    objective: GymObjective = domain_key("failure_rate",
+                                         note="failure_rate: the share of episodes failing the space's success test")
+    episodes: int = domain_key(10, note="episodes per evaluation, played side by side")
     #: Archive measures, names of the space's measures; ``()``: the space's ``[audit] measures``.
-    measures: tuple[str, ...] = ()
+    measures: tuple[str, ...] = domain_key((), note="the archive's measures; empty: the space's [audit] measures")
     #: Cells per measure; ``()``: each measure's ``cells``.
-    archive_dims: tuple[int, ...] = ()
+    archive_dims: tuple[int, ...] = domain_key((), note="cells per measure; empty: each measure's cells")
     #: ``()``: each measure's declared range.
-    measure_ranges: tuple[tuple[float, float], ...] = ()
+    measure_ranges: tuple[tuple[float, float], ...] = domain_key((),
+                                                                 note="each measure's range; empty: its declared range")
 
     def complete(self, run: Any) -> None:
         """Reads the space and fills what was left to it: the measures (its ``[audit] measures``, else its first two

@@ -1,4 +1,4 @@
-"""The Mario domain behind the :class:`~dsage_ray.types.Domain` protocol (SPEC §3)."""
+"""The Mario domain behind the :class:`~dsage_ray.types.Domain` protocol (SPEC: Mario)."""
 
 from __future__ import annotations
 

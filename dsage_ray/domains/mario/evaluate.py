@@ -1,4 +1,4 @@
-"""Objective, measures and occupancy of the A* agent on one level (SPEC §3).
+"""Objective, measures and occupancy of the A* agent on one level (SPEC: Mario).
 
 - objective: mean ``getCompletionPercentage()`` over the runs;
 - measures: ``sky_tiles`` (non-empty tiles in rows 0–8, a property of the level),

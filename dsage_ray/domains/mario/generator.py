@@ -1,4 +1,4 @@
-"""The DCGAN level generator (SPEC §3) and the weights shipped with the package.
+"""The DCGAN level generator (SPEC: Mario) and the weights shipped with the package.
 
 A 32-d latent goes through five transposed convolutions to a 17 × 64 × 64 map; the top-left
 16 × 56 crop, argmax over the 17 tile channels, is the level. The weights in

@@ -17,7 +17,7 @@ import numpy as np
 from dsage_ray.domains.mario.tiles import CHAR_TO_INDEX, LEVEL_HEIGHT, LEVEL_WIDTH
 from dsage_ray.errors import ResourceError
 
-#: VGLC character → our tile character (SPEC §3). ``x`` is a path overlay, not a tile.
+#: VGLC character → our tile character (SPEC: Mario). ``x`` is a path overlay, not a tile.
 VGLC_TO_TILE: dict[str, str] = {
     "-": "-", "x": "-", "X": "X", "S": "S", "o": "o",
     "?": "@", "Q": "!", "E": "g",

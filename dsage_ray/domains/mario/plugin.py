@@ -9,7 +9,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Callable, ClassVar, Literal
 
-from dsage_ray.domains.registry import AgentKinds, AuditSpec, DomainSpec, ReportField
+from dsage_ray.domains.registry import AgentKinds, AuditSpec, DomainSpec, ReportField, domain_key
 
 #: Mario's objectives: the A* agent's completion, or ``1 - completion`` (audits).
 MarioObjective = Literal["completion", "incompletion"]
@@ -17,23 +17,26 @@ MarioObjective = Literal["completion", "incompletion"]
 
 @dataclasses.dataclass
 class MarioConfig:
-    """The Mario domain (SPEC §3)."""
+    """The Mario domain (SPEC: Mario)."""
 
     #: Work counts its domain reports per evaluation (``work_counts``).
     work_names: ClassVar[tuple[str, ...]] = ("search_iterations", "ticks")
-    runs: int = 5
-    timer: int = 20
-    astar_iterations: int = 1000
-    episode_timeout_s: float = 60.0
-    generator: str = "builtin"
+    runs: int = domain_key(5, note="episodes per level (1 when A* is deterministic)")
+    timer: int = domain_key(20, note="game time in seconds (20 = 666 ticks)")
+    astar_iterations: int = domain_key(1000,
+                                       note="A* iterations per tick (deterministic); 0: the stock 40 ms timer")
+    episode_timeout_s: float = domain_key(60.0, note="wall-clock seconds an episode may take")
+    generator: str = domain_key("builtin", note="builtin (the shipped GAN) or a weights file")
     #: Standard deviation of the random latents (DR's and DSAGE's ``n_rand`` initial ones); the
     #: authors drew them from N(0, 0.2²).
-    latent_sigma: float = 0.2
+    latent_sigma: float = domain_key(0.2,
+                                     note="std of the random latents (DR and DSAGE's first levels); the paper's 0.2")
     #: ``completion`` (paper) or ``incompletion`` (1 − completion, audits).
-    objective: MarioObjective = "completion"
-    measures: tuple[str, ...] = ("sky_tiles", "mean_jumps")
-    archive_dims: tuple[int, ...] = (150, 100)
-    measure_ranges: tuple[tuple[float, float], ...] = ((0.0, 150.0), (0.0, 100.0))
+    objective: MarioObjective = domain_key("completion", note="completion (the paper) or incompletion (audits)")
+    measures: tuple[str, ...] = domain_key(("sky_tiles", "mean_jumps"), note="the archive's two measures")
+    archive_dims: tuple[int, ...] = domain_key((150, 100), note="cells per measure")
+    measure_ranges: tuple[tuple[float, float], ...] = domain_key(((0.0, 150.0), (0.0, 100.0)),
+                                                                 note="each measure's range")
 
     def validate(self, need: Callable[[bool, str, str], None]) -> None:
         """Checks the Mario keys; ``need(condition, key, why)`` reports the first that fails."""
@@ -114,7 +117,7 @@ DOMAIN = DomainSpec(
     domain="dsage_ray.domains.mario.domain:MarioDomain",
     presets=PRESETS,
     variants=VARIANTS,
-    # search = "auto" continues with CMA-ME: twice DSAGE's QD-score at equal CPU time (equal_compute §18, §27).
+    # search = "auto" continues with CMA-ME: twice DSAGE's QD-score at equal CPU time (docs/DECISIONS.md).
     direct_search="cma_me",
     # The paper's Table 2 rows (``dsage_rsample`` is the appendix ablation).
     comparison=("dsage", "dsage_only_anc", "dsage_only_down", "dsage_basic", "cma_me", "dr"),

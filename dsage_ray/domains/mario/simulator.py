@@ -14,7 +14,7 @@ build has no ``runGame``, and its ``playAstar`` sleeps to 30 fps):
 4. ``new MarioResult(world, gameEvents, agentEvents)``.
 
 The stock timer gives the agent 40 ms of wall clock per tick, so results depend on machine
-load (SPEC §3). With ``astar_iterations > 0`` the timer is our ``DeterministicTimer``, which
+load (SPEC: Mario). With ``astar_iterations > 0`` the timer is our ``DeterministicTimer``, which
 counts A* search iterations instead, making an episode a pure function of the level.
 """
 

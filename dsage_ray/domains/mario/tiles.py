@@ -4,7 +4,7 @@ A level is either an ``(16, width)`` integer array of tile indices or the Mario 
 text form (one string per row). Everything that reaches the Java simulator goes through
 :func:`validate_level` first, because the framework accepts malformed input silently (unknown
 characters become air, a 1-column level "wins" with a NaN completion) or fails with an opaque
-Java exception (empty or ragged levels). See SPEC §3.
+Java exception (empty or ragged levels). See the SPEC's Mario section.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import numpy as np
 
 from dsage_ray.errors import InputError
 
-#: Tile index → framework character (SPEC §3 order; the GAN's channel order).
+#: Tile index → framework character (the SPEC's Mario order; the GAN's channel order).
 TILES: tuple[str, ...] = (
     "-",  # 0 empty
     "*",  # 1 cannon (bullet bill)
@@ -43,7 +43,7 @@ CHAR_TO_INDEX: dict[str, int] = {c: i for i, c in enumerate(TILES)}
 #: Rows of every level the framework plays here (the GAN crops to 16 × 56).
 LEVEL_HEIGHT = 16
 LEVEL_WIDTH = 56
-#: Rows 0–8 are the "sky" for the sky-tiles measure (SPEC §3).
+#: Rows 0–8 are the "sky" for the sky-tiles measure (SPEC: Mario).
 SKY_ROWS = 9
 
 _LOOKUP = np.array(TILES)
@@ -119,7 +119,7 @@ def indices_to_string(level: np.ndarray) -> str:
 
 
 def sky_tiles(level: np.ndarray) -> int:
-    """Number of non-empty tiles in rows 0–8 of a ``(16, width)`` index array (SPEC §3)."""
+    """Number of non-empty tiles in rows 0–8 of a ``(16, width)`` index array (SPEC: Mario)."""
     return int(np.count_nonzero(np.asarray(level)[:SKY_ROWS] != EMPTY))
 
 

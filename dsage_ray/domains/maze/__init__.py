@@ -1,4 +1,4 @@
-"""The Maze domain (SPEC §2): wall bitmaps, a MiniGrid environment and its batched twin.
+"""The Maze domain (SPEC: the Maze): wall bitmaps, a MiniGrid environment and its batched twin.
 
 Importing the package registers ``"dsage_ray/Maze-v0"`` with gymnasium, so
 ``gymnasium.make("dsage_ray/Maze-v0", level=level)`` works.

@@ -18,12 +18,12 @@ from dsage_ray.domains.maze.plugin import DOMAIN, MazeConfig
 from dsage_ray.types import EncodedLevels, EvaluationResult, NominalResult, Solution, Solutions
 
 #: Episodes of the nominal check: a random walker reaches the far corner of the open room in 13% of its episodes,
-#: so 50 leave it without a success once in a thousand checks (docs/AUDIT.md); batched, they cost about a second.
+#: so 50 leave it without a success once in a thousand checks (docs/GUIDE.md); batched, they cost about a second.
 NOMINAL_EPISODES = 50
 
 
 class MazeDomain:
-    """Wall bitmaps searched for how one agent behaves on them (SPEC §2).
+    """Wall bitmaps searched for how one agent behaves on them (SPEC: the Maze).
 
     A solution is a flattened ``H·W`` bitmap (values > 0.5 are walls); its start and goal are the
     furthest connected pair. The agent (and the ``regression`` objective's reference agent) is loaded
@@ -38,7 +38,7 @@ class MazeDomain:
     solution_dtype = np.int8
     #: An evaluation's cost grows in proportion to the agent's mean path length (50 episodes step the agent that
     #: often), plus a fixed part (building and resetting the level) worth about 200 steps in the ranked screen
-    #: (``selection.screen_gain``; offset tuned on one seed, docs/results/equal_compute §16).
+    #: (``selection.screen_gain``; offset tuned on one seed, docs/DECISIONS.md).
     evaluation_cost = ("mean_path_length", 200.0)
 
     def __init__(self, *, config: MazeConfig):
@@ -250,7 +250,7 @@ class MazeDomain:
             return 50 if high - low <= 1 else int(round(high - low))
 
         # The default measures (wall count, optimal path) are properties of the level: taken from it, every pick
-        # lands in the cell the inner loop chose it for (docs/results/equal_compute, section 11).
+        # lands in the cell the inner loop chose it for (docs/DECISIONS.md).
         values = {"maze.agent": agent, "maze.reference": reference or "", "maze.objective": objective,
                   "maze.measures": measures, "maze.archive_dims": tuple(cells(m) for m in measures),
                   "surrogate.exact_level_values": True}

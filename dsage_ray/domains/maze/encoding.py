@@ -1,4 +1,4 @@
-"""One-hot Maze levels for the surrogate model (SPEC §4)."""
+"""One-hot Maze levels for the surrogate model (SPEC: the surrogate)."""
 
 from __future__ import annotations
 

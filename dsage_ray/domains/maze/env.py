@@ -1,4 +1,4 @@
-"""The reference MiniGrid 3.2 environment for a Maze level, as the ACCEL agent was trained on (SPEC §2).
+"""The reference MiniGrid 3.2 environment for a Maze level, as the ACCEL agent was trained on (SPEC: the Maze).
 
 Evaluations use the faster :class:`~dsage_ray.domains.maze.simulator.BatchedMazeSimulator`; this
 class is the ground truth the simulator is tested against, and what ``gymnasium.make`` returns.

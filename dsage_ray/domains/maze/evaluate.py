@@ -1,4 +1,4 @@
-"""Runs an agent on a level for many episodes at once and summarises its behaviour (SPEC §2)."""
+"""Runs an agent on a level for many episodes at once and summarises its behaviour (SPEC: the Maze)."""
 
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ Example (the border wall is implied)::
     .#..
     ...G
 
-Without ``S`` and ``G`` the start and goal are the furthest connected pair (SPEC §2).
+Without ``S`` and ``G`` the start and goal are the furthest connected pair (SPEC: the Maze).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""A Maze level: an interior wall bitmap plus its start and goal cells (SPEC §2).
+"""A Maze level: an interior wall bitmap plus its start and goal cells (SPEC: the Maze).
 
 Coordinates are interior ``(row, col)`` throughout this package; the surrounding border wall is
 implied, so bitmap cell ``[row, col]`` sits at MiniGrid grid position ``(x=col + 1, y=row + 1)``.

@@ -51,7 +51,7 @@ def _bfs(flat: np.ndarray, height: int, width: int, source: int, dist: np.ndarra
 @numba.njit(cache=True, nogil=True)
 def _furthest_pair(flat: np.ndarray, height: int, width: int, dist: np.ndarray, queue: np.ndarray,
                    lower: np.ndarray, upper: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - compiled
-    """The furthest pair of one maze (SPEC §2's first maximum), into ``out``; ``dist`` must be -1 on entry and is
+    """The furthest pair of one maze (the SPEC's first maximum), into ``out``; ``dist`` must be -1 on entry and is
     left so. Eccentricity bounds (Takes & Kosters' BoundingDiameters) spare most of the all-pairs BFS."""
     size = height * width
     unknown = size + 1

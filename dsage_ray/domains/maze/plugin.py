@@ -9,7 +9,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Callable, ClassVar, Literal
 
-from dsage_ray.domains.registry import AgentKinds, AuditSpec, DomainSpec, ReportField
+from dsage_ray.domains.registry import AgentKinds, AuditSpec, DomainSpec, ReportField, domain_key
 
 #: Keys of :data:`dsage_ray.domains.maze.measures.OBJECTIVES`.
 MazeObjective = Literal["validity", "failure_rate", "regret", "regression"]
@@ -17,28 +17,32 @@ MazeObjective = Literal["validity", "failure_rate", "regret", "regression"]
 
 @dataclasses.dataclass
 class MazeConfig:
-    """The Maze domain (SPEC §2)."""
+    """The Maze domain (SPEC: the Maze)."""
 
     #: Work counts its domain reports per evaluation (``work_counts``).
     work_names: ClassVar[tuple[str, ...]] = ("steps",)
-    agent: str = "builtin:wall_follower"
-    episodes: int = 50
-    height: int = 16
-    width: int = 16
-    see_through_walls: bool = True
+    agent: str = domain_key("builtin:wall_follower",
+                            note="the agent spec audited (dcd:, rllib:, torchscript:, builtin:...)")
+    episodes: int = domain_key(50, note="episodes per evaluation, played side by side")
+    height: int = domain_key(16, note="rows of the interior wall bitmap")
+    width: int = domain_key(16, note="columns of the interior wall bitmap")
+    see_through_walls: bool = domain_key(True, note="the agent's view passes walls, as ACCEL was trained")
     #: ``validity`` (paper), ``failure_rate``, ``regret`` or ``regression`` (audits).
-    objective: MazeObjective = "validity"
+    objective: MazeObjective = domain_key("validity",
+                                          note="validity (the paper), failure_rate, regret or regression (audits)")
     #: Reference agent spec of the ``regression`` objective (empty: none), run on the same seeds.
-    reference: str = ""
-    measures: tuple[str, ...] = ("num_walls", "mean_path_length")
+    reference: str = domain_key("", note="the regression objective's reference agent, played on the same seeds")
+    measures: tuple[str, ...] = domain_key(("num_walls", "mean_path_length"), note="the archive's two measures")
     #: Cells per measure; ``0`` means "one cell per integer value" (the paper's 256×162 uses 256 and 162).
-    archive_dims: tuple[int, ...] = (256, 162)
+    archive_dims: tuple[int, ...] = domain_key((256, 162), note="cells per measure; 0: one per integer value")
     #: ``()`` means the natural range of each measure.
-    measure_ranges: tuple[tuple[float, float], ...] = ()
+    measure_ranges: tuple[tuple[float, float], ...] = domain_key((),
+                                                                 note="each measure's range; empty: its natural range")
     #: Give the surrogate two more input channels: cells reachable from the start and cells on a
     #: shortest start-goal path (:data:`dsage_ray.domains.maze.encoding.PATH_CHANNELS`). Not in the
     #: paper, whose 5-channel one-hot input is the default.
-    path_channels: bool = False
+    path_channels: bool = domain_key(False,
+                                     note="2 more surrogate inputs: reachable cells, a shortest path (not the paper's)")
 
     def validate(self, need: Callable[[bool, str, str], None]) -> None:
         """Checks the Maze keys; ``need(condition, key, why)`` reports the first that fails."""
@@ -53,13 +57,13 @@ class MazeConfig:
 PRESETS: dict[str, dict[str, Any]] = {
     # The paper held no levels out; ``--set experimental.holdout_levels=100`` adds 0.1% to its budget.
     "paper": {},
-    # CPU presets scale the paper's loop down (SPEC §4: one paper inner loop is ~20 minutes of
+    # CPU presets scale the paper's loop down (SPEC, the surrogate: one paper inner loop is ~20 minutes of
     # surrogate predictions on 2 cores). A shorter inner loop fills a smaller surrogate archive,
     # so blocks are smaller to keep a useful number of picks per outer iteration, and a smaller
     # batch gives the surrogate enough Adam steps on the few samples it has early on.
-    # 4,000 evaluations: the length at which section 17 measured the design below (about 11 CPU minutes a search);
+    # 4,000 evaluations: the length at which the design below was measured (about 11 CPU minutes a search);
     # its lead over MAP-Elites at equal CPU time grows with the run (1.06× at 2,000 evaluations, fresh seeds 60-62,
-    # docs/results/equal_compute §19).
+    # docs/DECISIONS.md).
     "cpu": {
         "budget": 4_000,
         "n_rand": 100,
@@ -69,8 +73,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         "surrogate.train_window": 1_000,
         "qd.exploit_iterations": 300,
         "selection.count": 100,
-        # The best equal-time design measured (docs/results/equal_compute §17, fresh seeds 48-50: 1.31 ± 0.03×
-        # MAP-Elites at equal CPU time, 1.59× per evaluation; as this preset on fresh seeds 60-62, §19, less at equal
+        # The best equal-time design measured (docs/DECISIONS.md; fresh seeds 48-50: 1.31 ± 0.03×
+        # MAP-Elites at equal CPU time, 1.59× per evaluation; as this preset on fresh seeds 60-62, less at equal
         # time, the same per evaluation): a 16-channel network (the surrogate's share of the
         # run from about 50% to 17%), a one-episode screen of each pick and of more candidates, ranked by the QD-score
         # each is expected to add per expected cost (the Maze's evaluation_cost), and 2 × 3 blocks (more picks per
@@ -119,7 +123,7 @@ PRESETS: dict[str, dict[str, Any]] = {
 #: The paper's Maze QD baseline beside the DSAGE variants and DR (common to every domain).
 VARIANTS: dict[str, dict[str, Any]] = {
     # The paper's MAP-Elites, unscreened whatever the preset screens (``--set selection.screen_episodes=1
-    # selection.screen_gain=true`` gives it the ranked screen: the strongest baseline measured, equal_compute §17).
+    # selection.screen_gain=true`` gives it the ranked screen: the strongest baseline measured, docs/DECISIONS.md).
     "map_elites": {"surrogate.kind": "none", "qd.emitter": "map_elites", "qd.num_emitters": 5, "qd.batch_size": 30,
                    "selection.screen_episodes": 0, "selection.screen_gain": False},
 }
@@ -160,12 +164,11 @@ DOMAIN = DomainSpec(
         settings=(ReportField(key="max_steps", label="step limit", format="{} steps per episode"),),
         upgrade="dsage_ray.domains.maze.domain:upgrade_collection",
         # Mutants of the never-solved mazes found so far, beside the surrogate's picks: at equal search time
-        # they multiplied the never-solved mazes an audit finds (docs/results/equal_compute, section 13).
+        # they multiplied the never-solved mazes an audit finds (docs/DECISIONS.md).
         surrogate_keys={"selection.elite_mutants": 150},
         auto_keeps_dsage=("its picks cost 4.5-5.3x a random maze (a maze the agent never solves runs to the step "
                           "limit), past auto's break-even, yet in the same 7 minutes of search DSAGE's audit found "
-                          "545 failing cells to the 181 of auto's switch to MAP-Elites (docs/results/equal_compute, "
-                          "section 23)"),
+                          "545 failing cells to the 181 of auto's switch to MAP-Elites (docs/DECISIONS.md)"),
     ),
     # The policies of dsage_ray.agents (MiniGrid observations): built in, shipped and plug-in kinds.
     agents=AgentKinds(policies=True),
