@@ -123,8 +123,8 @@ def returns():
 
 def test_trained_checkpoint_is_played_behind_its_meanstd_filter():
     agent = cartpole_agent(f"rllib:{TRAINED}")
-    assert agent._inner.pipelines is not None and agent._inner.pipelines.transforms == ("MeanStdFilter",)
-    assert cartpole_agent(f"rllib:{TRAINED_MODULE}")._inner.pipelines is None
+    assert agent.pipelines is not None and agent.pipelines.transforms == ("MeanStdFilter",)
+    assert cartpole_agent(f"rllib:{TRAINED_MODULE}").pipelines is None
 
 
 def test_played_with_its_pipeline_it_matches_rllibs_own_evaluation(returns):
@@ -182,7 +182,7 @@ def test_frame_stacking_sees_each_episodes_own_frames_after_others_end(tmp_path)
     folder = save_checkpoint(tmp_path / "ckpt", module, [stack])
     agent = load_gym_agent(f"rllib:{folder}?greedy=1", observation_space=frames_space,
                            action_space=CARTPOLE.action_space)
-    pipelines = agent._inner.pipelines
+    pipelines = agent.pipelines
     assert pipelines.transforms == ("FrameStacking",)
 
     # frame[episode][t]: distinct numbers per episode and step; episode 0 ends after step 1.
@@ -213,7 +213,7 @@ def test_flattening_one_hots_and_concatenates_a_dict_observation(tmp_path):
     folder = save_checkpoint(tmp_path / "ckpt", module, [flatten])
     agent = load_gym_agent(f"rllib:{folder}", observation_space=observations, action_space=CARTPOLE.action_space)
     obs = {"position": np.float32([[0.5, -0.25], [0.0, 1.0]]), "room": np.array([2, 0])}
-    inputs = agent._inner.pipelines.module_batch(agent.module, obs, agent.initial_state(2), explore=True)
+    inputs = agent.pipelines.module_batch(agent.module, obs, agent.initial_state(2), explore=True)
     # gymnasium's Dict keys are sorted: position, then room one-hot.
     np.testing.assert_array_equal(inputs["obs"].numpy(), np.float32([[0.5, -0.25, 0, 0, 1], [0, 1, 1, 0, 0]]))
     actions, _ = agent.act(obs, agent.initial_state(2), np.random.default_rng(0))

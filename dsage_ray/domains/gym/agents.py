@@ -156,6 +156,8 @@ class RLlibGymAgent(Agent):
         # the direct path differs here.
         self._inner = RLlibAgent(module=module, greedy=greedy, pipelines=pipelines)
         self.module = self._inner.module
+        #: The pipelines it plays behind (None: none, or only RLlib's default pieces).
+        self.pipelines = self._inner.pipelines
         self.greedy = greedy
         self.normalize_actions = normalize_actions
         self._squashed = _is_squashed_gaussian(module)
@@ -170,7 +172,7 @@ class RLlibGymAgent(Agent):
         """One module step: ``ACTION_DIST_INPUTS`` ``(n, k)`` and the next state; no sampling."""
         from ray.rllib.core.columns import Columns
 
-        if self._inner.pipelines is not None:
+        if self.pipelines is not None:
             return self._inner.piped_step(obs, state)
         batch = {Columns.OBS: to_torch(obs, time_axis=self._inner.recurrent)}
         if self._inner.recurrent:
