@@ -129,8 +129,8 @@ def add_gym_arguments(parser) -> None:
     gym = parser.add_argument_group("any Gymnasium environment (--domain gym)")
     gym.add_argument("--env", metavar="ID", help="the environment id, e.g. CartPole-v1 (default: the space's)")
     gym.add_argument("--space", metavar="FILE|NAME",
-                     help="the parameter space: a TOML file, a shipped one (cartpole, the default; lunarlander), or '' "
-                          "for --env and --param alone")
+                     help="the parameter space: a TOML file, a shipped one (cartpole, the default; `dsage-ray gym "
+                          "spaces` lists them all), or '' for --env and --param alone")
     gym.add_argument("--param", action="append", metavar="NAME=LOW:HIGH",
                      help="a searched parameter (repeat): NAME=LOW:HIGH (a gym.make keyword), attr.NAME=LOW:HIGH "
                           "(an attribute of env.unwrapped after reset), reset.NAME=LOW:HIGH (a reset option); "
