@@ -22,6 +22,14 @@ def test_the_default_listing_has_at_most_40_keys_each_with_a_status_and_experime
                                 for line in experimental)
 
 
+def test_every_key_of_the_run_and_of_the_shipped_domains_has_a_note():
+    # Plug-in domains installed beside the package are theirs to note, so only the shipped ones are checked.
+    lines = key_lines(experimental=True) + [line for name in ("maze", "mario", "gym")
+                                            for line in key_lines(domain=name)]
+    assert {line.key for line in lines if line.status == "domain"} >= {"maze.agent", "mario.runs", "gym.space"}
+    assert [line.key for line in lines if not line.note.strip()] == []
+
+
 def test_the_command_prints_one_line_per_key_starting_with_its_full_name(capsys):
     assert main(["config"]) == 0
     printed = capsys.readouterr().out.splitlines()
