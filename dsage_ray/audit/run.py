@@ -212,6 +212,8 @@ def _search_and_collect(config: RunConfig, *, out_dir: Path, local: bool, worker
                          else config.replace(**{get_domain(config.domain).audit.episodes_key: int(episodes)}))
     if collect_only or episodes is not None:  # the collection's own episodes are checked before the search
         preflight(collection_config)
+    if resume or collect_only:
+        _check_search_loads(search_dir)  # a damaged or forged checkpoint is named before the agent plays anything
     played_now = not ((resume or collect_only) and (out_dir / NOMINAL_FILE).is_file())
     nominal = audit_nominal(lambda: _play_nominal(config, expect_return=expect_return), folder=out_dir,
                             reuse=resume or collect_only, allow_failing=allow_failing_nominal)
@@ -243,6 +245,17 @@ def _search_and_collect(config: RunConfig, *, out_dir: Path, local: bool, worker
     finally:
         pool.close()
     return Collection.load(collection_dir)
+
+
+def _check_search_loads(search_dir: Path) -> None:
+    """Reads the state of the checkpoint ``search_dir`` holds, if any (CheckpointError where it does not load)."""
+    from dsage_ray.core.checkpoint import CheckpointError, load_checkpoint
+
+    try:
+        checkpoint = search_on_disk(search_dir).checkpoint
+    except CheckpointError:
+        return  # no checkpoint yet: a resume starts afresh, a collection names what is missing
+    load_checkpoint(checkpoint)
 
 
 def _play_nominal(config: RunConfig, *, expect_return: float | None):
