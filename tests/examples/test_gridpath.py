@@ -58,6 +58,7 @@ def example_installed(build: Path) -> Iterator[Path]:
     # Last on the path: the folder holds only the example, and must shadow nothing installed.
     sys.path.append(str(target))
     importlib.invalidate_caches()  # so that the entry-point scan reads the new folder
+    unregister_domain("gridpath")  # re-reads the entry points (an earlier test's scan is cached), now with the example
     try:
         yield target
     finally:
