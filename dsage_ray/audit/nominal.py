@@ -83,7 +83,7 @@ class NominalCheck:
         """The check in words: the level, the return and success, the expected figure and the verdict; ``hint``
         says how to give an expected figure where none was known."""
         r = self.result
-        spread = f" ± {r.return_std:.3g}" if r.episodes > 1 else ""
+        spread = f" ± {r.return_std:.3g} s.d." if r.episodes > 1 else ""
         text = (f"{r.level}, {r.episodes} episode{'s' if r.episodes != 1 else ''}: "
                 f"{r.return_name} {_number(r.mean_return)}{spread}, success {r.success_rate:.2f}")
         if self.expected is not None:
