@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 import yaml
 
+from benchmarks.zoo_nominal import play
 from dsage_ray.agents.base import Agent, AgentError
 from dsage_ray.agents.spaces import stack_observations
 from dsage_ray.domains.gym.agents import load_gym_agent
@@ -179,22 +180,7 @@ def test_sb3_contrib_saves_load(tmp_path):
 
 def nominal_returns(agent: Agent, env_id: str, episodes: int) -> np.ndarray:
     """Episodes of the environment as registered, side by side, as the simulators play them."""
-    envs = [agent.wrap_env(gym.make(env_id)) for _ in range(episodes)]
-    obs = [env.reset(seed=1000 + i)[0] for i, env in enumerate(envs)]
-    returns, active, state = np.zeros(episodes), np.arange(episodes), agent.initial_state(episodes)
-    rng = np.random.default_rng(0)
-    while len(active):
-        actions, state = agent.act(stack_observations([obs[i] for i in active], envs[0].observation_space), state, rng)
-        keep = []
-        for row, i in enumerate(active):
-            obs[i], reward, terminated, truncated, _ = envs[i].step(actions[row])
-            returns[i] += reward
-            if not (terminated or truncated):
-                keep.append(row)
-        if keep:
-            state = agent.select_state(state, np.array(keep))
-        active = active[keep]
-    return returns
+    return play(agent, env_id, {}, episodes=episodes, seed=1000)
 
 
 @needs_zoo
