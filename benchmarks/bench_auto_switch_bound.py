@@ -42,8 +42,8 @@ def main(argv: list[str] | None = None) -> int:
     run = DSAGE(config=config)
     run.step()  # the random first iteration, as every DSAGE run and auto run begins
     # No look and no probe: their numbers are not measured here (NaN in the choice's metrics).
-    run.continue_direct(SearchChoice(direct=True, variant=direct_variant(config), cost_ratio=math.nan,
-                                     random_level_seconds=math.nan, surrogate_level_seconds=math.nan))
+    run.proposer.continue_direct(SearchChoice(direct=True, variant=direct_variant(config), cost_ratio=math.nan,
+                                              random_level_seconds=math.nan, surrogate_level_seconds=math.nan))
     run.run()
     args.out.mkdir(parents=True, exist_ok=True)
     run.write_outputs(args.out)

@@ -13,42 +13,28 @@ pick costs, all of that included, over what a random level's evaluation costs:
 * Mario (A*, the ``cpu`` preset): about 16×, and CMA-ME found twice DSAGE's QD-score at equal CPU time
   (docs/DECISIONS.md; without JPype's collector link: DSAGE 0.51 ± 0.11× CMA-ME).
 
-With a time budget, the choice can come before the surrogate ever trains. First, during the random iteration: after
-every :data:`RANDOM_LEVELS_TIMED` of its levels, the rest are projected at the seconds of the levels so far, and
-where they would leave room for fewer than :data:`MIN_SURROGATE_ITERATIONS` surrogate iterations even at no surrogate
-cost, the rest are dropped and the direct search continues from the levels evaluated (:func:`choose_during_random`).
-The look repeats because level times are heavy-tailed: on Mario seed 100 the first 8 random levels were quick and the
-100 took 342 s. Then right after the random first iteration,
-the surrogate's first proposal is projected from one timed training step and one timed inner-loop batch
-(:meth:`~dsage_ray.core.proposers.SurrogateAssisted.projected_proposal_seconds`), and a surrogate iteration at its
-cheapest (that proposal, then its picks at a random level's seconds each) against the time left. Where fewer than
-:data:`MIN_SURROGATE_ITERATIONS` fit, the run continues with the direct search at once (:func:`choose_by_time_left`):
-DSAGE's first model has seen only random levels, and it cannot pay for its training in the one or two iterations left
-to it. On Mario at 10 minutes the probe below comes 4-7 minutes into the run, too late for the direct search to catch
-up (0.32-0.72× CMA-ME), while the same random levels followed at once by CMA-ME did as well as CMA-ME from the start
-(docs/DECISIONS.md). Where the random levels themselves take much of the budget, the look after them
-comes too late as well (Mario seeds 96-98: they took 35-57% of 10 minutes, and ``auto`` reached 0.51× CMA-ME),
-hence the look during them (Mario seeds 108-110: a switch 22-32 s in, 1.00 ± 0.07× CMA-ME). Without a time
-budget nothing limits the iterations, and only the probe decides.
+With a time budget, the choice can come before the surrogate ever trains (:func:`choose_during_random`,
+:func:`choose_by_time_left`): where fewer than :data:`MIN_SURROGATE_ITERATIONS` surrogate iterations, at their
+cheapest, fit in the time left, the direct search takes over at once. DSAGE's first model has seen only random levels,
+and it cannot pay for its training in the one or two iterations left to it. On Mario at 10 minutes the probe comes 4-7
+minutes into the run, too late for the direct search to catch up (0.32-0.72× CMA-ME), while the same random levels
+followed at once by CMA-ME did as well as CMA-ME from the start (docs/DECISIONS.md). Where the random levels
+themselves take much of the budget, a look after them comes too late as well (Mario seeds 96-98: they took 35-57% of
+10 minutes, and ``auto`` reached 0.51× CMA-ME), hence looks during them (Mario seeds 108-110: a switch 22-32 s in,
+1.00 ± 0.07× CMA-ME). Without a time budget nothing limits the iterations, and only the probe of the first surrogate
+picks decides (:func:`choose_search`): above :data:`BREAK_EVEN_COST_RATIO` times a random level's evaluation, the
+direct search continues. So a domain where DSAGE does not pay loses one surrogate proposal and a few picks.
 
-Whichever look chooses, the direct search that takes over asks what a run of it from the start would have asked
-(:class:`~dsage_ray.core.proposers.DirectQD` with ``handover``): it draws that run's seed, and CMA-ME ranks its levels
-against, and restarts from, an archive of its own finds, while every level still enters the run's archive. So ``auto``
-trails the fixed direct search by the time spent before the switch and keeps the levels played before it (on Mario
-seeds 108-110 it played 1,262 ± 52 levels in 10 minutes, CMA-ME from the start 1,236 ± 52). Before, it
-continued on the run's archive with another seed, and restarted from DSAGE's random levels.
+The direct search that takes over asks what a run of it from the start would have asked
+(:class:`~dsage_ray.core.proposers.DirectQD` with ``handover``), so ``auto`` trails the fixed direct search by the time
+spent before the switch and keeps the levels played before it (on Mario seeds 108-110 it played 1,262 ± 52 levels in
+10 minutes, CMA-ME from the start 1,236 ± 52). The seconds are wall seconds, so a run with more simulators (a Ray
+pool: each level cheaper in wall time, the surrogate not) leans to the direct search, as it should at equal wall time.
+Like a time budget, the choice depends on the machine: an ``auto`` run is reproducible given its choice (part of the
+run's state and of its metrics), not across machines.
 
-Otherwise the first outer iteration that uses the surrogate is measured as it runs: its first :data:`PROBE_PICKS` picks
-are evaluated (stopped once they alone cost past the break-even, :func:`probe_allowance`), and a pick's cost is
-projected as the surrogate's seconds spread over all the picks plus the probe's mean evaluation seconds
-(:func:`choose_search`). Above :data:`BREAK_EVEN_COST_RATIO` times a random level's
-evaluation, the rest of the picks are dropped (the probe's levels are kept and learned from) and the run continues
-with the domain's direct search (:attr:`dsage_ray.domains.registry.DomainSpec.direct_search`) on the same archive;
-otherwise the rest are evaluated and the run stays DSAGE, bit for bit the fixed run. So a domain where DSAGE does
-not pay loses one surrogate proposal and a few picks. The seconds are
-wall seconds, so a run with more simulators (a Ray pool: each level cheaper in wall time, the surrogate not) leans to
-the direct search, as it should at equal wall time. Like a time budget, the choice depends on the machine: an
-``auto`` run is reproducible given its choice (part of the run's state and of its metrics), not across machines.
+When each look comes, and what it evaluates first, is :class:`~dsage_ray.core.auto_proposer.AutoSearch`'s, the
+proposer ``search = "auto"`` runs.
 """
 
 from __future__ import annotations
@@ -72,20 +58,6 @@ BREAK_EVEN_COST_RATIO = 3.0
 #: in a CartPole ``demo`` audit with 5 minutes 4.2 (docs/DECISIONS.md; counted then at
 #: ``selection.count`` picks an iteration, 432 where the gym archive has 25 blocks, so more fit in that audit now).
 MIN_SURROGATE_ITERATIONS = 3
-
-#: Picks evaluated before the choice: enough to average a pick's evaluation, few where each is slow (Mario).
-PROBE_PICKS = 8
-
-#: With a time budget, the random first iteration is evaluated in parts of this many levels (or one per simulator,
-#: if more), with a look after each: where the rest, at the seconds of the levels so far, would leave room for fewer
-#: than :data:`MIN_SURROGATE_ITERATIONS` surrogate iterations even at no surrogate cost, the rest is dropped and the
-#: direct search continues from the levels evaluated. Mario's random levels took 35-57% of 10 minutes on seeds 96-98
-#: (docs/DECISIONS.md), and the look after them came too late.
-RANDOM_LEVELS_TIMED = 8
-
-#: The phases of a surrogate proposal that its cost counts (``Proposal.times``; held-out levels are not the search's).
-SURROGATE_PHASES = ("train", "exploit", "select")
-
 
 @dataclasses.dataclass(frozen=True)
 class SearchChoice:
@@ -258,10 +230,11 @@ def choose_search(history: Sequence[Mapping[str, float]], *, surrogate_seconds: 
 
     Args:
         history: The run's metrics rows, oldest first; the first is the random iteration.
-        surrogate_seconds: Seconds the first proposal spent in :data:`SURROGATE_PHASES`.
+        surrogate_seconds: Seconds the first proposal spent training, exploiting and selecting.
         picks: Levels it proposed (within the budget).
         probe_seconds: Seconds the evaluation of the first ``probed`` of them took.
-        probed: Picks evaluated for the choice (:data:`PROBE_PICKS`, fewer where fewer were proposed).
+        probed: Picks evaluated for the choice (:data:`~dsage_ray.core.auto_proposer.PROBE_PICKS`, fewer where
+            fewer were proposed).
         direct_variant: The domain's direct search.
         before: The time budget's look after the random iteration (:func:`choose_by_time_left`), which kept DSAGE:
             its numbers are carried into the choice (None: no time budget).

@@ -1,9 +1,11 @@
 """Where an outer iteration's levels come from: the strategies the DSAGE loop is written against.
 
-A :class:`Proposer` proposes the solutions to evaluate for real and learns from their results:
+A :class:`~dsage_ray.core.proposal.Proposer` proposes the solutions to evaluate for real and learns from their
+results (its records, :class:`Proposal` and :class:`EvaluatedBatch`, are in :mod:`dsage_ray.core.proposal` and
+importable from here too):
 
-* :class:`SurrogateAssisted` — DSAGE (the paper's Algorithm 1, lines 5-8): train the surrogate,
-  exploit it with a fresh inner QD loop, select from the surrogate archive. Its first iteration
+* :class:`SurrogateAssisted` — DSAGE (the paper's Algorithm 1, docs/ALGORITHM.md): train the surrogate on the
+  dataset, exploit it with a fresh inner QD loop, select from the surrogate archive. Its first iteration
   proposes ``n_rand`` random solutions.
 * :class:`DirectQD` — a QD optimizer on the ground-truth archive: MAP-Elites, CMA-ME or, with the
   random emitter, domain randomisation (DR).
@@ -14,14 +16,14 @@ optimizer's ``tell`` does it; DSAGE adds, then grows its dataset).
 
 from __future__ import annotations
 
-import dataclasses
 import time
-from typing import TYPE_CHECKING, Any, Callable, Protocol
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from dsage_ray.config import RunConfig
 from dsage_ray.core.holdout import HeldOutLevels, head_label
+from dsage_ray.core.proposal import EvaluatedBatch, ProgressCallback, Proposal, Proposer
 from dsage_ray.core.screening import ScreenStep
 from dsage_ray.qd.archives import make_archive
 from dsage_ray.qd.mutants import elite_mutants
@@ -30,17 +32,15 @@ from dsage_ray.qd.optimizer import (EMITTERS_WITH_OWN_START, MAP_ELITES_RANDOM_B
                                    reopened_scheduler, run_inner_loop)
 from dsage_ray.qd.selection import additions, gather_elites, select_solutions
 from dsage_ray.surrogate.models import encode_solutions
-from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
+from dsage_ray.types import Domain, Evaluator, Solutions
 
 if TYPE_CHECKING:
     from ribs.archives import GridArchive
 
-    from dsage_ray.surrogate.surrogate import Prediction, Surrogate
-
     from dsage_ray.core.seeds import RunSeeds
 
-#: Called with (phase, done, total) while a step runs; the CLI turns it into progress bars.
-ProgressCallback = Callable[[str, int, int], None]
+__all__ = ["DirectQD", "EvaluatedBatch", "ProgressCallback", "Proposal", "Proposer", "SurrogateAssisted",
+           "domain_archive"]
 
 
 def domain_archive(domain: Domain, *, with_occupancy: bool, seed: int) -> "GridArchive":
@@ -50,105 +50,7 @@ def domain_archive(domain: Domain, *, with_occupancy: bool, seed: int) -> "GridA
                         solution_dtype=domain.solution_dtype)
 
 
-@dataclasses.dataclass
-class Proposal:
-    """An iteration's candidates, with what choosing them reported."""
-
-    solutions: Solutions
-    metrics: dict[str, float] = dataclasses.field(default_factory=dict)
-    #: Seconds per phase (``train``, ``exploit``, ``select``, ``holdout``).
-    times: dict[str, float] = dataclasses.field(default_factory=dict)
-    #: What the surrogate that chose the solutions predicted for them (None: chosen without one). Kept
-    #: with the proposal because in a pipelined run the surrogate has trained again by the time the
-    #: results arrive, and the selected batch's error is that of the model that selected it.
-    predicted: "Prediction | None" = None
-    #: ``(n, 1 + M)``: each solution's screened objective and measures, NaN for one not screened (None: no screen).
-    #: What the screen errs by on them is learnt once they are evaluated (``selection.screen_gain``).
-    screened: np.ndarray | None = None
-
-    def take(self, indices: "list[int] | slice") -> "Proposal":
-        """The proposal of these solutions only, in this order (their predictions and screened results with them)."""
-        predicted = self.predicted
-        if predicted is not None:
-            predicted = dataclasses.replace(predicted, **{
-                name: None if value is None else value[indices] for name, value in dataclasses.asdict(predicted).items()})
-        return dataclasses.replace(self, solutions=self.solutions[indices], predicted=predicted,
-                                   screened=None if self.screened is None else self.screened[indices])
-
-    def state_dict(self) -> dict[str, Any]:
-        """Plain arrays and dicts, for a checkpoint."""
-        return dataclasses.asdict(self)
-
-    @classmethod
-    def from_state_dict(cls, state: dict[str, Any]) -> "Proposal":
-        from dsage_ray.surrogate.surrogate import Prediction
-
-        predicted = state.get("predicted")
-        return cls(solutions=state["solutions"], metrics=dict(state["metrics"]), times=dict(state["times"]),
-                   predicted=None if predicted is None else Prediction(**predicted), screened=state.get("screened"))
-
-
-@dataclasses.dataclass(frozen=True)
-class EvaluatedBatch:
-    """What the real evaluation of a proposal returned, split into what succeeded.
-
-    Attributes:
-        solutions: The evaluated solutions (the proposal, cut to the remaining budget).
-        results: One result per solution, failures included.
-        ok: Indices of the successful results.
-        objective, measures, occupancy: Of the successful results, stacked.
-        complete: Every proposed solution was evaluated and succeeded (what a QD scheduler's ``tell`` needs).
-        outer_iteration: The iteration that proposed them (0 is the first).
-        predicted: The proposal's predictions for ``solutions`` (see :attr:`Proposal.predicted`).
-        screened: The proposal's screened results for ``solutions`` (see :attr:`Proposal.screened`).
-    """
-
-    solutions: Solutions
-    results: list[EvaluationResult]
-    ok: list[int]
-    objective: np.ndarray
-    measures: np.ndarray
-    occupancy: np.ndarray
-    complete: bool
-    outer_iteration: int
-    predicted: "Prediction | None" = None
-    screened: np.ndarray | None = None
-
-    @classmethod
-    def collect(cls, proposal: Proposal, results: list[EvaluationResult], *, domain: Domain,
-                outer_iteration: int) -> "EvaluatedBatch":
-        """The evaluated part of ``proposal``: its first ``len(results)`` solutions (a budget may cut it)."""
-        evaluated = proposal.take(slice(0, len(results)))
-        solutions, predicted = evaluated.solutions, evaluated.predicted
-        ok = [i for i, r in enumerate(results) if not r.failed]
-        return cls(
-            solutions=solutions, results=results, ok=ok,
-            objective=np.array([results[i].objective for i in ok], dtype=np.float64),
-            measures=np.array([results[i].measures for i in ok], dtype=np.float64).reshape(
-                len(ok), len(domain.measure_names)),
-            occupancy=np.array([results[i].occupancy for i in ok], dtype=np.float32).reshape(
-                (len(ok),) + tuple(domain.occupancy_shape)),
-            complete=len(ok) == len(proposal.solutions), outer_iteration=outer_iteration, predicted=predicted,
-            screened=evaluated.screened)
-
-
-class Proposer(Protocol):
-    """A strategy of the outer loop: propose solutions, then learn from their real results."""
-
-    def propose(self, *, outer_iteration: int) -> Proposal:
-        """The solutions to evaluate this iteration."""
-
-    def learn(self, batch: EvaluatedBatch) -> dict[str, float]:
-        """Adds the batch to the ground-truth archive and to what the proposer learns from; returns metrics."""
-
-    def state_dict(self) -> dict[str, Any]:
-        """The proposer's part of the run's checkpoint."""
-
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restores :meth:`state_dict` (the whole checkpoint's dict is passed)."""
-
-
-class DirectQD:
+class DirectQD(Proposer):
     """MAP-Elites, CMA-ME, DR or a continuous search (``qd.emitter``): the configured QD optimizer asks for solutions
     and is told their real results.
 
@@ -240,7 +142,7 @@ class DirectQD:
             self.screen.load_state_dict(state.get("screen_errors"))
 
 
-class SurrogateAssisted:
+class SurrogateAssisted(Proposer):
     """DSAGE's proposals: train the surrogate, exploit it with an inner QD loop, select from its archive.
 
     Args:

@@ -1,18 +1,20 @@
 """The DSAGE outer loop (the paper's Algorithm 1), with every variant selected by config.
 
-One :meth:`DSAGE.step` is one outer iteration. Its proposer (:mod:`dsage_ray.core.proposers`) proposes
-the levels; they are evaluated for real; the proposer learns from the results. With a surrogate
-(:class:`~dsage_ray.core.proposers.SurrogateAssisted`), that is:
+One :meth:`DSAGE.step` is one outer iteration: its proposer (:mod:`dsage_ray.core.proposal`) proposes the levels,
+they are evaluated for real (:class:`~dsage_ray.core.proposal.Simulation`), the proposer learns from the
+results, and the iteration's metrics are recorded. docs/ALGORITHM.md maps each line of Algorithm 1 to the function
+that does it. The proposer is chosen by config:
 
-1. *Model improvement*: train the surrogate on the most recent evaluations (its weights and Adam
-   state persist across iterations).
-2. *Model exploitation*: a fresh surrogate archive and fresh emitters run ``qd.exploit_iterations``
-   ask → predict → tell iterations against the surrogate.
-3. *Selection*: downsample / random / full picks from the surrogate archive.
-4. *Agent simulation*: the picks are evaluated for real and enter the ground-truth archive and the
-   dataset.
-
-The first iteration evaluates ``n_rand`` random solutions instead.
+* with a surrogate, DSAGE (:class:`~dsage_ray.core.proposers.SurrogateAssisted`): train the surrogate on the
+  dataset (its weights and Adam state persist across iterations), exploit it with a fresh surrogate archive and
+  fresh emitters for ``qd.exploit_iterations`` ask → predict → tell iterations, and select picks from the surrogate
+  archive. The first iteration evaluates ``n_rand`` random solutions instead;
+* without one (``surrogate.kind = "none"``), one ask/evaluate/tell of the QD optimizer on the ground-truth archive
+  (:class:`~dsage_ray.core.proposers.DirectQD`): MAP-Elites, CMA-ME or, with the random emitter, domain
+  randomisation;
+* ``pipeline = true`` wraps DSAGE in :class:`~dsage_ray.core.prefetch.Prefetching` (the next picks are chosen while
+  this iteration's are evaluated), and ``search = "auto"`` in :class:`~dsage_ray.core.auto_proposer.AutoSearch`
+  (DSAGE until its costs say the domain's direct search does better in the time).
 
 *Held-out accuracy* (``experimental.holdout_levels > 0``): before the first outer iteration, that
 many random valid levels are evaluated for real, once. They are extra evaluations, counted as
@@ -20,37 +22,16 @@ many random valid levels are evaluated for real, once. They are extra evaluation
 dataset, the archive or the budget, so a run's search is the same with or without them. Every
 later iteration scores the freshly trained surrogate on them (``holdout_mae_*``,
 ``holdout_spearman_*``), next to its error on the batch it selected (``mae_*``). Without a
-surrogate nothing is held out (:mod:`dsage_ray.core.holdout`). Without a surrogate
-(``surrogate.kind = "none"``) a step is one ask/evaluate/tell of the QD optimizer on the
-ground-truth archive (:class:`~dsage_ray.core.proposers.DirectQD`): MAP-Elites, CMA-ME or, with the
-random emitter, domain randomisation.
-
-*Pipelined* (``pipeline = true``, DSAGE only): steps 1–3 of iteration k+1 run while iteration k's picks
-are evaluated, so the surrogate that picks them has trained on the evaluations up to iteration k−1 only.
-With simulators in other processes (an evaluator with ``runs_elsewhere``, such as the Ray pool) the
-batch is submitted first and the driver trains and exploits while it runs; in one process the two run
-one after the other. The data each phase sees is the same either way, so a seed gives the same run
-in both, and a checkpoint holds the next iteration's picks (:attr:`DSAGE.pending`). The first
-iteration cannot overlap: nothing is known until its random batch is back. A step's ``time_*``
-entries are the phases that ran during it, so a pipelined step's ``time_train`` is the next picks'
-training; ``time_overlapped`` is how long the driver worked while the batch was being evaluated.
-
-*Search auto* (``search = "auto"``): with a time budget, the random iteration is evaluated in parts, and the rest
-dropped once it would leave too little time for the surrogate (:meth:`DSAGE._time_random_levels`); right after
-the random iteration, the surrogate's first proposal is projected and the direct search takes over at once where
-too few surrogate iterations fit in the time left (:meth:`DSAGE._look_at_time_left`); otherwise the first surrogate
-iteration's picks are probed before the rest are evaluated (:meth:`DSAGE._probe_first_picks`); where a pick costs
-more than the break-even, the rest are dropped and the domain's direct search takes over the same archive
-(:mod:`dsage_ray.core.auto_search`).
+surrogate nothing is held out (:mod:`dsage_ray.core.holdout`).
 
 *Budgets and cost*: a run ends when ``budget`` evaluations are spent or, with ``time_budget > 0``,
 when its wall time reaches ``time_budget`` seconds, whichever comes first. A time budget that runs out
 while a batch is being evaluated stops the batch there: the levels under way finish, the rest are
 dropped, and the iteration ends with what was evaluated, learned as usual (``evaluated_this_iteration``
 says how many). So a run overshoots its time budget by at most one level per simulator, plus the
-surrogate's phases if the time ran out during them. Wall time is the time spent inside :meth:`DSAGE.step`, cumulative across resumes (it is
-part of the state dict), so a stopped and resumed run counts only the time it ran. Every metric row
-carries it (``wall_time``) and the CPU time of this process during the steps (``cpu_time``,
+surrogate's phases if the time ran out during them. Wall time is the time spent inside :meth:`DSAGE.step`, cumulative
+across resumes (it is part of the state dict), so a stopped and resumed run counts only the time it ran. Every metric
+row carries it (``wall_time``) and the CPU time of this process during the steps (``cpu_time``,
 :func:`time.process_time`: every thread of the process that runs the outer loop, so in-process
 evaluation is included, the CPU of Ray's simulator actors is not). Where a time budget stops a run
 depends on the machine and its load: a time-limited run is not reproducible across machines or runs,
@@ -68,28 +49,22 @@ from typing import Any
 import numpy as np
 
 from dsage_ray.config import RunConfig, changed_keys
-from dsage_ray.core.auto_search import (PROBE_PICKS, RANDOM_LEVELS_TIMED, SURROGATE_PHASES, SearchChoice,
-                                        choose_by_time_left, choose_during_random, choose_search, direct_config,
-                                        direct_variant, probe_allowance, random_level_seconds)
-from dsage_ray.core.evaluation import InProcessEvaluator, PendingEvaluation
+from dsage_ray.core.auto_proposer import AutoSearch
+from dsage_ray.core.evaluation import InProcessEvaluator
 from dsage_ray.core.outputs import write_outputs
-from dsage_ray.core.proposers import (DirectQD, EvaluatedBatch, ProgressCallback, Proposal, Proposer,
-                                      SurrogateAssisted, domain_archive)
+from dsage_ray.core.prefetch import Prefetching
+from dsage_ray.core.proposal import EvaluatedBatch, ProgressCallback, Proposal, Proposer, Simulation
+from dsage_ray.core.proposers import DirectQD, SurrogateAssisted, domain_archive
 from dsage_ray.core.seeds import RunSeeds
 from dsage_ray.core.snapshot import RunSnapshot
-from dsage_ray.core.tensorboard_log import GrowthPoint, growth_curve
 from dsage_ray.core.threads import torch_threads
 from dsage_ray.domains import build_domain
 from dsage_ray.errors import DsageError
 from dsage_ray.qd.archives import archive_stats
-from dsage_ray.types import Domain, EvaluationResult, Evaluator, Solutions
+from dsage_ray.qd.growth import GrowthPoint, growth_curve
+from dsage_ray.types import Domain, Evaluator
 
 __all__ = ["DSAGE", "EvaluationsFailed", "ProgressCallback", "torch_threads"]
-
-
-def _surrogate_seconds(proposal: Proposal) -> float:
-    """Seconds a surrogate proposal spent training, exploiting and selecting."""
-    return sum(proposal.times.get(phase, 0.0) for phase in SURROGATE_PHASES)
 
 
 class EvaluationsFailed(DsageError, RuntimeError):
@@ -108,7 +83,9 @@ class DSAGE:
     Attributes:
         archive: The ground-truth archive: every real evaluation that succeeded, competing per cell.
         proposer: Where the levels come from (:class:`~dsage_ray.core.proposers.SurrogateAssisted`
-            with a surrogate, else :class:`~dsage_ray.core.proposers.DirectQD`).
+            with a surrogate, else :class:`~dsage_ray.core.proposers.DirectQD`; wrapped by
+            :class:`~dsage_ray.core.prefetch.Prefetching` or :class:`~dsage_ray.core.auto_proposer.AutoSearch`
+            where the config asks).
         evals, outer_iteration: Real evaluations spent, outer iterations done.
         wall_time, cpu_time: Seconds spent in :meth:`step` (wall clock) and CPU seconds of this process
             during it, over the whole run including the parts before a resume.
@@ -138,18 +115,22 @@ class DSAGE:
         self.cpu_time = 0.0
         self.history: list[dict[str, float]] = []
         self.failures: list[dict[str, Any]] = []
-        #: A pipelined run's next proposal, chosen while the last batch was evaluated.
-        self.pending: Proposal | None = None
         #: The archive's numbers within the last outer iteration (for TensorBoard; not part of the run's state).
         self.growth: tuple[GrowthPoint, ...] = ()
-        #: What ``search = "auto"`` chose, once it has (None: not yet, or a fixed search).
-        self.search_choice: SearchChoice | None = None
-        self.proposer: Proposer
-        if config.uses_surrogate:
-            self.proposer = SurrogateAssisted(config=config, domain=self.domain, archive=self.archive, seeds=self.seeds,
-                                              evaluator=self.evaluator, progress=progress)
-        else:
-            self.proposer = DirectQD(config=config, domain=self.domain, archive=self.archive, seeds=self.seeds)
+        #: When the step under way began (:func:`time.perf_counter`; None: none under way).
+        self._step_started: float | None = None
+        self.proposer = self._make_proposer()
+
+    def _make_proposer(self) -> Proposer:
+        """The proposer the config names: DSAGE or a direct search, DSAGE wrapped for ``pipeline`` or ``auto``."""
+        config, domain, archive, seeds = self.config, self.domain, self.archive, self.seeds
+        if not config.uses_surrogate:
+            return DirectQD(config=config, domain=domain, archive=archive, seeds=seeds)
+        dsage = SurrogateAssisted(config=config, domain=domain, archive=archive, seeds=seeds,
+                                  evaluator=self.evaluator, progress=self.progress)
+        if config.search == "auto":
+            return AutoSearch(dsage=dsage, config=config, domain=domain, archive=archive, seeds=seeds, run=self)
+        return Prefetching(inner=dsage) if config.pipeline else dsage
 
     # ------------------------------------------------------------------------------------ loop
 
@@ -189,212 +170,78 @@ class DSAGE:
         self.history.append(metrics)
         return metrics
 
-    def _probe_first_picks(self, proposal: Proposal, solutions: Solutions, seeds: list[int], started: float,
-                           look: SearchChoice | None) -> tuple[Proposal, list[EvaluationResult], list[int]]:
-        """``search = "auto"``: evaluates :data:`PROBE_PICKS` of the surrogate's first picks, spread over its order
-        (the picks come in archive order, where a region of cheap levels may come first), chooses, then evaluates
-        the rest or drops it. ``look`` is this step's look at the time left, which kept DSAGE (None: no time budget).
-        Returns the proposal of what was evaluated, its results and seeds, in the picks' order: with every pick
-        evaluated, the fixed run's batch exactly."""
-        tic, count = time.perf_counter(), len(solutions)
-        probe = sorted({int(i) for i in np.linspace(0, count - 1, min(PROBE_PICKS, count)).round()})
-        # The probe stops once its picks alone have cost more than the break-even allows (Mario's A* may play a
-        # pick for half a minute): the choice is then made already.
-        allowance = probe_allowance(self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=count,
-                                    probed=len(probe))
-        deadline = self._deadline(started)
-        deadline = tic + allowance if deadline is None else min(deadline, tic + allowance)
-        results = dict(zip(probe, PendingEvaluation(
-            self.evaluator, solutions[probe], [seeds[i] for i in probe], deadline=deadline,
-            progress=self._evaluation_progress()).result()))
-        self.search_choice = choose_search(
-            self.history, surrogate_seconds=_surrogate_seconds(proposal), picks=count,
-            probe_seconds=time.perf_counter() - tic, probed=len(results), direct_variant=direct_variant(self.config),
-            before=look)
-        proposal.metrics.update(self.search_choice.metrics())
-        rest = [i for i in range(count) if i not in results]
-        if not self.search_choice.direct and len(results) == len(probe) and rest:
-            results.update(zip(rest, PendingEvaluation(
-                self.evaluator, solutions[rest], [seeds[i] for i in rest], deadline=self._deadline(started),
-                progress=self._evaluation_progress(offset=len(probe))).result()))
-        evaluated = sorted(results)
-        if len(evaluated) < len(proposal.solutions):
-            proposal = proposal.take(evaluated)
-        return proposal, [results[i] for i in evaluated], [seeds[i] for i in evaluated]
-
-    def _surrogate_picks(self, evals: int) -> int:
-        """Levels a surrogate iteration evaluates after ``evals`` evaluations, within the budget, counted before the
-        surrogate has picked any, so a heuristic: ``selection.count``, capped for downsampling (which picks one elite
-        per occupied block of the surrogate archive and does not read ``count``) at the archive's blocks. The Mario
-        and Maze presets' count of 100 is under their blocks (600, 6,912) and is what their measured looks counted;
-        a gym archive of 20 × 20 cells in blocks of 4 × 4 has 25. Before any screen: a screen that drops some makes
-        the iteration cheaper than counted here."""
-        selection = self.config.selection
-        picks = selection.count
-        if selection.method == "downsample":
-            picks = min(picks, int(np.prod([-(-int(d) // b) for d, b in zip(self.archive.dims, selection.block)])))
-        elif selection.method == "full":
-            picks = int(np.prod(self.archive.dims))
-        return min(picks + selection.elite_mutants, self.config.budget - evals)
-
-    def _time_random_levels(self, proposal: Proposal, solutions: Solutions, seeds: list[int], started: float
-                            ) -> tuple[SearchChoice | None, Proposal, list[EvaluationResult], list[int]]:
-        """``search = "auto"`` with a time budget, in the random first iteration: evaluates it in parts of
-        :data:`~dsage_ray.core.auto_search.RANDOM_LEVELS_TIMED` levels (or one per simulator, if more) and looks after
-        each: where the rest, at the seconds of the levels so far, would leave too little time for the surrogate
-        (:func:`~dsage_ray.core.auto_search.choose_during_random`), the rest is dropped. Level times are heavy-tailed
-        (Mario's A* plays most random levels in a second, a few in half a minute), so one look after the first few
-        can miss a slow iteration. Returns the choice (None: none of the looks chose the direct search) and what was
-        evaluated, a prefix of the batch: with every level evaluated, the batch exactly as one evaluation gives it."""
-        config, count = self.config, len(solutions)
-        part = max(RANDOM_LEVELS_TIMED, int(getattr(self.evaluator, "num_workers", 1)))
-        tic, results, choice = time.perf_counter(), [], None
-        while len(results) < count:
-            first, stop = len(results), min(len(results) + part, count)
-            got = PendingEvaluation(self.evaluator, solutions[first:stop], seeds[first:stop],
-                                    deadline=self._deadline(started),
-                                    progress=self._evaluation_progress(offset=first)).result()
-            results += got
-            if len(got) < stop - first or len(results) == count:  # the time budget stopped it, or it is done
-                break
-            choice = choose_during_random(seconds=time.perf_counter() - tic, timed=len(results), random_levels=count,
-                                          time_left=self._deadline(started) - time.perf_counter(),
-                                          picks=self._surrogate_picks(self.evals + count),
-                                          evals_left=config.budget - self.evals - count,
-                                          direct_variant=direct_variant(config))
-            if choice.direct:
-                break
-        evaluated = len(results)
-        if evaluated < len(proposal.solutions):
-            proposal = proposal.take(slice(0, evaluated))
-        return (choice if choice is not None and choice.direct else None), proposal, results, seeds[:evaluated]
-
-    def _look_at_time_left(self, step_started: float) -> SearchChoice:
-        """``search = "auto"`` with a time budget, before the first surrogate proposal: continues with the direct
-        search at once where fewer than :data:`~dsage_ray.core.auto_search.MIN_SURROGATE_ITERATIONS` surrogate
-        iterations, at their cheapest, fit in the time left. Returns the look (``direct``: it chose so)."""
-        config = self.config
-        look = choose_by_time_left(random_seconds=random_level_seconds(self.history),
-                                   time_left=self._deadline(step_started) - time.perf_counter(),
-                                   proposal_seconds=self.proposer.projected_proposal_seconds(),
-                                   picks=self._surrogate_picks(self.evals), evals_left=config.budget - self.evals,
-                                   direct_variant=direct_variant(config))
-        if look.direct:
-            self.continue_direct(look)
-        return look
-
-    def continue_direct(self, choice: SearchChoice) -> None:
-        """Records ``choice`` and hands the archive to the domain's direct search (the surrogate's proposer is dropped
-        with its data). ``search = "auto"`` calls it when it chooses; ``benchmarks/bench_auto_switch_bound.py`` calls
-        it right after the random iteration."""
-        self.search_choice = choice
-        self.proposer = DirectQD(config=direct_config(self.config), domain=self.domain, archive=self.archive,
-                                 seeds=self.seeds, handover=True)
-
     def _step(self) -> dict[str, float]:
-        started = time.perf_counter()
-        # search = "auto" with a time budget looks at the time left before the surrogate's first training.
-        look = (self._look_at_time_left(started) if self.config.search == "auto" and self.config.time_budget > 0
-                and self.outer_iteration == 1 and self.search_choice is None else None)
-        look_seconds = time.perf_counter() - started
-        if self.pending is not None:  # chosen during the previous step (pipelined)
-            proposal, times = self.pending, {}
-            self.pending = None
-        else:
-            proposal = self.proposer.propose(outer_iteration=self.outer_iteration)
-            times = dict(proposal.times)
-        if look is not None:
-            times["auto_look"] = look_seconds
-        solutions = proposal.solutions[: self.config.budget - self.evals]
-        seeds = [self.seeds.evaluation(self.evals + i) for i in range(len(solutions))]
-
+        """One outer iteration of Algorithm 1 (docs/ALGORITHM.md): propose → evaluate → learn → record."""
+        started = self._step_started = time.perf_counter()
+        # Model improvement, exploitation and selection: the levels to evaluate (the first iteration: random ones).
+        proposal = self.proposer.propose(outer_iteration=self.outer_iteration)
+        # Agent simulation: the levels evaluated for real, within the evaluation and time budgets.
+        simulation = self._simulation(proposal)
         tic = time.perf_counter()
-        # search = "auto": the surrogate's first picks are probed, then the rest evaluated or dropped; with a time
-        # budget, the random iteration is evaluated in parts, with a look at the time left after each.
-        probing = self.config.search == "auto" and self.search_choice is None and self.outer_iteration > 0
-        timing_random = (self.config.search == "auto" and self.config.time_budget > 0 and self.outer_iteration == 0
-                         and self.search_choice is None and not self.config.surrogate.init
-                         and len(solutions) > RANDOM_LEVELS_TIMED
-                         and self._surrogate_picks(self.evals + len(solutions)) > 0)
-        if probing:
-            proposal, results, seeds = self._probe_first_picks(proposal, solutions, seeds, started, look)
-        elif timing_random:
-            look, proposal, results, seeds = self._time_random_levels(proposal, solutions, seeds, started)
-        else:
-            evaluation = PendingEvaluation(self.evaluator, solutions, seeds, deadline=self._deadline(started),
-                                           progress=self._evaluation_progress())
-            # The next iteration's picks, chosen while this batch is evaluated, by a surrogate that has not seen it.
-            # Not in the first iteration: the surrogate has nothing to train on until its random batch is back.
-            if self.config.pipeline and self.outer_iteration > 0 and self.evals + len(solutions) < self.config.budget:
-                overlap = time.perf_counter()
-                self.pending = self._propose(self.outer_iteration + 1, times)
-                if evaluation.overlapped:
-                    times["overlapped"] = time.perf_counter() - overlap
-            results = evaluation.result()
-        times["evaluate"] = time.perf_counter() - tic
-        solutions = proposal.solutions[:len(results)]  # a time budget (or auto's probe) may have stopped the batch
-        self._record_failures(solutions, seeds, results)
-        batch = EvaluatedBatch.collect(proposal, results, domain=self.domain, outer_iteration=self.outer_iteration)
-        if results and not batch.ok:
-            # Nothing was learned and nothing would be: a broken agent or simulator fails every batch.
-            raise EvaluationsFailed(f"every evaluation of outer iteration {self.outer_iteration} failed "
-                                    f"({len(results)} of {len(results)}, after retries); the first: {results[0].error}")
+        self.proposer.evaluate(simulation)
+        simulation.times["evaluate"] = time.perf_counter() - tic
+        batch = simulation.batch(domain=self.domain, outer_iteration=self.outer_iteration)
+        self._record_failures(batch)
         new_cells = self._count_new_cells(batch.measures)
         # Read before the batch enters the archive; it changes nothing the search computes.
         self.growth = growth_curve(self.archive, measures=batch.measures, objective=batch.objective,
                                    evals_at=[self.evals + i + 1 for i in batch.ok], budget=self.config.budget)
+        # The batch enters the ground-truth archive and the dataset.
         metrics = {**proposal.metrics, **self.proposer.learn(batch)}
-        if look is not None and look.direct:
-            metrics.update(look.metrics())
-            if timing_random:  # the direct search continues from the random levels evaluated
-                self.continue_direct(look)
-        if probing and self.search_choice.direct:
-            self.continue_direct(self.search_choice)
-
-        self.evals += len(solutions)
+        self.evals += len(batch.solutions)
         self.outer_iteration += 1
-        if (self.config.pipeline and self.pending is None and self.evals < self.config.budget
-                and not 0 < self.config.time_budget <= self.wall_time + time.perf_counter() - started):
-            self.pending = self._propose(self.outer_iteration, times)
-        times["total"] = time.perf_counter() - started
+        self._step_started = None
+        simulation.times["total"] = time.perf_counter() - started
+        return self._record(metrics, batch, new_cells=new_cells, times=simulation.times)
+
+    def _simulation(self, proposal: Proposal) -> Simulation:
+        """The agent simulation of ``proposal``: within the evaluation budget, each level with its evaluation's seed."""
+        count = len(proposal.solutions[: self.config.budget - self.evals])
+        return Simulation(proposal=proposal, evaluator=self.evaluator, evals=self.evals, budget=self.config.budget,
+                          seeds=[self.seeds.evaluation(self.evals + i) for i in range(count)],
+                          deadline=self.deadline, progress=self.progress, times=proposal.times)
+
+    def _record(self, metrics: dict[str, float], batch: EvaluatedBatch, *, new_cells: int,
+                times: dict[str, float]) -> dict[str, float]:
+        """The iteration's metrics row (the run's ``wall_time`` and ``cpu_time`` are added by :meth:`step`)."""
+        evaluated = len(batch.solutions)
         metrics.update(archive_stats(self.archive))
         metrics.update(
             archive_size=float(len(self.archive)),
             outer_iteration=float(self.outer_iteration),
             evals=float(self.evals),
-            evaluated_this_iteration=float(len(solutions)),
+            evaluated_this_iteration=float(evaluated),
             failed_evals=float(len(self.failures)),
-            new_cell_share=float(new_cells) / max(len(solutions), 1),
+            new_cell_share=float(new_cells) / max(evaluated, 1),
             holdout_evals=float(self.holdout_evals),
         )
         metrics.update({f"time_{k}": v for k, v in times.items()})
         return metrics
 
-    def _deadline(self, step_started: float) -> float | None:
+    @property
+    def deadline(self) -> float | None:
         """The :func:`time.perf_counter` value at which the time budget runs out (None: no time budget)."""
         if self.config.time_budget <= 0:
             return None
-        return step_started + self.config.time_budget - self.wall_time
+        started = self._step_started if self._step_started is not None else time.perf_counter()
+        return started + self.config.time_budget - self.wall_time
 
-    def _evaluation_progress(self, offset: int = 0):
-        """The evaluation bar's callback for a batch (``offset``: the part of it already evaluated this step)."""
-        if self.progress is None:
-            return None
-        start, budget, progress = self.evals + offset, self.config.budget, self.progress
-        return lambda done: progress("evaluate", start + done, budget)
+    def time_left(self) -> float | None:
+        """Seconds of the time budget left now, the step under way counted (None: no time budget)."""
+        deadline = self.deadline
+        return None if deadline is None else deadline - time.perf_counter()
 
-    def _propose(self, outer_iteration: int, times: dict[str, float]) -> Proposal:
-        """Iteration ``outer_iteration``'s proposal, made now; its phases' seconds are added to this step's ``times``."""
-        proposal = self.proposer.propose(outer_iteration=outer_iteration)
-        for phase, seconds in proposal.times.items():
-            times[phase] = times.get(phase, 0.0) + seconds
-        return proposal
-
-    def _record_failures(self, solutions: Solutions, seeds: list[int], results: list[EvaluationResult]) -> None:
-        for i, result in enumerate(results):
+    def _record_failures(self, batch: EvaluatedBatch) -> None:
+        """Keeps each failed evaluation (after its retry); stops the run where every one failed."""
+        for i, result in enumerate(batch.results):
             if result.failed:
-                self.failures.append({"eval_index": self.evals + i, "seed": seeds[i], "error": result.error,
-                                      "solution": np.asarray(solutions[i]).tolist()})
+                self.failures.append({"eval_index": self.evals + i, "seed": batch.seeds[i], "error": result.error,
+                                      "solution": np.asarray(batch.solutions[i]).tolist()})
+        if batch.results and not batch.ok:
+            # Nothing was learned and nothing would be: a broken agent or simulator fails every batch.
+            raise EvaluationsFailed(f"every evaluation of outer iteration {self.outer_iteration} failed "
+                                    f"({len(batch.results)} of {len(batch.results)}, after retries); the first: "
+                                    f"{batch.results[0].error}")
 
     def _count_new_cells(self, measures: np.ndarray) -> int:
         """How many of these results land in a ground-truth cell that was empty before the batch."""
@@ -461,8 +308,6 @@ class DSAGE:
             "archive": self.archive,
             **self.proposer.state_dict(),
             "last_predictions": self.last_predictions,
-            "search_choice": None if self.search_choice is None else self.search_choice.state_dict(),
-            "pending_proposal": None if self.pending is None else self.pending.state_dict(),
         })
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -483,12 +328,8 @@ class DSAGE:
         self.cpu_time = state.get("cpu_time", 0.0)
         self.history = state["history"]
         self.failures = state["failures"]
-        # Before the seeds load: the direct search's construction draws a seed the stored streams already account for.
-        self.search_choice = SearchChoice.from_state_dict(state.get("search_choice"))
-        if self.search_choice is not None and self.search_choice.direct:
-            self.continue_direct(self.search_choice)
-        self.seeds.load_state_dict(state)
         self.archive = state["archive"]
+        # Before the seeds load: a direct search that took over (search = "auto") is built again, and its
+        # construction may draw from streams the stored ones already account for.
         self.proposer.load_state_dict(state)
-        pending = state.get("pending_proposal")  # absent from checkpoints of unpipelined versions
-        self.pending = None if pending is None else Proposal.from_state_dict(pending)
+        self.seeds.load_state_dict(state)

@@ -6,7 +6,7 @@ import pytest
 
 from dsage_ray.config import ConfigError, RunConfig
 from dsage_ray.core import auto_search
-from dsage_ray.core import runner as runner_module
+from dsage_ray.core import auto_proposer
 from dsage_ray.core.auto_search import (SearchChoice, choose_by_time_left, choose_during_random, choose_search,
                                         direct_config, direct_variant, probe_allowance, random_level_seconds)
 from dsage_ray.core.proposers import DirectQD, SurrogateAssisted
@@ -28,7 +28,7 @@ def make_runner(**overrides) -> DSAGE:
 
 @pytest.fixture
 def probe_two(monkeypatch):
-    monkeypatch.setattr(runner_module, "PROBE_PICKS", 2)
+    monkeypatch.setattr(auto_proposer, "PROBE_PICKS", 2)
 
 
 @pytest.fixture
@@ -40,15 +40,15 @@ def slow_surrogate(monkeypatch):
 @pytest.fixture
 def slow_random_levels(monkeypatch):
     """Random levels timed at 10^9 times their seconds: the rest of the random iteration would use up the time."""
-    real = runner_module.choose_during_random
-    monkeypatch.setattr(runner_module, "choose_during_random",
+    real = auto_proposer.choose_during_random
+    monkeypatch.setattr(auto_proposer, "choose_during_random",
                         lambda **numbers: real(**{**numbers, "seconds": numbers["seconds"] * 1e9}))
 
 
 @pytest.fixture
 def after_random(monkeypatch):
     """No look during the random iteration: every random level is evaluated before the first look."""
-    monkeypatch.setattr(runner_module, "RANDOM_LEVELS_TIMED", 10**9)
+    monkeypatch.setattr(auto_proposer, "RANDOM_LEVELS_TIMED", 10**9)
 
 
 def random_row(seconds=2.0, levels=40):
@@ -139,8 +139,8 @@ def test_above_the_break_even_the_probed_picks_are_kept_the_rest_dropped_and_the
     # evaluated (and learned from), the rest dropped.
     assert second["time_exploit"] > 0 and second["surrogate_archive_size"] >= 5
     assert second["evaluated_this_iteration"] == 1 and runner.evals == SMALL_RUN["n_rand"] + 1
-    assert isinstance(runner.proposer, DirectQD) and runner.search_choice.direct
-    assert runner.proposer.archive is runner.archive
+    assert isinstance(runner.proposer.inner, DirectQD) and runner.proposer.choice.direct
+    assert runner.proposer.inner.archive is runner.archive
     third = runner.step()
     assert third["evaluated_this_iteration"] == 150 and "time_exploit" not in third  # MAP-Elites' 5 x 30
     runner.run()
@@ -154,7 +154,7 @@ def test_below_the_break_even_the_probe_and_the_rest_make_dsages_run_bit_for_bit
     auto.run()
     fixed = make_runner(budget=SMALL_RUN["n_rand"] + 10, search="fixed", **PICKING)
     fixed.run()
-    assert isinstance(auto.proposer, SurrogateAssisted) and not auto.search_choice.direct
+    assert isinstance(auto.proposer.inner, SurrogateAssisted) and not auto.proposer.choice.direct
     assert auto.history[1]["evaluated_this_iteration"] == fixed.history[1]["evaluated_this_iteration"] == 5
     assert archive_snapshot(auto.archive) == archive_snapshot(fixed.archive)
 
@@ -173,8 +173,8 @@ def test_a_run_resumes_exactly_before_at_and_after_the_switch(monkeypatch, probe
     resumed.run()
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
     if steps >= 2:  # the choice was made before the stop: the resumed run holds that one (its own times differ)
-        assert resumed.search_choice == interrupted.search_choice
-    assert isinstance(resumed.proposer, DirectQD)
+        assert resumed.proposer.choice == interrupted.proposer.choice
+    assert isinstance(resumed.proposer.inner, DirectQD)
 
 
 #: Far more than the run can take: it ends on its evaluations; only the look at the time left reads it.
@@ -210,15 +210,15 @@ def test_with_too_little_time_left_the_direct_search_takes_over_before_the_surro
     assert "auto_direct" not in first
     assert second["auto_direct"] == 1.0 and 0 < second["auto_iterations_left"] < 1e12
     assert second["auto_time_left_s"] == pytest.approx(LONG - first["wall_time"], abs=5.0)
-    assert runner.search_choice.by_time_left and "DSAGE needs" in runner.search_choice.reason
+    assert runner.proposer.choice.by_time_left and "DSAGE needs" in runner.proposer.choice.reason
     # Nothing trained: the direct search proposed this iteration's batch (MAP-Elites' 5 x 30).
     assert "time_train" not in second and "surrogate_loss" not in second and second["time_auto_look"] > 0
-    assert second["evaluated_this_iteration"] == 150 and isinstance(runner.proposer, DirectQD)
+    assert second["evaluated_this_iteration"] == 150 and isinstance(runner.proposer.inner, DirectQD)
     runner.run()
     # The look drew nothing from the run's streams: the run is the random iteration, then the direct search.
     by_hand = make_runner(time_budget=LONG)
     by_hand.step()
-    by_hand.continue_direct(runner.search_choice)
+    by_hand.proposer.continue_direct(runner.proposer.choice)
     by_hand.run()
     assert archive_snapshot(runner.archive) == archive_snapshot(by_hand.archive)
 
@@ -231,8 +231,8 @@ def test_a_look_that_keeps_dsage_leaves_its_run_bit_for_bit_and_its_numbers_in_t
     auto.run()
     fixed = make_runner(budget=budget, time_budget=LONG, search="fixed", **PICKING)
     fixed.run()
-    assert not auto.search_choice.direct and auto.search_choice.iterations_left > 0
-    assert auto.history[1]["auto_iterations_left"] == auto.search_choice.iterations_left
+    assert not auto.proposer.choice.direct and auto.proposer.choice.iterations_left > 0
+    assert auto.history[1]["auto_iterations_left"] == auto.proposer.choice.iterations_left
     assert archive_snapshot(auto.archive) == archive_snapshot(fixed.archive)
     assert auto.history[-1]["surrogate_loss"] == fixed.history[-1]["surrogate_loss"]
 
@@ -248,7 +248,7 @@ def test_a_run_resumes_exactly_across_a_switch_by_the_time_left(after_random, sl
     resumed.load_state_dict(pickle.loads(pickle.dumps(interrupted.state_dict())))
     resumed.run()
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
-    assert isinstance(resumed.proposer, DirectQD) and resumed.search_choice.by_time_left
+    assert isinstance(resumed.proposer.inner, DirectQD) and resumed.proposer.choice.by_time_left
     assert direct_variant(resumed.config) == "map_elites"
 
 
@@ -274,11 +274,11 @@ def test_random_levels_that_leave_too_little_time_are_dropped_and_the_direct_sea
         slow_random_levels):
     runner = make_runner(time_budget=LONG)
     first = runner.step()
-    timed = runner_module.RANDOM_LEVELS_TIMED
+    timed = auto_proposer.RANDOM_LEVELS_TIMED
     assert first["auto_direct"] == 1.0 and first["auto_random_levels_timed"] == timed
     assert first["evaluated_this_iteration"] == timed == runner.evals and len(runner.archive) >= 1
-    assert isinstance(runner.proposer, DirectQD) and runner.search_choice.random_levels_timed == timed
-    assert f"after {timed} random levels" in runner.search_choice.reason
+    assert isinstance(runner.proposer.inner, DirectQD) and runner.proposer.choice.random_levels_timed == timed
+    assert f"after {timed} random levels" in runner.proposer.choice.reason
     # Nothing trained, nothing more looked at: MAP-Elites' 5 x 30 from the next iteration on.
     second = runner.step()
     assert second["evaluated_this_iteration"] == 150 and "time_train" not in second and "auto_direct" not in second
@@ -292,7 +292,7 @@ def test_with_time_for_the_surrogate_every_random_level_is_evaluated_as_in_the_f
     first = auto.step()
     fixed = make_runner(time_budget=LONG, search="fixed")
     fixed.step()
-    assert "auto_direct" not in first and auto.search_choice is None
+    assert "auto_direct" not in first and auto.proposer.choice is None
     assert first["evaluated_this_iteration"] == SMALL_RUN["n_rand"]
     assert archive_snapshot(auto.archive) == archive_snapshot(fixed.archive)
 
@@ -306,7 +306,7 @@ def test_a_run_resumes_exactly_across_a_switch_during_the_random_iteration(slow_
     resumed.load_state_dict(pickle.loads(pickle.dumps(interrupted.state_dict())))
     resumed.run()
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
-    assert isinstance(resumed.proposer, DirectQD) and resumed.search_choice.random_levels_timed is not None
+    assert isinstance(resumed.proposer.inner, DirectQD) and resumed.proposer.choice.random_levels_timed is not None
 
 
 def test_the_look_repeats_through_the_random_iteration_until_the_levels_so_far_say_switch(monkeypatch):
@@ -316,11 +316,11 @@ def test_the_look_repeats_through_the_random_iteration_until_the_levels_so_far_s
         looked.append(numbers["timed"])
         return dataclasses.replace(choose_during_random(**numbers), direct=numbers["timed"] >= 24)
 
-    monkeypatch.setattr(runner_module, "choose_during_random", choose_after_three_parts)
+    monkeypatch.setattr(auto_proposer, "choose_during_random", choose_after_three_parts)
     runner = make_runner(time_budget=LONG)
     first = runner.step()
     assert looked == [8, 16, 24] and first["evaluated_this_iteration"] == 24 == runner.evals
-    assert first["auto_random_levels_timed"] == 24 and isinstance(runner.proposer, DirectQD)
+    assert first["auto_random_levels_timed"] == 24 and isinstance(runner.proposer.inner, DirectQD)
 
 
 def test_where_fewer_iterations_spend_the_evaluation_budget_dsage_needs_only_those():
@@ -344,8 +344,8 @@ def test_a_surrogate_iteration_is_counted_at_one_pick_per_block_at_most(method, 
                                              "selection.block": (4, 4), "budget": 100_000})
     dims = runner.archive.dims
     count = {"blocks": -(-dims[0] // 4) * -(-dims[1] // 4), "count": 10_000, "cells": dims[0] * dims[1]}[expected]
-    assert runner._surrogate_picks(0) == count
-    assert runner._surrogate_picks(100_000 - 7) == 7  # within the evaluation budget
+    assert runner.proposer.surrogate_picks(0) == count
+    assert runner.proposer.surrogate_picks(100_000 - 7) == 7  # within the evaluation budget
 
 
 def _direct_search(config, domain, *, levels_before=None, handover):

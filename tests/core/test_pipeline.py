@@ -29,13 +29,13 @@ def reference():
     """A pipelined run in this process, with (iteration proposed, evaluations its surrogate had) per proposal."""
     runner = make_runner()
     seen: list[tuple[int, int]] = []
-    propose = runner.proposer.propose
+    propose = runner.proposer.inner.propose
 
     def recording_propose(*, outer_iteration):
         seen.append((outer_iteration, len(runner.dataset)))
         return propose(outer_iteration=outer_iteration)
 
-    runner.proposer.propose = recording_propose
+    runner.proposer.inner.propose = recording_propose
     runner.run()
     return runner, seen
 
@@ -52,7 +52,7 @@ def test_overlapping_the_evaluations_changes_nothing_but_the_timings(reference):
     assert [row.get("time_overlapped", 0) > 0 for row in elsewhere.history][:2] == [False, True]
     assert not any("time_overlapped" in row for row in in_process.history)
     # The last iteration leaves no picks behind.
-    assert in_process.pending is None and in_process.state_dict()["pending_proposal"] is None
+    assert in_process.proposer.pending is None and in_process.state_dict()["pending_proposal"] is None
 
 
 def test_each_pick_is_chosen_by_a_surrogate_one_batch_behind(reference):
@@ -73,7 +73,7 @@ def test_a_resume_continues_from_the_saved_next_picks(reference):
     assert state["pending_proposal"] is not None
     resumed = make_runner(ElsewhereEvaluator)
     resumed.load_state_dict(state)
-    assert resumed.pending is not None
+    assert resumed.proposer.pending is not None
     resumed.run()
     assert archive_snapshot(resumed.archive) == archive_snapshot(uninterrupted.archive)
     assert untimed(resumed.history) == untimed(uninterrupted.history)
