@@ -1,7 +1,7 @@
 """``series.html``: one self-contained page for an audit series (:mod:`dsage_ray.audit.series`).
 
 Three parts, in the style of the collection report (:mod:`dsage_ray.audit.report`, whose page, table and
-picture helpers it uses):
+picture blocks it uses):
 
 * a **timeline** (a PNG): the success rate on the regression suite per checkpoint, and per checkpoint the
   levels its search added to the suite, the regressed and the fixed ones;
@@ -22,7 +22,7 @@ import os
 from pathlib import Path
 from typing import Any, Sequence
 
-from dsage_ray.audit.report import _esc, _img, _page, _table, collection_href
+from dsage_ray.audit.report.blocks import collection_href, esc, html_page, html_table, img_tag
 from dsage_ray.io import atomic_write_text
 
 #: Page file name (also :data:`dsage_ray.audit.series.SERIES_REPORT`).
@@ -114,7 +114,7 @@ def _checkpoint_table(out_dir: Path, records: Sequence[dict[str, Any]]) -> str:
                 report = collection_href(path.as_posix())
         row = [
             r["index"],
-            f"<span title='{_esc(r['agent'])}'>{_esc(r['label'])}</span>",
+            f"<span title='{esc(r['agent'])}'>{esc(r['label'])}</span>",
             "" if r.get("step") is None else f"{r['step']:,}",
             _number(r.get("suite_success_rate")),
             r["suite_size"],
@@ -127,9 +127,9 @@ def _checkpoint_table(out_dir: Path, records: Sequence[dict[str, Any]]) -> str:
             f"<a href='{report}'>report</a>" if report else "",
         ]
         if errors:
-            row.append(_esc(r.get("error") or ""))
+            row.append(esc(r.get("error") or ""))
         rows.append(row)
-    table = _table(headers, rows, numeric=[True, False, True, True, True, True, True, True, True, True, True, False,
+    table = html_table(headers, rows, numeric=[True, False, True, True, True, True, True, True, True, True, True, False,
                                            False], sorted_by=(0, "ascending"),
                    titles={"suite success": "mean success rate over the suite levels found by earlier checkpoints",
                            "fixed": "suite levels failing at their previous result, not failing now",
@@ -160,8 +160,8 @@ def _matrix(records: Sequence[dict[str, Any]], suite: Sequence[dict[str, Any]]) 
     for level in suite:
         results = {int(k): v for k, v in level["results"].items()}
         href = collection_href(level.get("level_file"))
-        link = f"<a href='{href}'>{_esc(level['id'])}</a>" if href else _esc(level["id"])
-        cells: list[Any] = [(link, level["id"]), (f"#{_esc(level['origin'])}", level["origin"])]
+        link = f"<a href='{href}'>{esc(level['id'])}</a>" if href else esc(level["id"])
+        cells: list[Any] = [(link, level["id"]), (f"#{esc(level['origin'])}", level["origin"])]
         for r in records:
             k = r["index"]
             if k < level["origin"]:
@@ -173,10 +173,10 @@ def _matrix(records: Sequence[dict[str, Any]], suite: Sequence[dict[str, Any]]) 
                 rate = results[k]
                 note = f", {kind}" if kind else ""
                 cells.append((f"<span class='c {kind}' style='background:{success_colour(rate)}' "
-                              f"title='level {_esc(level['id'])} at #{k}: success {rate:.2f}{note}'>"
+                              f"title='level {esc(level['id'])} at #{k}: success {rate:.2f}{note}'>"
                               f"{rate:.2f}</span>", rate))
         rows.append(cells)
-    table = _table(headers, rows, numeric=[True] * len(headers), table_attrs="class='sortable matrix'",
+    table = html_table(headers, rows, numeric=[True] * len(headers), table_attrs="class='sortable matrix'",
                    sorted_by=(0, "ascending"),
                    titles={"level": "the level's id in the suite (a link to its level file)",
                            "found": "the checkpoint whose audit found the level",
@@ -192,10 +192,10 @@ def write_series_report(out_dir: str | os.PathLike[str], series: dict[str, Any])
     failed = sum(1 for r in records if r.get("error"))
     title = f"Audit series: {len(records)} checkpoint{'s' if len(records) != 1 else ''}"
     lead = (f"Each checkpoint is re-evaluated on the regression suite (the failing levels that earlier checkpoints' "
-            f"audits found, each with its recorded seed and {_esc(series['episodes'])} episodes), then audited "
-            f"by a {_esc(series['budget'])}-evaluation search (preset {_esc(series['preset'])}, domain "
-            f"{_esc(series['domain'])}{', warm-started from the previous audit' if series.get('warm_start') else ''}"
-            f") whose new failing levels join the suite. A level is failing when its {_esc(series['failing'])}.")
+            f"audits found, each with its recorded seed and {esc(series['episodes'])} episodes), then audited "
+            f"by a {esc(series['budget'])}-evaluation search (preset {esc(series['preset'])}, domain "
+            f"{esc(series['domain'])}{', warm-started from the previous audit' if series.get('warm_start') else ''}"
+            f") whose new failing levels join the suite. A level is failing when its {esc(series['failing'])}.")
     tiles = [(len(records), "checkpoints"), (len(suite), "suite levels"),
              (_number(latest and latest["suite_success_rate"]) or "n/a",
               f"suite success, #{latest['index']}" if latest else "suite success"),
@@ -203,12 +203,12 @@ def write_series_report(out_dir: str | os.PathLike[str], series: dict[str, Any])
              (sum(len(r["fixed"]) for r in records), "fixes")]
     if failed:
         tiles.append((failed, "failed audits"))
-    parts = [_STYLE, f"<h1>{_esc(title)}</h1><p class='lead'>{lead}</p>",
+    parts = [_STYLE, f"<h1>{esc(title)}</h1><p class='lead'>{lead}</p>",
              "<div class='stats' id='summary'>"
-             + "".join(f"<div class='stat'><b>{_esc(v)}</b><span>{_esc(t)}</span></div>" for v, t in tiles)
+             + "".join(f"<div class='stat'><b>{esc(v)}</b><span>{esc(t)}</span></div>" for v, t in tiles)
              + "</div>"]
     if records:
-        timeline = _img(timeline_png(records), alt="timeline").replace("<img ", "<img class='timeline' ", 1)
+        timeline = img_tag(timeline_png(records), alt="timeline").replace("<img ", "<img class='timeline' ", 1)
         parts += ["<h2>Timeline</h2>", "<div class='figs'>", timeline, "</div>",
                   "<h2>Checkpoints</h2>",
                   "<p class='lead'>Hover a header for its meaning; <i>report</i> opens the checkpoint's audit.</p>",
@@ -223,5 +223,5 @@ def write_series_report(out_dir: str | os.PathLike[str], series: dict[str, Any])
               _matrix(records, suite) if suite
               else "<p>The suite is empty: no audit has found a failing level yet.</p>"]
     path = out_dir / REPORT_NAME
-    atomic_write_text(path, _page(title, "".join(parts)))
+    atomic_write_text(path, html_page(title, "".join(parts)))
     return path
