@@ -102,7 +102,7 @@ def test_the_api_example_runs_and_returns_levels_with_seeds_and_a_report(tmp_pat
 
 
 def test_a_run_resumes_as_it_began_when_a_default_changed_since(tmp_path, monkeypatch, capsys):
-    import dsage_ray.config as config_module
+    import dsage_ray.config.layering as config_module  # the presets RunConfig.build layers
 
     out = tmp_path / "run"
     args = ["run", str(CONFIG), "--preset", "tiny", *(f"--set={key}={value}" for key, value in SMALL.items()),
