@@ -36,11 +36,13 @@ def main(argv: list[str] | None = None) -> int:
     from dsage_ray.config import RunConfig
     from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint
     from dsage_ray.domains import build_domain
+    from dsage_ray.types import WorkCountingDomain
 
     torch.set_num_threads(1)
     config = RunConfig.from_file(args.run / "config.json")
     domain = build_domain(config)
-    names, counts = list(domain.measure_names), list(getattr(domain, "work_names", ()))
+    names = list(domain.measure_names)
+    counts = list(domain.work_names) if isinstance(domain, WorkCountingDomain) else []
     if args.measure not in names + counts:
         parser.error(f"--measure {args.measure!r} is neither one of the run's measures {names} nor one of its "
                      f"work counts {counts}")

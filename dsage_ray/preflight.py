@@ -13,6 +13,7 @@ import json
 from dsage_ray.config import RunConfig
 from dsage_ray.domains import build_domain
 from dsage_ray.errors import DsageError, InputError, describe
+from dsage_ray.types import PreflightDomain
 
 
 def preflight(*configs: RunConfig) -> None:
@@ -47,11 +48,10 @@ def preflight(*configs: RunConfig) -> None:
             check_warm_start(config, domain=domain)
         if not fresh:
             continue
-        check = getattr(domain, "preflight", None)
-        if check is None:
+        if not isinstance(domain, PreflightDomain):
             continue
         try:
-            check()
+            domain.preflight()
         except DsageError:
             raise
         except (ValueError, OSError) as exc:  # a plug-in's preflight may raise the built-in kinds

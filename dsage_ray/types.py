@@ -54,40 +54,20 @@ class EvaluationResult:
 
 @runtime_checkable
 class Domain(Protocol):
-    """A search space plus a way to evaluate one of its points for real.
+    """A search space plus a way to evaluate one of its points for real: what every domain has.
 
     Implementations are built as ``Class(config=section)`` from the picklable config section their
     registration names (:mod:`dsage_ray.domains.registry`), so that every simulator process (a Ray
     actor, or the test process) can build its own copy and load its agent once. These are the
-    members the runner, the Ray pool and the run folder's pictures use; :class:`AuditableDomain`
-    adds what ``dsage-ray audit`` and ``dsage-ray compare`` use.
+    members the runner and the Ray pool use.
 
-    Optional: ``surrogate_prior(measure) -> Callable | None``, a parameter-free prior of a measure from the
-    encoded levels ``(n, C, S, S)`` → ``(n,)``, which ``surrogate.prior_measure`` blends into the surrogate's
-    prediction (:func:`dsage_ray.surrogate.surrogate.domain_prior`; Maze has one for ``mean_path_length``).
-
-    Optional: ``level_values(encoded) -> {name: (n,) array}``, the values that are functions of the level alone,
-    read from encoded levels ``(n, C, S, S)``; keys are measure names or ``"objective"`` (Maze: ``num_walls``,
-    ``optimal_path_length`` and the ``validity`` objective; Mario: ``sky_tiles``). ``surrogate.exact_level_values``
-    puts them in place of the surrogate's predictions (:func:`dsage_ray.surrogate.surrogate.domain_level_values`).
-
-    Optional: ``work_names`` and ``work_counts(result) -> {name: count}``, counts of the work an evaluation
-    did that do not depend on the machine (Maze: ``steps``; Mario: ``search_iterations``, ``ticks``), read
-    from its ``info`` (benchmarks read them).
-
-    Optional: ``evaluation_cost: tuple[str, float]``, a measure an evaluation's cost grows in proportion to, and the
-    cost of an evaluation at 0 in that measure's units (Maze: ``("mean_path_length", 200.0)``);
-    ``selection.screen_gain`` ranks screened levels by expected gain per cost with it (:mod:`dsage_ray.qd.gain`).
-
-    Optional: ``solution_bounds: tuple[float, float]``, ``(low, high)`` in every dimension: the box a continuous
-    domain's solutions live in (e.g. ``(-1.0, 1.0)``; the domain clips what lies beyond when it decodes). The QD
-    emitters keep to it: ``cma_me`` resamples outside it, ``gaussian``, ``halton`` and ``cross_entropy`` search it
-    (they search [-1, 1] where a domain declares none), and elite mutants are clipped to it
-    (:func:`dsage_ray.qd.optimizer.make_emitters`).
-
-    Optional: ``screen(solutions, *, episodes, seed, precision) -> [EvaluationResult]``, a cheap estimate of many
-    levels with ``episodes`` episodes each, ``precision`` ``"fp32"`` or ``"bf16"`` (the agent's
-    ``reduced_precision`` copy, where it has one); ``selection.screen_episodes`` uses it (Maze has one).
+    What only some domains can do is a capability of its own, a protocol checked with ``isinstance``:
+    :class:`RenderableDomain` (pictures of levels), :class:`PreflightDomain` (loads its agents early),
+    :class:`BoundedDomain` (the box continuous solutions live in), :class:`ScreenableDomain` (a cheap estimate
+    of many levels) and :class:`CostModelDomain` (what an evaluation costs), :class:`PriorDomain` (a prior of a
+    measure for the surrogate), :class:`LevelValuesDomain` (values of the level alone), :class:`WorkCountingDomain`
+    (the work an evaluation did), :class:`AuditableDomain` (``dsage-ray audit``) and :class:`NominalDomain` (the
+    audit's nominal check).
     """
 
     name: str
@@ -118,12 +98,100 @@ class Domain(Protocol):
     def evaluate(self, solution: Solution, seed: int) -> EvaluationResult:
         """Simulates the domain's agent on one level; deterministic for a given seed."""
 
+
+# ------------------------------------------------------------------------------------ optional capabilities
+
+
+@runtime_checkable
+class RenderableDomain(Protocol):
+    """A domain that draws its levels: the run folder's elite pictures and TensorBoard's images."""
+
     def render(self, solution: Solution, occupancy: np.ndarray | None) -> bytes:
         """A PNG of the level, with the occupancy overlaid when given."""
 
 
 @runtime_checkable
-class AuditableDomain(Domain, Protocol):
+class PreflightDomain(Protocol):
+    """A domain that can load what a search needs before it starts, so that a bad agent fails first."""
+
+    def preflight(self) -> None:
+        """Loads whatever a search needs (agents, simulators) now, so a bad one fails before any search."""
+
+
+@runtime_checkable
+class BoundedDomain(Protocol):
+    """A continuous domain whose solutions live in a box.
+
+    The QD emitters keep to it: ``cma_me`` resamples outside it, ``gaussian``, ``halton`` and ``cross_entropy``
+    search it (they search [-1, 1] where a domain declares none), and elite mutants are clipped to it
+    (:func:`dsage_ray.qd.optimizer.make_emitters`).
+    """
+
+    #: ``(low, high)`` in every dimension (e.g. ``(-1.0, 1.0)``; the domain clips what lies beyond when it
+    #: decodes); None: unbounded.
+    solution_bounds: tuple[float, float] | None
+
+
+def solution_bounds(domain: Domain) -> tuple[float, float] | None:
+    """The box ``domain``'s solutions live in (:class:`BoundedDomain`), or None: unbounded."""
+    return domain.solution_bounds if isinstance(domain, BoundedDomain) else None
+
+
+@runtime_checkable
+class ScreenableDomain(Protocol):
+    """A domain with a cheap estimate of many levels, which ``selection.screen_episodes`` screens picks with
+    (:mod:`dsage_ray.core.screening`; Maze has one). The screening keys apply only to such a domain, which its
+    registration declares (``DomainSpec.screenable``) so that a config is checked without importing it."""
+
+    def screen(self, solutions: Solutions, *, episodes: int, seed: int, precision: str) -> list[EvaluationResult]:
+        """Estimates each level with ``episodes`` episodes, ``precision`` ``"fp32"`` or ``"bf16"`` (the agent's
+        ``reduced_precision`` copy, where it has one)."""
+
+
+@runtime_checkable
+class CostModelDomain(Protocol):
+    """A domain whose evaluations cost in proportion to one of its measures; ``selection.screen_gain`` ranks
+    screened levels by expected gain per cost with it (:mod:`dsage_ray.qd.gain`)."""
+
+    #: The measure an evaluation's cost grows in proportion to, and the cost of an evaluation at 0 in that
+    #: measure's units (Maze: ``("mean_path_length", 200.0)``); None: every evaluation costs the same.
+    evaluation_cost: tuple[str, float] | None
+
+
+@runtime_checkable
+class PriorDomain(Protocol):
+    """A domain with parameter-free priors of some measures, which ``surrogate.prior_measure`` blends into the
+    surrogate's prediction (:func:`dsage_ray.surrogate.surrogate.domain_prior`; Maze has one for
+    ``mean_path_length``)."""
+
+    def surrogate_prior(self, measure: str) -> Callable[[EncodedLevels], np.ndarray] | None:
+        """The prior of ``measure`` from the encoded levels ``(n, C, S, S)`` → ``(n,)``; None: none for it."""
+
+
+@runtime_checkable
+class LevelValuesDomain(Protocol):
+    """A domain some of whose values are functions of the level alone, which ``surrogate.exact_level_values``
+    puts in place of the surrogate's predictions (:func:`dsage_ray.surrogate.surrogate.domain_level_values`)."""
+
+    def level_values(self, encoded: EncodedLevels) -> dict[str, np.ndarray]:
+        """``{name: (n,) array}`` read from encoded levels ``(n, C, S, S)``; keys are measure names or
+        ``"objective"`` (Maze: ``num_walls``, ``optimal_path_length`` and the ``validity`` objective; Mario:
+        ``sky_tiles``)."""
+
+
+@runtime_checkable
+class WorkCountingDomain(Protocol):
+    """A domain that counts the work an evaluation did in units that do not depend on the machine (Maze:
+    ``steps``; Mario: ``search_iterations``, ``ticks``); benchmarks read them."""
+
+    work_names: tuple[str, ...]
+
+    def work_counts(self, result: EvaluationResult) -> dict[str, float]:
+        """``{name: count}`` for each of :attr:`work_names`, read from the result's ``info``."""
+
+
+@runtime_checkable
+class AuditableDomain(Domain, RenderableDomain, PreflightDomain, Protocol):
     """A domain ``dsage-ray audit`` can search and collect levels of, and ``dsage-ray compare`` can re-run
     two agents on (its registration's ``audit`` says which objectives, measures and agent by default, and
     which of the entries' numbers the report shows; its ``agents`` which agent specs it plays).
@@ -138,9 +206,6 @@ class AuditableDomain(Domain, Protocol):
     def audit_values(cls, *, agent: str, reference: str | None = None, objective: str | None = None,
                      measures: Sequence[str] | None = None) -> dict[str, Any]:
         """The dotted config keys of an audit of ``agent`` (against ``reference``, if the domain compares agents)."""
-
-    def preflight(self) -> None:
-        """Loads whatever a search needs (agents, simulators) now, so a bad one fails before any search."""
 
     @property
     def agent_spec(self) -> str:

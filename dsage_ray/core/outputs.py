@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from dsage_ray.io import atomic_write_bytes, atomic_write_json, atomic_write_text, replace_dir, staging_dir
+from dsage_ray.types import RenderableDomain
 
 if TYPE_CHECKING:
     from dsage_ray.core.snapshot import RunSnapshot
@@ -116,7 +117,7 @@ def write_outputs(run: "RunSnapshot", run_dir: str | Path, *, num_elites: int = 
         heatmap_png(run.archive, title=f"{run.config.name}: {run.evals} evaluations",
                     measure_names=domain.measure_names, zoom=True),
     )
-    if getattr(domain, "render", None) is not None:
+    if isinstance(domain, RenderableDomain):
         staging = staging_dir(run_dir / "elites")
         data = run.archive.data()
         summary = []

@@ -32,7 +32,7 @@ from dsage_ray.qd.optimizer import (EMITTERS_WITH_OWN_START, MAP_ELITES_RANDOM_B
                                    reopened_scheduler, run_inner_loop)
 from dsage_ray.qd.selection import additions, gather_elites, select_solutions
 from dsage_ray.surrogate.models import encode_solutions
-from dsage_ray.types import Domain, Evaluator, Solutions
+from dsage_ray.types import Domain, Evaluator, Solutions, solution_bounds
 
 if TYPE_CHECKING:
     from ribs.archives import GridArchive
@@ -77,8 +77,8 @@ class DirectQD(Proposer):
         self.archive = archive
         self.seeds = seeds
         self.random_solutions = domain.random_solutions
-        #: The domain's optional ``solution_bounds``: the box its solutions live in (``None``: unbounded).
-        self.solution_bounds = getattr(domain, "solution_bounds", None)
+        #: The box the domain's solutions live in (:class:`~dsage_ray.types.BoundedDomain`; ``None``: unbounded).
+        self.solution_bounds = solution_bounds(domain)
         emitters_archive = archive
         if handover:
             archive_seed, seed = seeds.first_qd_seeds()
@@ -277,7 +277,7 @@ class SurrogateAssisted(Proposer):
         archive = domain_archive(self.domain, with_occupancy=False, seed=self.seeds.next_qd_seed())
         scheduler = make_scheduler(archive, config=self.config.qd, solution_dim=self.domain.solution_dim,
                                    random_solutions=self.domain.random_solutions, seed=self.seeds.next_qd_seed(),
-                                   bounds=getattr(self.domain, "solution_bounds", None))
+                                   bounds=solution_bounds(self.domain))
 
         def predict(solutions: Solutions):
             prediction = self.surrogate.predict(encode_solutions(self.domain, solutions))
@@ -324,7 +324,7 @@ class SurrogateAssisted(Proposer):
         """Mutants of the ground truth's best elites beside the picks (``selection.elite_mutants``), unscreened."""
         mutants = elite_mutants(self.archive, count=self.config.selection.elite_mutants,
                                 share=self.config.experimental.elite_share, qd=self.config.qd, rng=self.seeds.rng,
-                                bounds=getattr(self.domain, "solution_bounds", None))
+                                bounds=solution_bounds(self.domain))
         proposal.solutions = np.concatenate([proposal.solutions, mutants])
         if proposal.screened is not None:
             proposal.screened = np.concatenate([proposal.screened,

@@ -20,7 +20,7 @@ from dsage_ray.config import ConfigError, RunConfig
 from dsage_ray.qd.gain import EvaluationCost, PickErrors
 from dsage_ray.qd.screen import Screen, keep_screened, screen_picks
 from dsage_ray.surrogate.surrogate import resolve_precision
-from dsage_ray.types import Domain, Solutions
+from dsage_ray.types import CostModelDomain, Domain, ScreenableDomain, Solutions
 
 if TYPE_CHECKING:
     from ribs.archives import GridArchive
@@ -125,7 +125,7 @@ def domain_screen(config: RunConfig, domain: Domain, seeds: "RunSeeds") -> Scree
         ConfigError: The domain has no ``screen`` (a domain passed in may not be the config's own).
     """
     episodes = config.selection.screen_episodes
-    if not callable(getattr(domain, "screen", None)):
+    if not isinstance(domain, ScreenableDomain):
         raise ConfigError(f"selection.screen_episodes: the {domain.name!r} domain cannot screen levels (it has no "
                           "screen method; Maze has); set selection.screen_episodes = 0")
     precision = resolve_precision(config.experimental.screen_precision, torch.device("cpu"))
@@ -144,7 +144,7 @@ def evaluation_cost(config: RunConfig, domain: Domain) -> EvaluationCost | None:
     """The domain's cost model (its ``evaluation_cost``: a measure an evaluation's cost grows with, and the cost
     at 0 in that measure's units), where ``selection.screen_gain`` ranks by it; None: every evaluation costs the
     same (no ranking, no cost model, or the run does not measure the model's measure)."""
-    model = getattr(domain, "evaluation_cost", None)
+    model = domain.evaluation_cost if isinstance(domain, CostModelDomain) else None
     if not config.selection.screen_gain or model is None or model[0] not in domain.measure_names:
         return None
     measure, offset = model

@@ -33,7 +33,7 @@ from dsage_ray.surrogate.dataset import SurrogateDataset, Targets
 from dsage_ray.surrogate.grid_features import LevelStatistics
 from dsage_ray.surrogate.models import (ModelOutput, OneStageModel, TwoStageModel, VectorOneStageModel,
                                        VectorTwoStageModel, encode_solutions)
-from dsage_ray.types import EncodedLevels, EvaluationResult
+from dsage_ray.types import EncodedLevels, EvaluationResult, LevelValuesDomain, PriorDomain
 
 #: Encoded levels ``(n, C, S, S)`` → ``{measure name or "objective": (n,) values}``.
 LevelValues = Callable[[np.ndarray], dict[str, np.ndarray]]
@@ -444,8 +444,7 @@ def domain_prior(domain: Any, measure: str) -> Callable[[torch.Tensor], torch.Te
     """
     if not measure:
         return None
-    hook = getattr(domain, "surrogate_prior", None)
-    prior = hook(measure) if hook is not None else None
+    prior = domain.surrogate_prior(measure) if isinstance(domain, PriorDomain) else None
     if prior is None:
         raise ValueError(f"surrogate.prior_measure {measure!r}: the {getattr(domain, 'name', '?')} domain has no "
                          "prior for it")
@@ -458,11 +457,10 @@ def domain_level_values(domain: Any) -> LevelValues:
     Raises:
         ValueError: The domain computes nothing from the level alone.
     """
-    hook = getattr(domain, "level_values", None)
-    if hook is None:
+    if not isinstance(domain, LevelValuesDomain):
         raise ValueError(f"surrogate.exact_level_values: the {getattr(domain, 'name', '?')} domain computes no "
                          "measure from the level alone (it has no level_values)")
-    return hook
+    return domain.level_values
 
 
 def _occupancy_sum_index(name: str, kind: str, measure_names: Sequence[str] | None,
