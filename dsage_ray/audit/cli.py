@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from dsage_ray.domains.registry import DEFAULT_DOMAIN
 from dsage_ray.errors import InputError
 
 AUDIT_EXAMPLES = """\
@@ -41,7 +42,7 @@ def add_subparser(subparsers) -> None:
                     "level files,\nPNGs, the heatmap and report.html.",
         epilog=AUDIT_EXAMPLES)
     what = audit.add_argument_group("what to audit")
-    what.add_argument("--domain", default="maze",
+    what.add_argument("--domain", default=DEFAULT_DOMAIN,
                       help="maze (default), mario, gym (any Gymnasium environment: --env, --space, --param), or a "
                            "plug-in domain that declares audits")
     what.add_argument("--agent", metavar="SPEC", action=LazyHelp,
@@ -51,7 +52,7 @@ def add_subparser(subparsers) -> None:
     what.add_argument("--reference", metavar="SPEC",
                       help="maze: search where --agent does worse than this agent, on the same seeds "
                            "(objective regression)")
-    add_gym_arguments(audit)
+    add_domain_arguments(audit)
     nominal = audit.add_argument_group(
         "the nominal check", "Before the search the agent plays the domain's nominal level (gym: the environment as "
         "registered, or the space's [nominal] values; maze: an open room; mario: a flat level). The audit stops "
@@ -119,36 +120,51 @@ def add_subparser(subparsers) -> None:
     add_series_subparser(subparsers)
 
 
-#: The gym domain's flags, as the config keys they set (``--param`` and ``--env-arg`` repeat).
-GYM_FLAGS = {"env": "gym.env", "space": "gym.space", "param": "gym.params", "env_arg": "gym.env_args",
-             "space_set": "gym.space_set"}
+def flagged_domains() -> list:
+    """The registrations of the domains whose audits take flags of their own (:class:`~dsage_ray.domains.AuditFlag`),
+    in registry order; a plug-in that does not load has none."""
+    from dsage_ray.domains import domain_names, get_domain
+    from dsage_ray.errors import DsageError
+
+    specs = []
+    for name in domain_names():
+        try:
+            spec = get_domain(name)
+        except DsageError:
+            continue
+        if spec.audit is not None and spec.audit.flags:
+            specs.append(spec)
+    return specs
 
 
-def add_gym_arguments(parser) -> None:
-    """The flags of an audit of any Gymnasium environment (``--domain gym``), each a ``gym.*`` config key."""
-    gym = parser.add_argument_group("any Gymnasium environment (--domain gym)")
-    gym.add_argument("--env", metavar="ID", help="the environment id, e.g. CartPole-v1 (default: the space's)")
-    gym.add_argument("--space", metavar="FILE|NAME",
-                     help="the parameter space: a TOML file, a shipped one (cartpole, the default; `dsage-ray gym "
-                          "spaces` lists them all), or '' for --env and --param alone")
-    gym.add_argument("--param", action="append", metavar="NAME=LOW:HIGH",
-                     help="a searched parameter (repeat): NAME=LOW:HIGH (a gym.make keyword), attr.NAME=LOW:HIGH "
-                          "(an attribute of env.unwrapped after reset), reset.NAME=LOW:HIGH (a reset option); "
-                          "LOW:HIGH:int for integers, A|B|C for choices")
-    gym.add_argument("--env-arg", action="append", metavar="KEY=VALUE",
-                     help="a fixed gym.make keyword (repeat), e.g. enable_wind=true")
-    gym.add_argument("--space-set", action="append", metavar="LINE",
-                     help="a line of a space file (repeat), e.g. 'success.return_at_least = 200' or "
-                          "'measures.x_end = {obs = 0, at = \"end\", range = [-1.5, 1.5]}' (docs/GYM.md)")
+def _dest(domain: str, key: str) -> str:
+    # The section key, not the flag: two domains may name the same flag for different keys only if argparse
+    # refuses it, and the value is read back by the key it sets.
+    return f"{domain}.{key}"
 
 
-def gym_overrides(args: argparse.Namespace) -> dict:
-    """The ``gym.*`` config keys the gym flags set; refused for another domain."""
-    given = {key: getattr(args, flag) for flag, key in GYM_FLAGS.items() if getattr(args, flag, None) is not None}
-    if given and args.domain != "gym":
-        flags = ", ".join("--" + flag.replace("_", "-") for flag in GYM_FLAGS if getattr(args, flag, None) is not None)
-        raise InputError(f"{flags}: only for --domain gym (this audit's domain is {args.domain!r})")
-    return {key: tuple(value) if isinstance(value, list) else value for key, value in given.items()}
+def add_domain_arguments(parser) -> None:
+    """Each domain's own audit flags (the gym domain's ``--env``, ``--param``...), one help group per domain."""
+    for spec in flagged_domains():
+        group = parser.add_argument_group(spec.audit.flags_title or f"--domain {spec.name}")
+        for flag in spec.audit.flags:
+            group.add_argument(flag.flag, dest=_dest(spec.name, flag.key), metavar=flag.metavar or flag.key.upper(),
+                               action="append" if flag.repeat else None, help=flag.help)
+
+
+def domain_flag_overrides(args: argparse.Namespace) -> dict:
+    """The config keys the domains' own flags set; a flag of another domain than the audit's is refused."""
+    given, misplaced = {}, []
+    for spec in flagged_domains():
+        flags = [flag for flag in spec.audit.flags if getattr(args, _dest(spec.name, flag.key), None) is not None]
+        if spec.name != args.domain and flags:
+            misplaced.append(f"{', '.join(flag.flag for flag in flags)}: only for --domain {spec.name}")
+        for flag in flags:
+            value = getattr(args, _dest(spec.name, flag.key))
+            given[f"{spec.name}.{flag.key}"] = tuple(value) if isinstance(value, list) else value
+    if misplaced:
+        raise InputError(f"{'; '.join(misplaced)} (this audit's domain is {args.domain!r})")
+    return given
 
 
 def with_variant(variant: str | None, overrides: dict) -> dict:
@@ -180,7 +196,7 @@ def run_audit_command(args: argparse.Namespace) -> int:
         args.out = str(default_audit_folder(args.agent, domain=args.domain))
         print(f"audit folder: {args.out}", flush=True)
     measures = tuple(m.strip() for m in args.measures.split(",") if m.strip()) if args.measures else None
-    overrides = with_variant(args.variant, {**gym_overrides(args), **config_overrides(args)})
+    overrides = with_variant(args.variant, {**domain_flag_overrides(args), **config_overrides(args)})
     collection = run_audit(
         agent=args.agent, domain=args.domain, reference=args.reference, preset=args.preset,
         objective=args.objective, measures=measures, budget=args.budget, seed=args.seed,
@@ -291,7 +307,7 @@ def add_series_subparser(subparsers) -> None:
                         help="series folder (DIR/series.json, DIR/series.html, each checkpoint's audit in "
                              "DIR/checkpoints/<NNN>-<agent>, TensorBoard in DIR/tensorboard); one that holds "
                              "series.json is continued")
-    series.add_argument("--domain", default="maze", help="maze (default), mario, gym, or a plug-in domain with audits")
+    series.add_argument("--domain", default=DEFAULT_DOMAIN, help="maze (default), mario, gym, or a plug-in domain with audits")
     search = series.add_argument_group("each checkpoint's audit")
     add_config_arguments(search, preset_default="cpu")
     search.add_argument("--budget", type=int,

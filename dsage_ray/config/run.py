@@ -15,7 +15,7 @@ from dsage_ray.config.parsing import coerce, field_types, flatten, key_hint, rea
 from dsage_ray.config.schema import (ConfigError, ExperimentalConfig, MutatingEmitter, QDConfig, RayConfig,
                                      SearchMode, SelectionConfig, SurrogateConfig, key)
 from dsage_ray.config.validation import validate
-from dsage_ray.domains.registry import domain_names, get_domain
+from dsage_ray.domains.registry import DEFAULT_DOMAIN, CompletingSection, domain_names, get_domain
 from dsage_ray.errors import InputError, did_you_mean
 
 
@@ -25,7 +25,7 @@ class RunConfig:
 
     name: str = key("dsage", status="tool", values="a relative folder name",
                     note="the run's folder under tb_logs/ (or --out)")
-    domain: str = key("maze", status="tool", values="a registered domain", note="maze, mario, gym, or a plug-in's")
+    domain: str = key(DEFAULT_DOMAIN, status="tool", values="a registered domain", note="maze, mario, gym, or a plug-in's")
     variant: str = key("dsage", status="paper", values="a variant of the domain",
                        note="the search: dsage, its ablations, or a baseline (sets other keys)")
     #: ``auto``: continue with the domain's direct search (``DomainSpec.direct_search``) on the same archive, with a
@@ -128,9 +128,8 @@ class RunConfig:
         _assign(config, layered)
         # A section whose keys depend on each other fills in what was left to it (the gym domain's measures
         # come from its space file), before validation sees them.
-        complete = getattr(config.domain_config, "complete", None)
-        if complete is not None:
-            complete(config)
+        if isinstance(config.domain_config, CompletingSection):
+            config.domain_config.complete(config)
         if config.surrogate.init:
             config.surrogate.init = str(Path(config.surrogate.init).expanduser().resolve())
         config.validate()

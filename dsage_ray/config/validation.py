@@ -9,7 +9,7 @@ from typing import Any, Literal
 
 from dsage_ray.config.parsing import dotted_value, field_types, not_a_choice
 from dsage_ray.config.schema import ConfigError, MutatingEmitter
-from dsage_ray.domains.registry import get_domain
+from dsage_ray.domains.registry import CheckedSection, get_domain
 from dsage_ray.errors import InputError
 
 
@@ -75,6 +75,10 @@ def validate(config: Any) -> None:
          f"{' or '.join(typing.get_args(MutatingEmitter))})")
     need(0.0 < config.experimental.elite_share <= 1.0, "experimental.elite_share", "must be in (0, 1]")
     need(config.selection.screen_episodes >= 0, "selection.screen_episodes", "must be >= 0 (0: no screen)")
+    # The screening keys apply only to a domain that can screen (types.ScreenableDomain), which its registration
+    # declares: the check imports no domain.
+    need(get_domain(config.domain).screenable or not config.selection.screen_episodes, "selection.screen_episodes",
+         f"screens levels with the domain's cheap estimate; domain {config.domain!r} has none (set 0)")
     need(config.uses_surrogate or config.qd.emitter == "map_elites" or not config.selection.screen_episodes,
          "selection.screen_episodes", f"screens a surrogate's picks, or MAP-Elites' mutants; qd.emitter "
          f"{config.qd.emitter!r} without a surrogate adapts to every level it asked for")
@@ -102,9 +106,8 @@ def validate(config: Any) -> None:
     need(len(config.selection.block) == len(dom.measures), "selection.block",
          f"needs one block size per measure ({len(dom.measures)})")
     need(all(b >= 1 for b in config.selection.block), "selection.block", "block sizes must be positive")
-    check = getattr(dom, "validate", None)
-    if check is not None:
-        check(lambda cond, key, why: need(cond, f"{prefix}.{key}", why))
+    if isinstance(dom, CheckedSection):
+        dom.validate(lambda cond, key, why: need(cond, f"{prefix}.{key}", why))
 
 
 def check_choices(config: Any, prefix: str = "") -> None:

@@ -8,14 +8,16 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any, Protocol
 
-from dsage_ray.domains.registry import (ENTRY_POINT_GROUP, AgentKinds, AuditSpec, DomainSpec, ReportField,
-                                        agent_forms, domain_names, get_domain, register_domain, unregister_domain)
+from dsage_ray.domains.registry import (DEFAULT_DOMAIN, ENTRY_POINT_GROUP, AgentKinds, AuditFlag, AuditSpec,
+                                        CheckedSection, CompletingSection, DomainSpec, ReportField, agent_forms,
+                                        domain_names, get_domain, register_domain, unregister_domain)
 
 if TYPE_CHECKING:
     from dsage_ray.types import Domain
 
-__all__ = ["ENTRY_POINT_GROUP", "AgentKinds", "AuditSpec", "DomainSpec", "ReportField", "agent_forms", "build_domain",
-           "domain_class", "domain_names", "get_domain", "register_domain", "unregister_domain"]
+__all__ = ["DEFAULT_DOMAIN", "ENTRY_POINT_GROUP", "AgentKinds", "AuditFlag", "AuditSpec", "CheckedSection",
+           "CompletingSection", "DomainSpec", "ReportField", "agent_forms", "build_domain", "domain_class",
+           "domain_names", "get_domain", "register_domain", "unregister_domain"]
 
 
 def domain_class(name: str) -> type:

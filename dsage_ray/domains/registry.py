@@ -18,7 +18,7 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import importlib.metadata
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Mapping, Protocol, runtime_checkable
 
 from dsage_ray.agent_registry import agent_kinds
 from dsage_ray.errors import InputError, did_you_mean
@@ -27,6 +27,8 @@ from dsage_ray.plugins import scan as scan_plugins
 
 #: The entry-point group a package registers its domains in.
 ENTRY_POINT_GROUP = "dsage_ray.domains"
+#: The domain a run, an audit or a command uses when none is named.
+DEFAULT_DOMAIN = "maze"
 
 
 def domain_key(default: Any, *, note: str) -> Any:
@@ -79,6 +81,26 @@ class ReportField:
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
+class AuditFlag:
+    """A flag ``dsage-ray audit`` takes for one domain, setting one key of its config section (``--env ID`` is
+    ``gym.env``); the audit refuses it for another domain.
+
+    Attributes:
+        flag: The flag, e.g. ``"--env"``.
+        key: The key of the domain's section it sets, e.g. ``"env"``.
+        help: The flag's line of ``dsage-ray audit --help``.
+        metavar: The value's name in the help (default: the key in capitals).
+        repeat: Whether the flag repeats; its values then set the key as a tuple.
+    """
+
+    flag: str
+    key: str
+    help: str
+    metavar: str | None = None
+    repeat: bool = False
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
 class AgentKinds:
     """The agent specs a domain plays, by kind (a spec is ``KIND`` or ``KIND:TARGET``).
 
@@ -116,6 +138,9 @@ class AuditSpec:
             every numeric one, named by its key); measures are shown as measures.
         settings: The domain's settings of the collection the report's run description shows (Maze:
             its step limit).
+        flags: The flags ``dsage-ray audit`` takes for this domain only (the gym domain's ``--env``, ``--param``),
+            shown in the help as one group titled ``flags_title``.
+        flags_title: The title of :attr:`flags`' group in the help (default: ``--domain NAME``).
         upgrade: A function as ``"module:function"``, imported when a collection of the domain is read:
             ``function(collection, folder=Path)`` fills in, in place, what a collection written by an older
             version lacks.
@@ -134,6 +159,8 @@ class AuditSpec:
     episodes_key: str
     columns: tuple[ReportField, ...] = ()
     settings: tuple[ReportField, ...] = ()
+    flags: tuple[AuditFlag, ...] = ()
+    flags_title: str = ""
     upgrade: str | None = None
     surrogate_keys: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     auto_keeps_dsage: str = ""
@@ -155,7 +182,7 @@ class DomainSpec:
             define ``validate(need)`` for its own keys: ``need(condition, key, why)`` with ``key``
             relative to the section (``"episodes"``), and ``complete(run_config)``, called once every key is
             assigned and before validation, to fill keys that follow from others (the gym domain's measures
-            from its space file).
+            from its space file): :class:`CheckedSection` and :class:`CompletingSection`.
         domain: The domain class as ``"module:Class"``, imported only when a domain is built; it is
             called as ``Class(config=section)`` and implements :class:`dsage_ray.types.Domain`.
         presets: Keys per preset name (dotted, over the dataclass defaults); ``tiny`` is the one
@@ -165,6 +192,9 @@ class DomainSpec:
         comparison: The variants ``dsage-ray ablate`` runs by default.
         direct_search: The variant without a surrogate that ``search = "auto"`` continues with when the surrogate
             costs more than it buys (``""``: none; ``auto`` is then refused).
+        screenable: Whether the domain class is a :class:`~dsage_ray.types.ScreenableDomain`, so that the screening
+            keys (``selection.screen_episodes``, ``selection.screen_gain``) apply; said here so that a config is
+            checked without importing the class (a test holds the two equal for the shipped domains).
         audit: What an audit needs (``None``: the domain cannot be audited).
         agents: The agent specs the domain plays (``None``: its agent is fixed, there is none to name).
         cli: A module with ``add_subparser(subparsers)`` adding ``dsage-ray NAME ...`` commands.
@@ -179,6 +209,7 @@ class DomainSpec:
     variants: Mapping[str, Mapping[str, Any]] = dataclasses.field(default_factory=dict)
     comparison: tuple[str, ...] = ("dsage",)
     direct_search: str = ""
+    screenable: bool = False
     audit: AuditSpec | None = None
     agents: AgentKinds | None = None
     cli: str | None = None
@@ -218,6 +249,23 @@ class DomainSpec:
     def domain_class(self) -> type:
         """Imports and returns the domain class."""
         return _import(self.domain)
+
+
+@runtime_checkable
+class CheckedSection(Protocol):
+    """A domain's config section with rules of its own keys, checked after the generic ones."""
+
+    def validate(self, need: Callable[[bool, str, str], None]) -> None:
+        """Calls ``need(condition, key, why)`` per rule, ``key`` relative to the section (``"episodes"``)."""
+
+
+@runtime_checkable
+class CompletingSection(Protocol):
+    """A domain's config section some of whose keys follow from others (the gym domain's measures from its space
+    file), filled in once every key is assigned, before validation."""
+
+    def complete(self, config: Any) -> None:
+        """Fills in the section's keys that follow from the run config ``config``'s others."""
 
 
 def _import(path: str) -> Any:

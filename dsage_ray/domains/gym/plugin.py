@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Callable, ClassVar, Literal
 
-from dsage_ray.domains.registry import AgentKinds, AuditSpec, DomainSpec, ReportField, domain_key
+from dsage_ray.domains.registry import AgentKinds, AuditFlag, AuditSpec, DomainSpec, ReportField, domain_key
 
 #: ``failure_rate``: the share of the level's episodes that fail the space's success test.
 GymObjective = Literal["failure_rate"]
@@ -118,6 +118,25 @@ VARIANTS: dict[str, dict[str, Any]] = {
     "cross_entropy": {**_DIRECT, "qd.emitter": "cross_entropy", "qd.num_emitters": 1},
 }
 
+#: ``dsage-ray audit``'s flags of an audit of any Gymnasium environment, each a key of this section
+#: (``--param`` and ``--env-arg`` repeat).
+AUDIT_FLAGS = (
+    AuditFlag(flag="--env", key="env", metavar="ID",
+              help="the environment id, e.g. CartPole-v1 (default: the space's)"),
+    AuditFlag(flag="--space", key="space", metavar="FILE|NAME",
+              help="the parameter space: a TOML file, a shipped one (cartpole, the default; `dsage-ray gym spaces` "
+                   "lists them all), or '' for --env and --param alone"),
+    AuditFlag(flag="--param", key="params", metavar="NAME=LOW:HIGH", repeat=True,
+              help="a searched parameter (repeat): NAME=LOW:HIGH (a gym.make keyword), attr.NAME=LOW:HIGH (an "
+                   "attribute of env.unwrapped after reset), reset.NAME=LOW:HIGH (a reset option); LOW:HIGH:int for "
+                   "integers, A|B|C for choices"),
+    AuditFlag(flag="--env-arg", key="env_args", metavar="KEY=VALUE", repeat=True,
+              help="a fixed gym.make keyword (repeat), e.g. enable_wind=true"),
+    AuditFlag(flag="--space-set", key="space_set", metavar="LINE", repeat=True,
+              help="a line of a space file (repeat), e.g. 'success.return_at_least = 200' or "
+                   "'measures.x_end = {obs = 0, at = \"end\", range = [-1.5, 1.5]}' (docs/GYM.md)"),
+)
+
 
 DOMAIN = DomainSpec(
     name="gym",
@@ -139,6 +158,8 @@ DOMAIN = DomainSpec(
         settings=(ReportField(key="env", label="environment"),
                   ReportField(key="success", label="an episode succeeds when"),
                   ReportField(key="max_steps", label="step limit", format="{} steps per episode")),
+        flags=AUDIT_FLAGS,
+        flags_title="any Gymnasium environment (--domain gym)",
     ),
     agents=AgentKinds(forms={
         "rllib": "rllib:PATH", "sb3": "sb3:PATH.zip", "torchscript": "torchscript:PATH",

@@ -150,6 +150,8 @@ DOMAIN = DomainSpec(
     # search = "auto" continues with MAP-Elites, the paper's Maze baseline (DSAGE leads it at equal CPU time: auto
     # keeps DSAGE here).
     direct_search="map_elites",
+    # MazeDomain.screen: the agent on many levels at once for a few episodes (selection.screen_episodes).
+    screenable=True,
     # The paper's Table 2 rows (``dsage_rsample`` is the appendix ablation).
     comparison=("dsage", "dsage_only_anc", "dsage_only_down", "dsage_basic", "map_elites", "dr"),
     audit=AuditSpec(
