@@ -12,7 +12,7 @@ import typing
 from typing import Any, Iterator, Literal
 
 from dsage_ray.config import REMOVED_KEYS, RENAMED_KEYS, ExperimentalConfig, RunConfig, shown_value
-from dsage_ray.domains.registry import domain_names, get_domain
+from dsage_ray.domains.registry import DEFAULT_DOMAIN, domain_names, get_domain
 
 #: The sections of the run config, in the order they are listed (``experimental`` last, apart).
 RUN_SECTIONS = ("surrogate", "qd", "selection", "ray")
@@ -40,7 +40,7 @@ class KeyLine:
 
 def key_lines(*, domain: str | None = None, experimental: bool = False) -> list[KeyLine]:
     """The run keys, then ``domain``'s section keys (None: none), then, with ``experimental``, the experimental ones."""
-    config = RunConfig(domain=domain or "maze")
+    config = RunConfig(domain=domain or DEFAULT_DOMAIN)
     lines = list(_fields(config, "", skip=(*RUN_SECTIONS, "experimental", "sections")))
     for name in RUN_SECTIONS:
         lines.extend(_fields(getattr(config, name), f"{name}."))

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from dsage_ray.domains.registry import DEFAULT_DOMAIN
 from dsage_ray.errors import InputError
 
 EXAMPLES = """\
@@ -47,7 +48,7 @@ def add_subparser(subparsers) -> None:
                         help_text=lambda: f"run an audit search of this agent first: its spec, of a kind --domain "
                                           f"plays ({agent_kinds_help()})")
     source.add_argument("--levels", type=int, help="with --agent: real evaluations of that search")
-    source.add_argument("--domain", default="maze", help="with --agent: the domain (default maze)")
+    source.add_argument("--domain", default=DEFAULT_DOMAIN, help="with --agent: the domain (default maze)")
     source.add_argument("--seed", type=int, default=0, help="the search's and the training's seed (default 0)")
     config = pretrain.add_argument_group("the network and its training")
     add_config_arguments(config)

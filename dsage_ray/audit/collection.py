@@ -39,7 +39,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from dsage_ray.config import RunConfig, resumed_config
-from dsage_ray.domains import build_domain, domain_names, get_domain
+from dsage_ray.domains import DEFAULT_DOMAIN, build_domain, domain_names, get_domain
 from dsage_ray.errors import InputError
 from dsage_ray.audit.collection_file import COLLECTION_FILE, FORMAT
 from dsage_ray.audit.report import write_report
@@ -57,7 +57,7 @@ def agent_slug(spec: str) -> str:
 
 def audit_config(
     *,
-    domain: str = "maze",
+    domain: str = DEFAULT_DOMAIN,
     agent: str | None = None,
     reference: str | None = None,
     preset: str = "cpu",

@@ -15,6 +15,7 @@ from dsage_ray.audit.collection import agent_slug, audit_config, audit_spec, bui
 from dsage_ray.audit.nominal import NOMINAL_FILE, audit_nominal, check_expect_return, play_nominal
 from dsage_ray.audit.results import Collection
 from dsage_ray.config import RunConfig, presets
+from dsage_ray.domains.registry import DEFAULT_DOMAIN
 from dsage_ray.errors import InputError
 from dsage_ray.io import folder_lock, recover_replaced_dir
 from dsage_ray.results import RunResult
@@ -39,7 +40,7 @@ def default_preset(domain: str, *, agent: str | None) -> str:
 def run_audit(
     *,
     agent: str | None = None,
-    domain: str = "maze",
+    domain: str = DEFAULT_DOMAIN,
     reference: str | None = None,
     preset: str | None = None,
     variant: str = "dsage",
@@ -127,7 +128,7 @@ def run_audit(
                               expect_return=expect_return, allow_failing_nominal=allow_failing_nominal)
 
 
-def default_audit_folder(agent: str | None, *, domain: str = "maze") -> Path:
+def default_audit_folder(agent: str | None, *, domain: str = DEFAULT_DOMAIN) -> Path:
     """``tb_logs/audit-<agent>-<time>``: where an audit without ``out`` writes (the domain's demo agent without
     ``agent``)."""
     slug = agent_slug(agent or audit_spec(domain).audit.default_agent)

@@ -51,6 +51,7 @@ import numpy as np
 from dsage_ray.audit.collection import agent_slug, audit_config, audit_spec, reevaluate
 from dsage_ray.audit.run import default_preset, run_audit
 from dsage_ray.audit.summary import FAILURE_CELL_RATE
+from dsage_ray.domains.registry import DEFAULT_DOMAIN
 from dsage_ray.errors import InputError, describe
 from dsage_ray.io import atomic_write_json
 
@@ -227,7 +228,7 @@ class AuditSeries:
             an ``out_dir`` whose series is of another domain.
     """
 
-    def __init__(self, *, out_dir: str | os.PathLike[str], domain: str = "maze", preset: str | None = None,
+    def __init__(self, *, out_dir: str | os.PathLike[str], domain: str = DEFAULT_DOMAIN, preset: str | None = None,
                  budget: int | None = None, seed: int = 0, overrides: Mapping[str, Any] | None = None,
                  local: bool = False, workers: int | None = None, address: str | None = None,
                  episodes: int | None = None, warm_start: bool = True) -> None:

@@ -9,6 +9,7 @@ import os
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+from dsage_ray.domains.registry import DEFAULT_DOMAIN
 from dsage_ray.integrations.defaults import DEFAULT_AUDIT_BUDGET, DEFAULT_EPISODES, DEFAULT_OVERRIDES, DEFAULT_PRESET
 from dsage_ray.integrations.faults import describe, log, one_warning
 from dsage_ray.integrations.series_actor import SeriesActor, build_series
@@ -86,7 +87,7 @@ class SeriesAuditor:
         audit_cpus: float = 1.0,
         audit_budget: int = DEFAULT_AUDIT_BUDGET,
         preset: str | None = DEFAULT_PRESET,
-        domain: str = "maze",
+        domain: str = DEFAULT_DOMAIN,
         seed: int = 0,
         overrides: Mapping[str, Any] | None = None,
         local: bool = True,

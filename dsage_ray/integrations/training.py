@@ -25,10 +25,11 @@ import tempfile
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+from dsage_ray.domains.registry import DEFAULT_DOMAIN
 from dsage_ray.integrations.defaults import DEFAULT_EPISODES, DEFAULT_OVERRIDES
 
 
-def check_audit_flags(args: Any, *, domain: str = "maze", overrides: Mapping[str, Any] | None = None) -> None:
+def check_audit_flags(args: Any, *, domain: str = DEFAULT_DOMAIN, overrides: Mapping[str, Any] | None = None) -> None:
     """Raises InputError, naming the flags, when the ``--audit-*`` flags cannot work together.
 
     With ``--audit-every`` set, the audits' config (``domain``, the preset, the budget, ``overrides`` over
@@ -53,7 +54,7 @@ def check_audit_flags(args: Any, *, domain: str = "maze", overrides: Mapping[str
                              f"{args.audit_budget}): {exc}") from None
 
 
-def audit_callback(args: Any, run_dir: Path, writer: Any, *, domain: str = "maze",
+def audit_callback(args: Any, run_dir: Path, writer: Any, *, domain: str = DEFAULT_DOMAIN,
                    overrides: Mapping[str, Any] | None = None):
     """``--audit-every``: the RLlib callback factory (modules in ``run_dir/checkpoints``, series in
     ``run_dir/audit_series``, scalars to ``writer``), auditing in ``domain`` with the config ``overrides``."""

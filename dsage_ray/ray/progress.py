@@ -19,7 +19,7 @@ from ray import tune
 
 from dsage_ray.core.auto_search import SearchChoice
 from dsage_ray.core.progress import EvaluationRate, progress_line
-from dsage_ray.domains.registry import get_domain
+from dsage_ray.domains.registry import DEFAULT_DOMAIN, get_domain
 
 #: Set for the duration of a Tune run unless the user set them: the legacy console engine (no
 #: misleading TensorBoard hint), no warning about frequent experiment snapshots, which
@@ -101,7 +101,7 @@ class ProgressLines(tune.Callback):
 def _direct_search(trial) -> str:
     """The direct search of the trial's domain (what ``search = "auto"`` may continue with)."""
     config = getattr(trial, "config", None) or {}
-    return get_domain(config.get("domain", "maze")).direct_search
+    return get_domain(config.get("domain", DEFAULT_DOMAIN)).direct_search
 
 
 def _label(trial) -> str:
