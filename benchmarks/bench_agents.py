@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from dsage_ray.agents import load_agent
+from dsage_ray.domains.maze.agents import load_maze_agent
 from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.domains.maze import evaluate
 
@@ -50,7 +50,7 @@ def main() -> None:
     print(f"| agent | success rate | mean path length | mazes solved every episode | s per maze |")
     print(f"|---|---|---|---|---|")
     for spec in agents:
-        agent = load_agent(spec)
+        agent = load_maze_agent(spec)
         started = time.perf_counter()
         results = [evaluate(level, agent, episodes=args.episodes, seed=i) for i, level in enumerate(levels)]
         per_maze = (time.perf_counter() - started) / len(levels)

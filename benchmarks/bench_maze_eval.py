@@ -25,7 +25,7 @@ import numpy as np
 import torch
 from bench_maze_simulator import DENSITY_RANGE  # this script's folder is on sys.path when run
 
-from dsage_ray.agents import load_agent
+from dsage_ray.domains.maze.agents import load_maze_agent
 from dsage_ray.domains.maze.env import minigrid_evaluate
 from dsage_ray.domains.maze.evaluate import evaluate
 from dsage_ray.domains.maze.generator import random_valid_levels
@@ -63,7 +63,7 @@ def main() -> None:
             spec = FALLBACK_AGENT
             print(f"SKIP ACCEL figures: checkpoint not found at {checkpoint} (set DSAGE_SHARED_DIR); "
                   f"timing {FALLBACK_AGENT} instead (simulator and evaluation loop, no network)")
-    agent = load_agent(spec)
+    agent = load_maze_agent(spec)
     levels = random_valid_levels(args.mazes, seed=0, density_range=DENSITY_RANGE)
     evaluate(levels[0], agent, episodes=EPISODES)  # warm-up (imports, caches)
     minigrid_evaluate(levels[0], agent, episodes=2, seed=0)

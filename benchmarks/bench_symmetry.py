@@ -61,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
 
     import torch
 
-    from dsage_ray.agents.loader import load_agent
+    from dsage_ray.domains.maze.agents import load_maze_agent
     from dsage_ray.domains.maze.evaluate import evaluate_levels
     from dsage_ray.domains.maze.level import MazeLevel
 
@@ -72,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{args.data}: the levels are {walls.shape[1]}x{walls.shape[2]}; only square mazes have these "
               "symmetries", file=sys.stderr)
         return 2
-    agent = load_agent(args.agent)
+    agent = load_maze_agent(args.agent)
     base = [MazeLevel.from_bitmap(w) for w in walls]
     base = [level for level in base if level.valid]
     shape = walls.shape[1:]

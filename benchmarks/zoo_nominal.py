@@ -23,7 +23,7 @@ import numpy as np
 
 from dsage_ray.agents.base import AgentError
 from dsage_ray.agents.spaces import stack_observations
-from dsage_ray.domains.gym.agents import load_gym_agent
+from dsage_ray.agents import load_agent
 
 #: Zoo ids whose version Gymnasium moved on: ``zoo id: (Gymnasium id, gym.make keywords)``.
 RENAMED = {"LunarLander-v2": ("LunarLander-v3", {}), "LunarLanderContinuous-v2": ("LunarLander-v3", {"continuous": True}),
@@ -73,7 +73,7 @@ def main() -> None:
         started = time.perf_counter()
         try:
             env = gym.make(env_id, **kwargs)
-            agent = load_gym_agent(f"sb3:{folder}", observation_space=env.observation_space,
+            agent = load_agent(f"sb3:{folder}", observation_space=env.observation_space,
                                    action_space=env.action_space, env=env)
             returns = play(agent, env_id, kwargs, episodes=args.episodes, seed=args.seed)
         except (AgentError, gym.error.Error, ImportError) as exc:

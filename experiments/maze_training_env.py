@@ -29,7 +29,7 @@ from typing import Any, Sequence
 import gymnasium as gym
 import numpy as np
 
-from dsage_ray.agents.constants import ACTION_SPACE, OBSERVATION_SPACE
+from dsage_ray.domains.maze.agents.constants import ACTION_SPACE, OBSERVATION_SPACE
 from dsage_ray.domains.maze.env import MazeEnv
 from dsage_ray.domains.maze.generator import DEFAULT_DENSITY_RANGE, random_valid_level
 from dsage_ray.domains.maze.layout import parse_layout

@@ -309,11 +309,11 @@ def evaluate_module(module_dir: Path, args: Args) -> dict[str, float]:
     """Success rate and mean path length on a fixed set of random valid mazes, through the ``rllib:`` loader."""
     import numpy as np
 
-    from dsage_ray.agents import load_agent
+    from dsage_ray.domains.maze.agents import load_maze_agent
     from dsage_ray.domains.maze.generator import random_valid_levels
     from dsage_ray.domains.maze import evaluate
 
-    agent = load_agent(f"rllib:{module_dir}")
+    agent = load_maze_agent(f"rllib:{module_dir}")
     results = [evaluate(level, agent, episodes=args.eval_episodes, seed=i, see_through_walls=args.see_through_walls)
                for i, level in enumerate(random_valid_levels(args.eval_mazes, seed=12345))]
     return {"success_rate": float(np.mean([r.success_rate for r in results])),

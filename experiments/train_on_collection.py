@@ -153,12 +153,12 @@ def success_rates(spec: str, levels: list[tuple[str, int]], episodes: int) -> li
     """``spec``'s success rate on each level, evaluated with the level's seed (runs in a worker process)."""
     import torch
 
-    from dsage_ray.agents import load_agent
+    from dsage_ray.domains.maze.agents import load_maze_agent
     from dsage_ray.domains.maze import evaluate
     from dsage_ray.domains.maze.layout import parse_layout
 
     torch.set_num_threads(1)
-    agent = load_agent(spec)
+    agent = load_maze_agent(spec)
     return [float(evaluate(parse_layout(text), agent, episodes=episodes, seed=seed).success_rate)
             for text, seed in levels]
 

@@ -101,7 +101,7 @@ SLOW_FILES_FIRST = (
     "tests/audit/test_audit_ray.py",
     "tests/test_summarize.py",
     "tests/ray/test_storage.py",
-    "tests/agents/test_rllib.py",
+    "tests/domains/maze/agents/test_rllib.py",
 )
 
 

@@ -14,7 +14,8 @@ import numpy as np
 
 from dsage_ray.errors import InputError
 
-#: Batched MiniGrid observations: ``image`` ``(n, 5, 5, 3)`` uint8 and ``direction`` ``(n,)`` int64.
+#: A batch of ``n`` observations (:func:`dsage_ray.agents.spaces.stack_observations`): for a Dict space, such as the
+#: Maze's ``image`` ``(n, 5, 5, 3)`` uint8 and ``direction`` ``(n,)`` int64, a dict of arrays.
 Observation = dict[str, np.ndarray]
 #: Whatever an agent carries between steps (LSTM ``(h, c)``, nothing, ...); opaque to callers.
 AgentState = Any

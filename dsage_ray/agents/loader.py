@@ -1,51 +1,62 @@
-"""Agent specs: one string names a policy and how to load it.
+"""Agent specs: one string names a policy and how to load it, for the observation and action spaces it acts in.
 
-A spec is ``KIND:TARGET[?OPTION=VALUE&OPTION=VALUE...]``, for example::
+A spec is ``KIND:TARGET[?OPTION=VALUE&OPTION=VALUE...]`` (or a bare ``KIND`` that takes no target,
+:data:`BARE_KINDS`), for example::
 
-    builtin:random
-    builtin:wall_follower
-    dcd:accel
-    dcd:checkpoints/model_20000.tar?heading_quirk=1&quirk_group=10
-    torchscript:policies/my_policy.pt
+    random
+    rllib:ppo_cartpole
+    sb3:runs/ppo_lunar.zip?greedy=1
+    dcd:checkpoints/model_20000.tar?heading_quirk=1&quirk_group=10      (a kind the Maze registers)
 
 The text after the last ``?`` holds the options (URL-query style); each kind documents its own, and an
 option a kind does not use is an error rather than silently ignored.
+
+A domain loads an agent with :func:`load_agent`, passing the spaces it acts in (the gym domain its environment's,
+the Maze MiniGrid's) and the kinds it registers itself (the Maze's ``builtin``, ``dcd``; a domain's own
+convention for a kind replaces the generic one for that domain). A kind maps the prefix to a factory
+``factory(target, options, *, observation_space, action_space, env=None) -> Agent`` that checks the agent against
+those spaces (:data:`AgentFactory`). Kinds come from, first to last: :func:`register_agent_kind` (this process
+only: tests, notebooks), the domain's own, the entry-point group :data:`ENTRY_POINT_GROUP` (``dsage_ray.agents``)
+of installed packages, and dsage_ray's own generic kinds (:data:`dsage_ray.agent_registry.BUILTIN_KINDS`:
+``python``, ``random``, ``rllib``, ``sb3``, ``torchscript``, in :mod:`dsage_ray.agents.kinds`). A package adds a
+kind so::
+
+    [project.entry-points."dsage_ray.agents"]
+    mykind = "my_package.agents:load_my_agent"
+
+A factory of two arguments, ``factory(target, options)``, is still called that way (the spaces are not passed):
+plug-ins written before the spaces were passed keep working. Because entry points are read from the installed
+packages' metadata, a kind from an installed package is known in every process of the environment, Ray's
+simulator actors included. Only the kind a spec names is imported (listing kinds imports nothing: ``random``
+never imports torch).
 
 Agents shipped with the package live in :data:`ASSETS_DIR`, one folder each, and a kind loads one by its
 bare folder name (``dcd:accel``, ``rllib:ppo_maze``; :func:`shipped_agent_dir`). A folder may list its files'
 sha256 in ``SHA256SUMS`` (``sha256sum`` format); :func:`verified_files` checks them on every load, so a
 corrupted install fails with one clear line instead of loading wrong weights.
-
-A kind maps the prefix to a factory ``factory(target, options) -> Agent``. Kinds come from the
-entry-point group :data:`ENTRY_POINT_GROUP` (``dsage_ray.agents``): dsage_ray declares its own there
-(``builtin``, ``dcd``, ``rllib``, ``torchscript``, in ``pyproject.toml``), and any installed package can
-add one the same way::
-
-    [project.entry-points."dsage_ray.agents"]
-    mykind = "my_package.agents:load_my_agent"
-
-Because entry points are read from the installed packages' metadata, a kind from an installed package
-is known in every process of the environment, Ray's simulator actors included. Only the kind a spec
-names is imported (listing kinds imports nothing: ``builtin:random`` never imports torch).
-:func:`register_agent_kind` adds a kind to the calling process only (tests, notebooks).
 """
 
 from __future__ import annotations
 
 import hashlib
 import importlib
+import inspect
 import pathlib
 import re
 from importlib import metadata
-from typing import Callable, Union
+from typing import Any, Callable, Mapping, Union
 
 from dsage_ray import agent_registry, plugins
 # The kinds' table lives below the domains (the domain registry lists it): re-exported here.
 from dsage_ray.agent_registry import ENTRY_POINT_GROUP, agent_kinds, register_agent_kind
 from dsage_ray.agents.base import Agent, AgentError
 
-#: ``factory(target, options) -> Agent``; it reads its options through :class:`SpecOptions`.
-AgentFactory = Callable[[str, "SpecOptions"], Agent]
+#: ``factory(target, options, *, observation_space, action_space, env=None) -> Agent``; it reads its options
+#: through :class:`SpecOptions` and checks the agent against the spaces. ``factory(target, options)`` (no spaces)
+#: is still called so.
+AgentFactory = Callable[..., Agent]
+#: Kinds a spec may name without a target.
+BARE_KINDS: tuple[str, ...] = ("random",)
 
 #: Kinds whose loading runs code the file brings: RLlib checkpoints (pickles), TorchScript programs and ``python:``
 #: modules. The others load data (``dcd:`` weights with ``weights_only``, ``sb3:`` saves and zoo folders through the
@@ -70,6 +81,11 @@ class SpecOptions:
         self._spec = spec
         self._items = dict(items)
         self._used: set[str] = set()
+
+    @property
+    def spec(self) -> str:
+        """The whole spec these options came from (for error messages)."""
+        return self._spec
 
     def get_str(self, name: str, default: str) -> str:
         self._used.add(name)
@@ -101,10 +117,13 @@ class SpecOptions:
             raise AgentError(f"agent spec {self._spec!r}: unknown option(s) {', '.join(unused)}")
 
 
-def _factory(kind: str, spec: str) -> AgentFactory | None:
-    """The factory of ``kind``: registered in this process, else from an entry point, else built in."""
+def _factory(kind: str, spec: str, own: Mapping[str, Union[str, AgentFactory]]) -> AgentFactory | None:
+    """The factory of ``kind``: registered in this process, else the domain's ``own``, else from an entry point,
+    else built in."""
     if kind in agent_registry.REGISTERED:
         return _resolve(agent_registry.REGISTERED[kind])
+    if kind in own:
+        return _resolve(own[kind])
     found = agent_registry.installed_kinds()
     if kind in found.clashes:
         providers = ", ".join(sorted(plugins.describe(entry) for entry in found.clashes[kind]))
@@ -133,6 +152,8 @@ def _provider(entry: metadata.EntryPoint) -> str:
 
 def parse_spec(spec: str) -> tuple[str, str, SpecOptions]:
     """Splits ``KIND:TARGET?options`` into its parts; raises :class:`AgentError` on malformed specs."""
+    if spec.strip() in BARE_KINDS:
+        return spec.strip(), "", SpecOptions(spec=spec, items={})
     kind, sep, rest = spec.partition(":")
     if not sep or not kind or not rest:
         raise AgentError(f"agent spec {spec!r}: expected KIND:TARGET, e.g. builtin:random or dcd:PATH")
@@ -150,30 +171,54 @@ def parse_spec(spec: str) -> tuple[str, str, SpecOptions]:
     return kind, target, SpecOptions(spec=spec, items=items)
 
 
-def load_agent(spec: str) -> Agent:
-    """Loads the agent a spec names.
+def load_agent(spec: str, *, observation_space: Any, action_space: Any, env: Any = None,
+               kinds: Mapping[str, Union[str, AgentFactory]] | None = None) -> Agent:
+    """Loads the agent a spec names, checked by its kind's factory against the spaces it will act in.
 
     Args:
-        spec: ``KIND:TARGET[?options]``; kinds: ``builtin``, ``dcd``, ``rllib``, ``torchscript``, those of
-            installed packages (entry-point group ``dsage_ray.agents``) and any registered in this process.
+        spec: ``KIND:TARGET[?options]`` (or a bare ``random``); kinds: the domain's own (``kinds``), dsage_ray's
+            generic ones (``python``, ``random``, ``rllib``, ``sb3``, ``torchscript``), those of installed packages
+            (entry-point group ``dsage_ray.agents``) and any registered in this process.
+        observation_space: The environment's (single-episode) observation space.
+        action_space: The environment's (single-episode) action space.
+        env: The environment itself, for agents played inside training-time wrappers (an RL Zoo folder's
+            ``env_wrapper``); without it such an agent is refused.
+        kinds: The calling domain's own kinds, ``{kind: factory or "module:function"}``; for that domain they
+            replace a generic kind of the same name (the Maze's ``torchscript`` convention).
 
     Returns:
-        The agent, with ``agent.spec`` set to ``spec``.
+        The agent, with ``agent.spec`` set to ``spec``; it acts on
+        :func:`~dsage_ray.agents.spaces.stack_observations` batches of the environment as
+        :meth:`Agent.wrap_env` wraps it.
 
     Raises:
-        AgentError: Unknown kind, unknown option, or a target that cannot be loaded; the message is one line
-            naming the spec or file and the problem.
+        AgentError: Unknown kind, unknown option, a target that cannot be loaded, or an agent that does not fit
+            the spaces; the message is one line naming the spec or file and the problem.
     """
     kind, target, options = parse_spec(spec)
-    factory = _factory(kind, spec)
+    own = dict(kinds or {})
+    factory = _factory(kind, spec, own)
     if factory is None:
-        known = ", ".join(agent_kinds())
+        known = ", ".join(sorted({*own, *agent_kinds()}))
         raise AgentError(f"agent spec {spec!r}: unknown kind {kind!r} (known: {known}; installed packages add kinds "
                          f"through the {ENTRY_POINT_GROUP!r} entry-point group)")
-    agent = factory(target, options)
+    if _takes_spaces(factory):
+        agent = factory(target, options, observation_space=observation_space, action_space=action_space, env=env)
+    else:
+        agent = factory(target, options)
     options.check_all_used()
     agent.spec = spec
     return agent
+
+
+def _takes_spaces(factory: Callable[..., Any]) -> bool:
+    """Whether ``factory`` takes the spaces as keywords (a two-argument factory predates them)."""
+    try:
+        parameters = inspect.signature(factory).parameters.values()
+    except (TypeError, ValueError):  # a builtin or C callable without a signature: the old call
+        return False
+    names = {p.name for p in parameters if p.kind in (p.KEYWORD_ONLY, p.POSITIONAL_OR_KEYWORD)}
+    return "observation_space" in names or any(p.kind is p.VAR_KEYWORD for p in parameters)
 
 
 def _resolve(factory: Union[str, AgentFactory]) -> AgentFactory:

@@ -15,18 +15,21 @@ with RLlib's own classes, and observations go through them as in RLlib's inferen
 flattening; connectors an agent cannot feed are refused). A bare RLModule folder has no pipelines: the module sees
 the observations as they are.
 The module's class is stored in the checkpoint by import path, so it must be importable here; the project's
-own :class:`~dsage_ray.agents.rllib_module.MazeRLModule` always is. Any ``TorchRLModule`` works if its
-observation space (or its pipeline's input space) is the Maze's ``Dict(direction=Discrete(4), image=Box(0, 255,
-(5, 5, 3), uint8))`` and its action space ``Discrete(k)``, ``k <= 7``.
+own :class:`~dsage_ray.agents.rllib_module.MazeRLModule` always is. Any ``TorchRLModule`` works whose observation
+space (or its pipeline's input space) and action space match the environment's (:func:`load_rllib`); the Maze
+registers its own check, MiniGrid's observation and ``Discrete(k)``, ``k <= 7``
+(:mod:`dsage_ray.domains.maze.agents.rllib`).
 
 Recurrent modules (a non-empty ``get_initial_state()``) get RLlib's inference layout: a time axis of
-length 1 on every input, ``STATE_IN`` in, ``STATE_OUT`` out. Actions are sampled from
-``softmax(ACTION_DIST_INPUTS)`` with the caller's numpy ``rng`` (never torch's), so evaluations are
-reproducible from their seed.
+length 1 on every input, ``STATE_IN`` in, ``STATE_OUT`` out. Discrete actions are sampled from
+``softmax(ACTION_DIST_INPUTS)``, Box ones from RLlib's diagonal Gaussian ``concat(mean, log_std)`` (tanh-squashed
+for SAC), with the caller's numpy ``rng`` (never torch's), so evaluations are reproducible from their seed.
 
-Options (``rllib:PATH?policy=default_policy&greedy=0``):
+Options (``rllib:PATH?policy=default_policy&greedy=0&normalize_actions=1``):
     policy: Module id inside an algorithm checkpoint (default ``default_policy``).
-    greedy: 1 takes the argmax action instead of sampling (default 0).
+    greedy: 1 takes the most likely action (argmax, Gaussian mean) instead of sampling (default 0).
+    normalize_actions: 1 maps a Box policy's outputs from ``[-1, 1]`` to the action bounds, as RLlib's env runner
+        does for a module trained with that setting (default: what the checkpoint's pipeline records, else 1).
 """
 
 from __future__ import annotations
@@ -36,42 +39,49 @@ import pickle
 from pathlib import Path
 from typing import Any, Callable
 
+import gymnasium
 import numpy as np
 import torch
+from gymnasium import spaces
 
-from dsage_ray.agents.base import Agent, AgentError, AgentState, Observation
-from dsage_ray.agents.constants import NUM_ACTIONS, OBSERVATION_SPACE
+from dsage_ray.agents.base import Agent, AgentError, AgentState
 from dsage_ray.agents.loader import (SpecOptions, describe_exception, local_path, shipped_agent_dir,
                                      shipped_agent_names)
 from dsage_ray.agents.rllib_connectors import ConnectorPipelines, EpisodeState, load_pipelines, pipelines_dir
-from dsage_ray.agents.sampling import sample_from_logits
+from dsage_ray.agents.spaces import (categorical, check_space, finish_actions, gaussian, require_discrete_or_box,
+                                     to_torch, unsquash)
 
 #: Where an algorithm checkpoint keeps its modules (``<ckpt>/<this>/<module id>``).
 MODULES_SUBDIR = Path("learner_group") / "learner" / "rl_module"
-_CTOR_FILE = "class_and_ctor_args.pkl"
+CTOR_FILE = "class_and_ctor_args.pkl"
 
 
 class RLlibAgent(Agent):
-    """A loaded RLModule as a batched agent.
+    """A loaded RLModule as a batched agent acting in a Discrete or Box action space.
 
     State: ``None`` or the module's state dict of ``(n, ...)`` tensors; behind connector pipelines, an
     :class:`~dsage_ray.agents.rllib_connectors.EpisodeState` (one RLlib episode per running episode, which also
     holds a recurrent module's state, as in RLlib's env runner).
 
     Args:
-        module: A ``TorchRLModule`` whose spaces match the Maze (checked by :func:`check_spaces`).
-        greedy: Argmax instead of sampling.
+        module: A ``TorchRLModule`` whose spaces the loader checked against the environment's.
+        greedy: Argmax / Gaussian mean instead of sampling.
+        normalize_actions: Map Box outputs from ``[-1, 1]`` to the bounds (RLlib's ``normalize_actions``).
         pipelines: The checkpoint's restored connector pipelines, or None. Pipelines of RLlib's default pieces
             only (no ``transforms``) act as the direct path does, which is then kept.
     """
 
-    def __init__(self, *, module: Any, greedy: bool = False, pipelines: ConnectorPipelines | None = None) -> None:
+    def __init__(self, *, module: Any, greedy: bool = False, normalize_actions: bool = True,
+                 pipelines: ConnectorPipelines | None = None) -> None:
         self.module = module.eval()
         self.greedy = greedy
+        self.normalize_actions = normalize_actions
+        #: The pipelines it plays behind (None: none, or only RLlib's default pieces).
         self.pipelines = pipelines if pipelines is not None and pipelines.transforms else None
         initial = module.get_initial_state() if hasattr(module, "get_initial_state") else {}
         #: One episode's initial state, as tensors; empty for a feed-forward module.
         self._initial = {k: torch.as_tensor(np.asarray(v)) for k, v in (initial or {}).items()}
+        self._squashed = isinstance(module.action_space, spaces.Box) and _is_squashed_gaussian(module)
 
     @property
     def recurrent(self) -> bool:
@@ -106,32 +116,51 @@ class RLlibAgent(Agent):
         # RLlib's RemoveSingleTsTimeRankFromBatch: a stateful module's outputs have a time axis of 1.
         return (inputs[:, 0] if self.recurrent else inputs), state.after(out)
 
-    def logits(self, obs: Observation, state: AgentState) -> tuple[torch.Tensor, AgentState]:
-        """One module step: logits ``(n, k)`` and the next state; no sampling."""
+    def logits(self, obs: Any, state: AgentState) -> tuple[torch.Tensor, AgentState]:
+        """One module step: ``ACTION_DIST_INPUTS`` ``(n, k)`` (a Discrete module's logits) and the next state; no
+        sampling."""
         from ray.rllib.core.columns import Columns
 
         if self.pipelines is not None:
             return self.piped_step(obs, state)
-        image = torch.from_numpy(np.ascontiguousarray(obs["image"]))
-        direction = torch.from_numpy(np.asarray(obs["direction"], dtype=np.int64))
+        # RLlib's env-to-module connector adds a time axis of 1 for stateful modules; so do we.
+        batch = {Columns.OBS: to_torch(obs, time_axis=self.recurrent)}
         if self.recurrent:
-            # RLlib's env-to-module connector adds a time axis of 1 for stateful modules; so do we.
-            batch = {Columns.OBS: {"direction": direction[:, None], "image": image[:, None]}, Columns.STATE_IN: state}
-        else:
-            batch = {Columns.OBS: {"direction": direction, "image": image}}
+            batch[Columns.STATE_IN] = state
         out = self.forward(batch)
-        logits = out[Columns.ACTION_DIST_INPUTS]
+        inputs = out[Columns.ACTION_DIST_INPUTS]
         if self.recurrent:
-            return logits[:, 0], out[Columns.STATE_OUT]
-        return logits, None
+            return inputs[:, 0], out[Columns.STATE_OUT]
+        return inputs, None
 
-    def act(self, obs: Observation, state: AgentState, rng: np.random.Generator) -> tuple[np.ndarray, AgentState]:
-        logits, state = self.logits(obs, state)
-        if self.greedy:
-            actions = logits.argmax(dim=-1).numpy().astype(np.int64)
-        else:
-            actions = sample_from_logits(logits, rng)
-        return actions, (state.acted(actions) if isinstance(state, EpisodeState) else state)
+    def act(self, obs: Any, state: AgentState, rng: np.random.Generator) -> tuple[np.ndarray, AgentState]:
+        inputs, state = self.logits(obs, state)
+        piped = isinstance(state, EpisodeState)
+        space = self.module.action_space
+        if isinstance(space, spaces.Discrete):
+            actions = categorical(inputs, space, greedy=self.greedy, rng=rng)
+            return actions, (state.acted(actions) if piped else state)
+        # RLlib's diagonal Gaussian layout: concat(mean, log_std) on the last axis.
+        mean, log_std = np.split(inputs.double().numpy(), 2, axis=-1)
+        actions = gaussian(mean, np.exp(log_std), greedy=self.greedy, rng=rng)
+        if self._squashed:
+            actions = np.tanh(actions)
+        # Episodes keep the module's own action (before normalisation), as RLlib's env runner keeps it.
+        state = state.acted(actions.astype(np.float32)) if piped else state
+        if self.normalize_actions:
+            actions = unsquash(actions, space)
+        return finish_actions(actions, space), state
+
+
+def _is_squashed_gaussian(module: Any) -> bool:
+    """Whether the module's actions pass through tanh (RLlib's SAC), read from its inference distribution."""
+    from ray.rllib.core.distribution.torch.torch_distribution import TorchSquashedGaussian
+
+    try:
+        dist = module.get_inference_action_dist_cls()
+    except Exception:  # noqa: BLE001 - a custom module may define none: then its inputs are a plain Gaussian.
+        return False
+    return isinstance(dist, type) and issubclass(dist, TorchSquashedGaussian)
 
 
 def resolve_module_dir(target: str, *, policy: str = "default_policy") -> Path:
@@ -143,7 +172,7 @@ def resolve_checkpoint(target: str, *, policy: str = "default_policy") -> tuple[
     """The RLModule folder that ``target`` names and the algorithm checkpoint it lies in (None for a bare module)."""
     path = shipped_agent_dir(target) or Path(local_path(target)).expanduser()
     if not path.exists():
-        shipped = shipped_agent_names(holding=_CTOR_FILE)
+        shipped = shipped_agent_names(holding=CTOR_FILE)
         raise AgentError(f"rllib checkpoint {str(path)!r}: not found"
                          + (f" (shipped agents: {', '.join(shipped)})" if shipped else ""))
     if not path.is_dir():
@@ -152,14 +181,14 @@ def resolve_checkpoint(target: str, *, policy: str = "default_policy") -> tuple[
     # An algorithm (or learner) checkpoint has its own class file at the top: look for modules first.
     for modules in (path / MODULES_SUBDIR, path / "rl_module"):
         if modules.is_dir():
-            if (modules / policy / _CTOR_FILE).is_file():
+            if (modules / policy / CTOR_FILE).is_file():
                 return modules / policy, (path if modules == path / MODULES_SUBDIR else None)
             found = sorted(p.name for p in modules.iterdir() if p.is_dir())
             raise AgentError(f"rllib checkpoint {str(path)!r}: no module {policy!r} (modules: "
                              f"{', '.join(found) or 'none'}); pick one with ?policy=NAME")
-    if (path / _CTOR_FILE).is_file():
+    if (path / CTOR_FILE).is_file():
         return path, None
-    raise AgentError(f"rllib checkpoint {str(path)!r}: not an RLlib checkpoint (no {_CTOR_FILE} and no "
+    raise AgentError(f"rllib checkpoint {str(path)!r}: not an RLlib checkpoint (no {CTOR_FILE} and no "
                      f"{MODULES_SUBDIR.as_posix()}/ inside)")
 
 
@@ -181,12 +210,12 @@ def module_class(module_dir: Path) -> type:
     """
     source = str(module_dir)
     try:
-        info = _RecordingUnpickler(io.BytesIO((module_dir / _CTOR_FILE).read_bytes())).load()
+        info = _RecordingUnpickler(io.BytesIO((module_dir / CTOR_FILE).read_bytes())).load()
     except AgentError as exc:
         raise AgentError(f"rllib checkpoint {source!r}: module {exc}; install or put on PYTHONPATH the package "
                          f"that defines it") from None
     except Exception as exc:  # noqa: BLE001 - a corrupt pickle raises anything
-        raise AgentError(f"rllib checkpoint {source!r}: unreadable {_CTOR_FILE} ({describe_exception(exc)})") from None
+        raise AgentError(f"rllib checkpoint {source!r}: unreadable {CTOR_FILE} ({describe_exception(exc)})") from None
     cls = info.get("class") if isinstance(info, dict) else None
     from ray.rllib.core.rl_module.torch import TorchRLModule
 
@@ -195,35 +224,14 @@ def module_class(module_dir: Path) -> type:
     return cls
 
 
-def check_spaces(module: Any, *, source: str, observation_space: Any = None) -> None:
-    """AgentError unless the module observes the Maze's dict observation and acts in ``Discrete(k <= 7)``.
-
-    ``observation_space``: what the agent takes, where that is not the module's own space (a pipeline's input).
-    """
-    import gymnasium as gym
-
-    space = module.observation_space if observation_space is None else observation_space
-    expected = OBSERVATION_SPACE
-    ok = (isinstance(space, gym.spaces.Dict) and set(space.spaces) == set(expected.spaces)
-          and isinstance(space["image"], gym.spaces.Box) and space["image"].shape == expected["image"].shape
-          and isinstance(space["direction"], gym.spaces.Discrete) and space["direction"].n == expected["direction"].n)
-    if not ok:
-        raise AgentError(f"rllib checkpoint {source!r}: observation space {space} does not match the maze observation "
-                         f"{expected}")
-    actions = module.action_space
-    if not (isinstance(actions, gym.spaces.Discrete) and 1 <= actions.n <= NUM_ACTIONS):
-        raise AgentError(f"rllib checkpoint {source!r}: action space {actions} is not Discrete(k), k <= {NUM_ACTIONS}")
-
-
-def load_rllib_module(target: str, *, policy: str = "default_policy",
-                      check: Callable[..., None] | None = check_spaces):
+def load_rllib_module(target: str, *, policy: str = "default_policy", check: Callable[..., None] | None):
     """Loads only the RLModule a checkpoint holds (no Ray cluster, no connector pipelines), with its spaces checked.
 
     Args:
         target: What ``rllib:PATH`` names (module docstring).
         policy: Module id inside an algorithm checkpoint.
         check: ``check(module, source=module_dir)``, raising AgentError when the module does not fit where it
-            will act: by default :func:`check_spaces` (the Maze's spaces); None checks nothing.
+            will act; None checks nothing.
     """
     module_dir = resolve_module_dir(target, policy=policy)
     module = _load_module(module_dir)
@@ -233,7 +241,7 @@ def load_rllib_module(target: str, *, policy: str = "default_policy",
 
 
 def load_rllib_policy(target: str, *, policy: str = "default_policy",
-                      check: Callable[..., None] | None = check_spaces) -> tuple[Any, ConnectorPipelines | None]:
+                      check: Callable[..., None] | None) -> tuple[Any, ConnectorPipelines | None]:
     """Loads the RLModule and, from an algorithm checkpoint, its connector pipelines (no Ray cluster).
 
     Args:
@@ -241,7 +249,7 @@ def load_rllib_policy(target: str, *, policy: str = "default_policy",
         policy: Module id inside an algorithm checkpoint.
         check: ``check(module, source=module_dir, observation_space=space)``, raising AgentError when the policy
             does not fit where it will act; ``space`` is what the agent takes: the pipeline's input space, or the
-            module's own. By default :func:`check_spaces` (the Maze's spaces); None checks nothing.
+            module's own. None checks nothing.
 
     Returns:
         The module and the restored pipelines (None: a bare module, or a checkpoint without pipelines).
@@ -268,9 +276,24 @@ def _load_module(module_dir: Path) -> Any:
     return module
 
 
-def load_rllib_agent(target: str, options: SpecOptions) -> RLlibAgent:
-    """Factory for ``rllib:PATH[?policy=NAME&greedy=0|1]``."""
+def load_rllib(target: str, options: SpecOptions, *, observation_space: gymnasium.Space,
+               action_space: gymnasium.Space) -> tuple[RLlibAgent, str]:
+    """The agent ``rllib:PATH[?policy=NAME&greedy=0|1&normalize_actions=0|1]`` names, its spaces checked against
+    the environment's, and the label its errors start with."""
     policy = options.get_str("policy", "default_policy")
     greedy = options.get_bool("greedy", False)
-    module, pipelines = load_rllib_policy(target, policy=policy)
-    return RLlibAgent(module=module, greedy=greedy, pipelines=pipelines)
+    labels = []
+
+    def check_env_spaces(module: Any, *, source: str, observation_space: Any) -> None:
+        label = f"rllib checkpoint {source!r}"
+        check_space(observation_space, env_observation_space, which="observation", label=label)
+        check_space(module.action_space, action_space, which="action", label=label)
+        require_discrete_or_box(action_space, label=label)
+        labels.append(label)
+
+    env_observation_space = observation_space
+    module, pipelines = load_rllib_policy(target, policy=policy, check=check_env_spaces)
+    # The checkpoint's NormalizeAndClipActions says how it was trained; the option overrides it.
+    recorded = pipelines.normalize_actions if pipelines is not None else None
+    normalize = options.get_bool("normalize_actions", True if recorded is None else recorded)
+    return RLlibAgent(module=module, greedy=greedy, normalize_actions=normalize, pipelines=pipelines), labels[0]

@@ -28,18 +28,29 @@ from __future__ import annotations
 import logging
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 import torch
+from minigrid.core.actions import Actions
+from minigrid.core.constants import DIR_TO_VEC, OBJECT_TO_IDX
 from ray.rllib.core.columns import Columns
 from ray.rllib.core.rl_module.apis.value_function_api import ValueFunctionAPI
 from ray.rllib.core.rl_module.torch import TorchRLModule
 from torch import nn
 
-from dsage_ray.agents.constants import ACTION_SPACE, NUM_HEADINGS, NUM_OBJECT_KINDS, OBSERVATION_SPACE, VIEW_SIZE
 
+# MiniGrid's sizes, read from MiniGrid itself. This module stays in the agent layer, not with the Maze's agents
+# (dsage_ray.domains.maze.agents), because every checkpoint records its class by this import path; it therefore
+# imports no domain, and tests/domains/maze/agents/test_constants.py checks these equal the Maze's.
+NUM_OBJECT_KINDS = len(OBJECT_TO_IDX)
+NUM_HEADINGS = len(DIR_TO_VEC)
+VIEW_SIZE = 5
 #: The observation every maze policy sees (MiniGrid's dict minus ``mission``).
-MAZE_OBSERVATION_SPACE = OBSERVATION_SPACE
-MAZE_ACTION_SPACE = ACTION_SPACE
+MAZE_OBSERVATION_SPACE = gym.spaces.Dict({
+    "direction": gym.spaces.Discrete(NUM_HEADINGS),
+    "image": gym.spaces.Box(0, 255, (VIEW_SIZE, VIEW_SIZE, 3), np.uint8),
+})
+MAZE_ACTION_SPACE = gym.spaces.Discrete(len(Actions))
 
 #: What RLlib 2.60 logs once per process on the first RLModule it builds, whatever constructor was used.
 _RLMODULE_CONFIG_WARNING = "`RLModule(config=[RLModuleConfig object])` has been deprecated"

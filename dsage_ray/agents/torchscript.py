@@ -1,66 +1,53 @@
 """A policy exported as TorchScript (``torchscript:PATH``): any architecture, no Python class needed.
 
-Calling convention (one of two, detected when loading):
+Calling convention: ``forward(obs)``, where ``obs`` is the :func:`~dsage_ray.agents.spaces.stack_observations`
+batch as tensors (floats as float32; a Dict as a dict of tensors). It returns logits ``(n, k)`` for a
+``Discrete(k)`` action space (actions are sampled from ``softmax(logits)`` with the caller's ``rng``) or actions
+``(n, *shape)`` for a Box one (clipped to the bounds).
 
-* **Stateless**: ``forward(image, direction) -> logits``.
-* **Recurrent**: the module has an integer attribute ``state_size`` and
-  ``forward(image, direction, state) -> (logits, next_state)``. ``state`` is one float32 tensor
-  ``(n, state_size)``, all zeros at the start of an episode; pack several recurrent tensors (e.g. an LSTM's
-  ``h`` and ``c``) into it.
-
-In both, ``image`` is MiniGrid's egocentric view as float32 ``(n, 5, 5, 3)`` indexed ``[x, y, channel]``
-with the raw encoding values (not rescaled: the module does its own preprocessing, so an export is
-self-contained), ``direction`` is the heading as int64 ``(n,)``, and ``logits`` are float ``(n, k)`` with
-``1 <= k <= 7`` over MiniGrid's first ``k`` actions. Actions are sampled from ``softmax(logits)`` with the
-caller's ``rng``.
-
-Detection: ``state_size`` selects the recurrent convention; either way the module is called once on a dummy
-batch of two when loading, and a module that fails that call or returns the wrong shapes is rejected with an
-:class:`~dsage_ray.agents.base.AgentError`.
+The Maze registers its own ``torchscript:`` kind, MiniGrid's view and heading as two inputs
+(:mod:`dsage_ray.domains.maze.agents.torchscript`); both read the file with :func:`load_script_module`.
 """
 
 from __future__ import annotations
 
 import pathlib
 import warnings
+from typing import Any
 
+import gymnasium
 import numpy as np
 import torch
+from gymnasium import spaces
 
-from dsage_ray.agents.base import Agent, AgentError, AgentState, Observation
-from dsage_ray.agents.constants import NUM_ACTIONS
+from dsage_ray.agents.base import Agent, AgentError, AgentState
 from dsage_ray.agents.loader import SpecOptions, describe_exception, require_file
-from dsage_ray.agents.sampling import sample_from_logits
+from dsage_ray.agents.spaces import categorical, finish_actions, require_discrete_or_box, to_torch
 
 
 class TorchScriptAgent(Agent):
-    """Wraps a loaded TorchScript policy; state is ``None`` (stateless) or a ``(n, state_size)`` tensor.
+    """A scripted ``forward(obs)``: logits ``(n, k)`` for Discrete(k) (sampled), actions ``(n, *shape)`` for Box.
 
     Args:
-        module: The scripted module, following the convention in the module docstring.
-        state_size: Width of the recurrent state, or ``None`` for a stateless module.
+        module: The scripted module.
+        action_space: The environment's Discrete or Box action space.
     """
 
-    def __init__(self, *, module: torch.jit.ScriptModule, state_size: int | None) -> None:
+    def __init__(self, *, module: Any, action_space: gymnasium.Space) -> None:
         self.module = module.eval()
-        self.state_size = state_size
+        self.action_space = action_space
 
     def initial_state(self, batch_size: int) -> AgentState:
-        return None if self.state_size is None else torch.zeros(batch_size, self.state_size)
+        return None
 
-    def logits(self, obs: Observation, state: AgentState) -> tuple[torch.Tensor, AgentState]:
-        """One call of the module: logits ``(n, k)`` and the next state; no sampling."""
+    def act(self, obs: Any, state: AgentState, rng: np.random.Generator) -> tuple[np.ndarray, AgentState]:
         with torch.inference_mode():
-            image = torch.from_numpy(np.ascontiguousarray(obs["image"])).float()
-            direction = torch.from_numpy(np.asarray(obs["direction"], dtype=np.int64))
-            if self.state_size is None:
-                return self.module(image, direction), None
-            logits, state = self.module(image, direction, state)
-            return logits, state
-
-    def act(self, obs: Observation, state: AgentState, rng: np.random.Generator) -> tuple[np.ndarray, AgentState]:
-        logits, state = self.logits(obs, state)
-        return sample_from_logits(logits, rng), state
+            out = self.module(to_torch(obs))
+        if not isinstance(out, torch.Tensor):
+            raise AgentError(f"forward(obs) returned {type(out).__name__}, not a tensor")
+        if isinstance(self.action_space, spaces.Discrete):
+            return categorical(out, self.action_space, greedy=False, rng=rng), None
+        return finish_actions(out.double().numpy(), self.action_space), None
 
 
 def load_script_module(path: pathlib.Path) -> torch.jit.ScriptModule:
@@ -74,41 +61,9 @@ def load_script_module(path: pathlib.Path) -> torch.jit.ScriptModule:
         raise AgentError(f"torchscript file {str(path)!r}: not a TorchScript module ({describe_exception(exc)})") from None
 
 
-def load_torchscript_agent(target: str, options: SpecOptions) -> TorchScriptAgent:
-    """Factory for ``torchscript:PATH``; checks the calling convention with one dummy call."""
+def load_torchscript(target: str, options: SpecOptions, *, action_space: gymnasium.Space) -> tuple[Agent, str]:
+    """The agent ``torchscript:PATH`` names, acting in ``action_space``, and the label its errors start with."""
     path = require_file(target, what="torchscript file")
-    module = load_script_module(path)
-    state_size = _state_size(module, path)
-    agent = TorchScriptAgent(module=module, state_size=state_size)
-    _check_convention(agent, path)
-    return agent
-
-
-def _state_size(module: torch.jit.ScriptModule, path: pathlib.Path) -> int | None:
-    if not hasattr(module, "state_size"):
-        return None
-    size = getattr(module, "state_size")
-    if isinstance(size, bool) or not isinstance(size, int) or size < 1:
-        raise AgentError(f"torchscript file {str(path)!r}: state_size must be a positive int, got {size!r}")
-    return size
-
-
-def _check_convention(agent: TorchScriptAgent, path: pathlib.Path) -> None:
-    n = 2
-    obs = {"image": np.ones((n, 5, 5, 3), dtype=np.uint8), "direction": np.arange(n, dtype=np.int64)}
-    kind = "stateless forward(image, direction)" if agent.state_size is None else (
-        f"recurrent forward(image, direction, state[n, {agent.state_size}])"
-    )
-    try:
-        logits, state = agent.logits(obs, agent.initial_state(n))
-    except Exception as exc:
-        raise AgentError(f"torchscript file {str(path)!r}: calling it as {kind} failed ({describe_exception(exc)})") from None
-    if not isinstance(logits, torch.Tensor) or logits.dim() != 2 or logits.shape[0] != n:
-        raise AgentError(f"torchscript file {str(path)!r}: {kind} must return logits of shape (n, k)")
-    if not 1 <= logits.shape[1] <= NUM_ACTIONS:
-        raise AgentError(f"torchscript file {str(path)!r}: logits have {logits.shape[1]} actions, "
-                         f"expected 1..{NUM_ACTIONS}")
-    if agent.state_size is not None and (
-        not isinstance(state, torch.Tensor) or tuple(state.shape) != (n, agent.state_size)
-    ):
-        raise AgentError(f"torchscript file {str(path)!r}: {kind} must return a next state of shape (n, state_size)")
+    label = f"torchscript file {str(path)!r}"
+    require_discrete_or_box(action_space, label=label)
+    return TorchScriptAgent(module=load_script_module(path), action_space=action_space), label

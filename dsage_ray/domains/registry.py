@@ -20,7 +20,7 @@ import importlib
 import importlib.metadata
 from typing import Any, Callable, Mapping, Protocol, runtime_checkable
 
-from dsage_ray.agent_registry import agent_kinds
+from dsage_ray.agent_registry import plugin_kinds
 from dsage_ray.errors import InputError, did_you_mean
 from dsage_ray.plugins import Plugins
 from dsage_ray.plugins import scan as scan_plugins
@@ -105,21 +105,25 @@ class AgentKinds:
     """The agent specs a domain plays, by kind (a spec is ``KIND`` or ``KIND:TARGET``).
 
     Attributes:
-        forms: Each kind the domain plays itself and the spec forms it takes, e.g.
-            ``{"astar": "astar[:ITERATIONS]"}``.
-        policies: Whether the domain also plays every kind of :mod:`dsage_ray.agent_registry` (policies on
-            MiniGrid observations, built in or from the ``dsage_ray.agents`` entry-point group).
+        forms: Each kind the domain plays and the spec forms it takes, e.g. ``{"astar": "astar[:ITERATIONS]"}``
+            or ``{"rllib": "rllib:PATH"}`` (a kind of :mod:`dsage_ray.agent_registry`, loaded by
+            :func:`dsage_ray.agents.load_agent` over the domain's spaces).
+        loaders: The domain's own kinds' factories, ``{kind: "module:function"}`` (imported only when a spec
+            names the kind), which the domain passes to :func:`dsage_ray.agents.load_agent`; for this domain
+            one replaces the generic kind of the same name (the Maze's MiniGrid ``torchscript`` convention).
+        plugins: Whether the domain also plays the kinds installed packages add (the ``dsage_ray.agents``
+            entry-point group) and those registered in this process.
     """
 
     forms: Mapping[str, str] = dataclasses.field(default_factory=dict)
-    policies: bool = False
+    loaders: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    plugins: bool = False
 
     def kinds(self) -> dict[str, str]:
-        """Every kind the domain plays and its spec form, the policy kinds' (imported: none) included."""
-        kinds = dict(self.forms)
-        if self.policies:
-            kinds.update({kind: "builtin:NAME" if kind == "builtin" else f"{kind}:PATH" for kind in agent_kinds()})
-        return kinds
+        """Every kind the domain plays and its spec form, the plug-in kinds' (imported: none) included."""
+        if not self.plugins:
+            return dict(self.forms)
+        return dict(sorted({**{kind: f"{kind}:PATH" for kind in plugin_kinds()}, **self.forms}.items()))
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)

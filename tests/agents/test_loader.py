@@ -12,12 +12,14 @@ import torch
 from torch import nn
 
 from dsage_ray import agent_registry
-from dsage_ray.agents import Agent, AgentError, load_agent, loader, register_agent_kind
-from dsage_ray.agents.builtin import RandomAgent, WallFollowerAgent
-from dsage_ray.agents.dcd import DCDAgent, DCDNetwork
+from dsage_ray.agents import Agent, AgentError, loader, register_agent_kind
+from dsage_ray.domains.maze.agents import load_maze_agent
+from dsage_ray.domains.maze.agents.builtin import RandomAgent, WallFollowerAgent
+from dsage_ray.domains.maze.agents.dcd import DCDAgent, DCDNetwork
 from dsage_ray.agents.loader import ASSETS_DIR
-from dsage_ray.agents.torchscript import TorchScriptAgent
-from tests.agents.conftest import ACCEL_SPEC, shared_dir
+from dsage_ray.domains.maze.agents.torchscript import MazeTorchScriptAgent
+from tests.agents.conftest import shared_dir
+from tests.domains.maze.agents.conftest import ACCEL_SPEC, accel_checkpoint, random_dcd_checkpoint  # noqa: F401 - fixtures
 
 #: The published ACCEL checkpoint (SPEC §2: sha256 5ad0ce09…634ae).
 ACCEL_SHA256 = "5ad0ce09ce1f1763f4b2c16f2ec08da1abb6a0564b0cf715e9be4c0ac7a634ae"
@@ -25,7 +27,7 @@ ACCEL_SHA256 = "5ad0ce09ce1f1763f4b2c16f2ec08da1abb6a0564b0cf715e9be4c0ac7a634ae
 
 def load_error(spec: str) -> AgentError:
     with pytest.raises(AgentError) as info:
-        load_agent(spec)
+        load_maze_agent(spec)
     err = info.value
     assert "\n" not in str(err), f"multi-line error: {err}"
     assert err.__cause__ is None and err.__suppress_context__ or err.__context__ is None, "torch traceback leaked"
@@ -36,10 +38,10 @@ def load_error(spec: str) -> AgentError:
 
 
 def test_builtin_specs_load_and_record_spec():
-    assert isinstance(load_agent("builtin:random"), RandomAgent)
-    agent = load_agent("builtin:wall_follower")
+    assert isinstance(load_maze_agent("builtin:random"), RandomAgent)
+    agent = load_maze_agent("builtin:wall_follower")
     assert isinstance(agent, WallFollowerAgent) and agent.spec == "builtin:wall_follower"
-    assert load_agent("builtin:random?actions=7").num_actions == 7
+    assert load_maze_agent("builtin:random?actions=7").num_actions == 7
 
 
 @pytest.mark.parametrize(
@@ -72,7 +74,7 @@ def test_register_new_kind_without_touching_others(monkeypatch):
             return np.full(len(obs["direction"]), 2, dtype=np.int64), state
 
     register_agent_kind("const_for_test", lambda target, options: Constant())
-    agent = load_agent("const_for_test:anything")
+    agent = load_maze_agent("const_for_test:anything")
     assert agent.spec == "const_for_test:anything"
     with pytest.raises(ValueError):
         register_agent_kind("not a prefix", lambda target, options: Constant())
@@ -82,14 +84,14 @@ def test_register_new_kind_without_touching_others(monkeypatch):
 
 
 def test_dcd_loads_bare_and_wrapped_state_dicts(random_dcd_checkpoint, tmp_path):
-    assert isinstance(load_agent(f"dcd:{random_dcd_checkpoint}"), DCDAgent)
+    assert isinstance(load_maze_agent(f"dcd:{random_dcd_checkpoint}"), DCDAgent)
     wrapped = tmp_path / "wrapped.tar"
     torch.save({"model_state_dict": torch.load(random_dcd_checkpoint), "num_updates": 3}, wrapped)
-    assert isinstance(load_agent(f"dcd:{wrapped}"), DCDAgent)
+    assert isinstance(load_maze_agent(f"dcd:{wrapped}"), DCDAgent)
 
 
 def test_dcd_options(random_dcd_checkpoint):
-    agent = load_agent(f"dcd:{random_dcd_checkpoint}?heading_quirk=1&quirk_group=5")
+    agent = load_maze_agent(f"dcd:{random_dcd_checkpoint}?heading_quirk=1&quirk_group=5")
     assert agent.heading_quirk and agent.quirk_group == 5
     assert "not a boolean" in str(load_error(f"dcd:{random_dcd_checkpoint}?heading_quirk=maybe"))
     assert "unknown option(s) temperature" in str(load_error(f"dcd:{random_dcd_checkpoint}?temperature=2"))
@@ -167,7 +169,7 @@ def test_dcd_wrong_shape(random_dcd_checkpoint):
 def test_real_accel_checkpoint_loads_strictly(accel_checkpoint):
     state = torch.load(accel_checkpoint, map_location="cpu", weights_only=True)
     assert set(state) == set(DCDNetwork().state_dict()), "the real file is a bare state_dict with exactly our keys"
-    agent = load_agent(ACCEL_SPEC)
+    agent = load_maze_agent(ACCEL_SPEC)
     assert agent.spec == ACCEL_SPEC
     for key, tensor in agent.network.state_dict().items():
         assert torch.equal(tensor, state[key])
@@ -248,9 +250,9 @@ def _script(module: nn.Module, path):
 
 
 def test_torchscript_stateless_and_recurrent(tmp_path):
-    stateless = load_agent(f"torchscript:{_script(_Stateless(), tmp_path / 'a.pt')}")
-    assert isinstance(stateless, TorchScriptAgent) and stateless.state_size is None
-    recurrent = load_agent(f"torchscript:{_script(_Recurrent(), tmp_path / 'b.pt')}")
+    stateless = load_maze_agent(f"torchscript:{_script(_Stateless(), tmp_path / 'a.pt')}")
+    assert isinstance(stateless, MazeTorchScriptAgent) and stateless.state_size is None
+    recurrent = load_maze_agent(f"torchscript:{_script(_Recurrent(), tmp_path / 'b.pt')}")
     assert recurrent.state_size == 4
     obs = {"image": np.zeros((3, 5, 5, 3), np.uint8), "direction": np.zeros(3, np.int64)}
     state = recurrent.initial_state(3)

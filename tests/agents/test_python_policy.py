@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from dsage_ray.agents.base import AgentError
-from dsage_ray.domains.gym.agents import load_gym_agent
+from dsage_ray.agents import load_agent
 
 OBS = gym.spaces.Box(-10.0, 10.0, (4,), np.float32)
 ACT = gym.spaces.Discrete(2)
@@ -32,7 +32,7 @@ def policy_file(tmp_path):
 
 
 def test_a_batched_function_is_called_once_per_step_with_every_running_episode(policy_file):
-    agent = load_gym_agent(f"python:{policy_file}:batched?batch=1", observation_space=OBS, action_space=ACT)
+    agent = load_agent(f"python:{policy_file}:batched?batch=1", observation_space=OBS, action_space=ACT)
     calls = agent.function.__globals__["CALLS"]
     calls.clear()
     obs = np.random.default_rng(0).uniform(-1, 1, (7, 4)).astype(np.float32)
@@ -42,4 +42,4 @@ def test_a_batched_function_is_called_once_per_step_with_every_running_episode(p
 
 def test_a_batched_function_giving_too_few_actions_is_named(policy_file):
     with pytest.raises(AgentError, match="a \\?batch=1 function gave 1 actions for 2 observations"):
-        load_gym_agent(f"python:{policy_file}:short?batch=1", observation_space=OBS, action_space=ACT)
+        load_agent(f"python:{policy_file}:short?batch=1", observation_space=OBS, action_space=ACT)

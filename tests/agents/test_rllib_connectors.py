@@ -19,11 +19,11 @@ from ray.rllib.connectors.connector_v2 import ConnectorV2
 from ray.rllib.connectors.env_to_module.observation_preprocessor import SingleAgentObservationPreprocessor
 
 from dsage_ray.agents import AgentError, load_agent
+from dsage_ray.domains.maze.agents import load_maze_agent
 from dsage_ray.agents.rllib import MODULES_SUBDIR, RLlibAgent
 from dsage_ray.agents.rllib_connectors import (ENV_RUNNER_DIR, ENV_TO_MODULE_DIR, MODULE_TO_ENV_DIR, EpisodeState,
                                                load_pipelines, pipelines_dir)
 from dsage_ray.agents.rllib_module import MAZE_ACTION_SPACE, MAZE_OBSERVATION_SPACE, MazeRLModule
-from dsage_ray.domains.gym.agents import load_gym_agent
 from dsage_ray.domains.gym.simulator import run_episodes
 from dsage_ray.domains.gym.space import build_space
 
@@ -42,7 +42,7 @@ EPISODES = 20
 
 
 def cartpole_agent(spec: str):
-    return load_gym_agent(spec, observation_space=CARTPOLE.observation_space, action_space=CARTPOLE.action_space)
+    return load_agent(spec, observation_space=CARTPOLE.observation_space, action_space=CARTPOLE.action_space)
 
 
 def mean_return(spec: str, *, seeds=(0, 1)) -> float:
@@ -180,7 +180,7 @@ def test_frame_stacking_sees_each_episodes_own_frames_after_others_end(tmp_path)
     stack.input_observation_space = frames_space
     module = default_module(stack.observation_space, CARTPOLE.action_space, conv_filters=[[4, 4, 1]])
     folder = save_checkpoint(tmp_path / "ckpt", module, [stack])
-    agent = load_gym_agent(f"rllib:{folder}?greedy=1", observation_space=frames_space,
+    agent = load_agent(f"rllib:{folder}?greedy=1", observation_space=frames_space,
                            action_space=CARTPOLE.action_space)
     pipelines = agent.pipelines
     assert pipelines.transforms == ("FrameStacking",)
@@ -211,7 +211,7 @@ def test_flattening_one_hots_and_concatenates_a_dict_observation(tmp_path):
     flatten.input_observation_space = observations
     module = default_module(flatten.observation_space, CARTPOLE.action_space)
     folder = save_checkpoint(tmp_path / "ckpt", module, [flatten])
-    agent = load_gym_agent(f"rllib:{folder}", observation_space=observations, action_space=CARTPOLE.action_space)
+    agent = load_agent(f"rllib:{folder}", observation_space=observations, action_space=CARTPOLE.action_space)
     obs = {"position": np.float32([[0.5, -0.25], [0.0, 1.0]]), "room": np.array([2, 0])}
     inputs = agent.pipelines.module_batch(agent.module, obs, agent.initial_state(2), explore=True)
     # gymnasium's Dict keys are sorted: position, then room one-hot.
@@ -227,8 +227,8 @@ def test_recurrent_maze_module_behind_a_pipeline_acts_as_the_direct_path(tmp_pat
     unchanged = Unchanged()
     unchanged.input_observation_space = MAZE_OBSERVATION_SPACE
     folder = save_checkpoint(tmp_path / "ckpt", module, [unchanged])
-    piped = load_agent(f"rllib:{folder}?greedy=1")
-    direct = load_agent(f"rllib:{folder / MODULES_SUBDIR / 'default_policy'}?greedy=1")
+    piped = load_maze_agent(f"rllib:{folder}?greedy=1")
+    direct = load_maze_agent(f"rllib:{folder / MODULES_SUBDIR / 'default_policy'}?greedy=1")
     assert isinstance(piped, RLlibAgent) and piped.pipelines.transforms == ("Unchanged",)
     assert direct.pipelines is None
     sampler = MAZE_OBSERVATION_SPACE
@@ -258,7 +258,7 @@ def test_the_module_to_env_pipeline_gives_normalize_actions_its_default(tmp_path
                              [GetActions(), NormalizeAndClipActions(normalize_actions=False, clip_actions=True)])
 
     def load(spec):
-        return load_gym_agent(spec, observation_space=observations, action_space=box)
+        return load_agent(spec, observation_space=observations, action_space=box)
 
     assert load(f"rllib:{folder}").normalize_actions is False
     assert load(f"rllib:{folder}?normalize_actions=1").normalize_actions is True

@@ -19,7 +19,7 @@ import yaml
 from benchmarks.zoo_nominal import play
 from dsage_ray.agents.base import Agent, AgentError
 from dsage_ray.agents.spaces import stack_observations
-from dsage_ray.domains.gym.agents import load_gym_agent
+from dsage_ray.agents import load_agent
 from tests.agents.conftest import shared_dir
 
 sb3 = pytest.importorskip("stable_baselines3")
@@ -85,7 +85,7 @@ class Recorder(Agent):
 
 def load_cartpole(spec: str) -> Agent:
     env = gym.make("CartPole-v1")
-    return load_gym_agent(spec, observation_space=env.observation_space, action_space=env.action_space, env=env)
+    return load_agent(spec, observation_space=env.observation_space, action_space=env.action_space, env=env)
 
 
 def test_a_run_folder_sees_what_sb3s_pipeline_gives_its_policy_step_for_step(run_folder):
@@ -168,7 +168,7 @@ def test_sb3_contrib_saves_load(tmp_path):
                     seed=0).save(tmp_path / "tqc.zip")
     assert type(load_cartpole(f"sb3:{tmp_path / 'qrdqn.zip'}").model).__name__ == "QRDQN"
     pendulum = gym.make("Pendulum-v1")
-    tqc = load_gym_agent(f"sb3:{tmp_path / 'tqc.zip'}", observation_space=pendulum.observation_space,
+    tqc = load_agent(f"sb3:{tmp_path / 'tqc.zip'}", observation_space=pendulum.observation_space,
                          action_space=pendulum.action_space)
     assert type(tqc.model).__name__ == "TQC"
     actions = tqc.act(np.zeros((4, 3), np.float32), None, np.random.default_rng(0))[0]
@@ -190,7 +190,7 @@ def test_every_zoo_folder_loads_with_its_expected_return(folder):
     env_id = {"LunarLander": "LunarLander-v3", "CartPole": "CartPole-v1", "BipedalWalker": "BipedalWalker-v3"}[
         folder.split("/")[1].split("-")[0]]
     env = gym.make(env_id)
-    agent = load_gym_agent(f"sb3:{ZOO / folder}", observation_space=env.observation_space,
+    agent = load_agent(f"sb3:{ZOO / folder}", observation_space=env.observation_space,
                            action_space=env.action_space, env=env)
     assert agent.expected_return is not None and agent.expected_return > 100
 
@@ -205,4 +205,4 @@ def test_the_zoo_walker_walks_with_its_statistics_and_falls_without_them():
 
 def load_walker(spec: str) -> Agent:
     env = gym.make("BipedalWalker-v3")
-    return load_gym_agent(spec, observation_space=env.observation_space, action_space=env.action_space, env=env)
+    return load_agent(spec, observation_space=env.observation_space, action_space=env.action_space, env=env)

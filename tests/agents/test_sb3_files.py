@@ -15,7 +15,7 @@ import pytest
 from dsage_ray.agents.base import AgentError
 from dsage_ray.agents.rl_zoo import read_run_folder, read_zoo_yaml
 from dsage_ray.agents.sb3_files import read_save, read_vecnormalize, recorded_space
-from dsage_ray.domains.gym.agents import load_gym_agent
+from dsage_ray.agents import load_agent
 from tests.agents.conftest import shared_dir
 from tests.agents.test_sb3 import make_run_folder
 
@@ -39,7 +39,7 @@ def test_a_forged_vecnormalize_runs_nothing(tmp_path):
     (folder / "CartPole-v1" / "vecnormalize.pkl").write_bytes(pickle.dumps(Touch(marker)))
     env = gym.make("CartPole-v1")
     with pytest.raises(AgentError, match=r"does not read as data .*it names posix.system") as info:
-        load_gym_agent(f"sb3:{folder}", observation_space=env.observation_space, action_space=env.action_space, env=env)
+        load_agent(f"sb3:{folder}", observation_space=env.observation_space, action_space=env.action_space, env=env)
     assert "\n" not in str(info.value)
     assert not marker.exists()
 
@@ -76,7 +76,7 @@ def test_a_forged_save_runs_nothing_whichever_entry_carries_it(tmp_path):
     marker = tmp_path / "ran"
     forge_entry(model, "_last_obs", Touch(marker))  # training state: dropped, the policy still loads
     env = gym.make("CartPole-v1")
-    agent = load_gym_agent(f"sb3:{folder}", observation_space=env.observation_space, action_space=env.action_space,
+    agent = load_agent(f"sb3:{folder}", observation_space=env.observation_space, action_space=env.action_space,
                            env=env)
     assert agent.policy.model.policy is not None
     forge_entry(model, "policy_class", Touch(marker))  # what the policy needs: refused

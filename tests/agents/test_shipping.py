@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from dsage_ray.agents import loader, shipping
-from dsage_ray.agents.loader import ASSETS_DIR, load_agent
+from dsage_ray.agents.loader import ASSETS_DIR
+from dsage_ray.domains.maze.agents import load_maze_agent
 
 
 @pytest.fixture
@@ -40,14 +41,14 @@ def test_an_agent_loads_from_its_bytes_after_its_file_is_gone(tmp_path, fresh_co
     copy = tmp_path / "mine"
     shutil.copytree(ASSETS_DIR / shipped, copy)
     spec = spec_of(copy)
-    before = load_agent(spec)
+    before = load_maze_agent(spec)
     files = shipping.pack_agent_files([spec, spec])  # named twice, packed once
     assert len(files) == 1 and files[0].target == spec.split(":", 1)[1]
     shutil.rmtree(copy)  # what a node without the driver's disk sees
     with pytest.raises(Exception, match="not found"):
-        load_agent(spec)
+        load_maze_agent(spec)
     shipping.install_agent_files(files)
-    after = load_agent(spec)
+    after = load_maze_agent(spec)
     assert after.spec == spec
     observation = maze_observations()
     np.testing.assert_array_equal(act(before, observation), act(after, observation))

@@ -153,7 +153,7 @@ def test_a_good_agent_passes_its_check_is_in_the_header_and_a_collect_only_reuse
 
 
 def test_an_agents_own_expected_return_is_the_figure(monkeypatch):
-    from dsage_ray.agents.builtin import WallFollowerAgent
+    from dsage_ray.domains.maze.agents.builtin import WallFollowerAgent
     from dsage_ray.audit.nominal import play_nominal
     from dsage_ray.config import RunConfig
     from dsage_ray.domains import build_domain

@@ -35,10 +35,10 @@ def test_regression_score_maps_the_success_difference_onto_0_1():
 
 def test_regression_objective_needs_the_reference_and_scores_invalid_levels_0():
     level = parse_layout("S.#.\n....\n.#.G\n")
-    from dsage_ray.agents import load_agent
+    from dsage_ray.domains.maze.agents import load_maze_agent
 
-    new = evaluate(level, load_agent(NEW), episodes=6, seed=1)
-    old = evaluate(level, load_agent(OLD), episodes=6, seed=1)
+    new = evaluate(level, load_maze_agent(NEW), episodes=6, seed=1)
+    old = evaluate(level, load_maze_agent(OLD), episodes=6, seed=1)
     assert OBJECTIVES["regression"](new, old) == pytest.approx((1 + old.success_rate - new.success_rate) / 2)
     with pytest.raises(ValueError, match="reference"):
         OBJECTIVES["regression"](new)
@@ -53,11 +53,11 @@ def test_domain_runs_both_agents_on_the_same_seed():
     rng = np.random.default_rng(0)
     solution = next(s for s in domain.random_solutions(50, rng) if domain.is_valid(s))
     result = domain.evaluate(solution, seed=11)
-    from dsage_ray.agents import load_agent
+    from dsage_ray.domains.maze.agents import load_maze_agent
 
     level = domain.level(solution)
-    new = evaluate(level, load_agent(NEW), episodes=8, seed=11)
-    old = evaluate(level, load_agent(OLD), episodes=8, seed=11)
+    new = evaluate(level, load_maze_agent(NEW), episodes=8, seed=11)
+    old = evaluate(level, load_maze_agent(OLD), episodes=8, seed=11)
     assert result.info["success_rate"] == new.success_rate
     assert result.info["reference"] == {"success_rate": old.success_rate, "mean_path_length": old.mean_path_length}
     assert result.objective == pytest.approx((1 + old.success_rate - new.success_rate) / 2)

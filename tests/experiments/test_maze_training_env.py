@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dsage_ray.agents.constants import ACTION_SPACE, OBSERVATION_SPACE
+from dsage_ray.domains.maze.agents.constants import ACTION_SPACE, OBSERVATION_SPACE
 from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.domains.maze.level import MazeLevel, path_distances
 

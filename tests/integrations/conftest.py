@@ -48,9 +48,9 @@ class FakeSeries:
         if self.fail is not None:
             raise self.fail
         if self.load:
-            from dsage_ray.agents import load_agent
+            from dsage_ray.domains.maze.agents import load_maze_agent
 
-            self.agents.append(load_agent(agent))
+            self.agents.append(load_maze_agent(agent))
         return FakeRecord(label=label or agent, agent=agent, step=step, error=self.error,
                           suite_success_rate=None if self.error else 0.5)
 

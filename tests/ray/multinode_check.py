@@ -29,7 +29,8 @@ def check_agent_travels_as_data(cluster: Cluster, workers: list) -> None:
     import tempfile
     from pathlib import Path
 
-    from dsage_ray.agents.loader import ASSETS_DIR, load_agent
+    from dsage_ray.agents.loader import ASSETS_DIR
+    from dsage_ray.domains.maze.agents import load_maze_agent
     from dsage_ray.agents.shipping import config_agent_specs, pack_agent_files
     from dsage_ray.config import RunConfig
     from dsage_ray.domains import build_domain
@@ -38,7 +39,7 @@ def check_agent_travels_as_data(cluster: Cluster, workers: list) -> None:
     shutil.copy(ASSETS_DIR / "accel" / "model_20000.tar", folder / "mine.tar")
     config = RunConfig.build({"domain": "maze", "maze.agent": f"dcd:{folder / 'mine.tar'}", "maze.episodes": 4,
                               "experimental.chunk_size": 1})
-    load_agent(config.domain_config.agent)  # the driver loads it once (preflight)...
+    load_maze_agent(config.domain_config.agent)  # the driver loads it once (preflight)...
     files = pack_agent_files(config_agent_specs(config.to_dict()))  # ... and reads its bytes
     shutil.rmtree(folder)  # gone from the only disk that had it
     # The head and the worker left by the first check hold the two actors; one more node takes the replacement.

@@ -30,7 +30,7 @@ def add_subparser(subparsers) -> None:
 
 def run_eval(args: argparse.Namespace) -> int:
     """Handler of ``gym eval``: the numbers a collection entry records for this level, seed and episodes."""
-    from dsage_ray.domains.gym.agents import load_gym_agent
+    from dsage_ray.agents import load_agent
     from dsage_ray.domains.gym.domain import read_level
     from dsage_ray.domains.gym.simulator import make_env, run_episodes
 
@@ -43,8 +43,8 @@ def run_eval(args: argparse.Namespace) -> int:
         print(user_code_notice(space.setup), file=sys.stderr)
     env = make_env(space, values)
     try:
-        agent = load_gym_agent(args.agent, observation_space=env.observation_space, action_space=env.action_space,
-                               env=env)
+        agent = load_agent(args.agent, observation_space=env.observation_space, action_space=env.action_space,
+                           env=env)
     finally:
         env.close()
     played = run_episodes(space, agent, values, seed=args.seed, episodes=args.episodes)

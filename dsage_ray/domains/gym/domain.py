@@ -87,12 +87,12 @@ class GymDomain:
     def agent(self):
         """The agent ``config.agent`` names, loaded on first use against the environment's spaces."""
         if self._agent is None:
-            from dsage_ray.domains.gym.agents import load_gym_agent
+            from dsage_ray.agents import load_agent
 
             env = make_env(self.space, self.space.values(np.zeros(self.solution_dim)))
             try:
-                self._agent = load_gym_agent(self.config.agent, observation_space=env.observation_space,
-                                             action_space=env.action_space, env=env)
+                self._agent = load_agent(self.config.agent, observation_space=env.observation_space,
+                                         action_space=env.action_space, env=env)
             finally:
                 env.close()
         return self._agent
@@ -138,7 +138,7 @@ class GymDomain:
     def audit_values(cls, *, agent: str, reference: str | None = None, objective: str | None = None,
                      measures: Sequence[str] | None = None) -> dict[str, Any]:
         """The dotted config keys of an audit of ``agent`` (the measures default to the space's)."""
-        from dsage_ray.domains.gym.agents import GYM_AGENT_FORMS
+        from dsage_ray.agents.kinds import FORMS
 
         if reference:
             raise ValueError("gym audits play one agent: no --reference (compare two on a collection with "
@@ -147,8 +147,8 @@ class GymDomain:
         if objective not in DOMAIN.audit.objectives:
             raise ValueError(f"gym audit objective must be one of {DOMAIN.audit.objectives}, got {objective!r}")
         kind = agent.partition(":")[0]
-        if kind not in GYM_AGENT_FORMS:
-            raise ValueError(f"gym agent {agent!r}: unknown kind {kind!r} (known: {', '.join(GYM_AGENT_FORMS.values())})")
+        if kind not in DOMAIN.agents.forms:
+            raise ValueError(f"gym agent {agent!r}: unknown kind {kind!r} (known: {', '.join(FORMS.values())})")
         values: dict[str, Any] = {"gym.agent": agent, "gym.objective": objective}
         if measures:
             values["gym.measures"] = tuple(measures)

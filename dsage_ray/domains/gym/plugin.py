@@ -38,7 +38,7 @@ class GymConfig:
     #: ``--space-set`` lines of a space file set over it (``success.return_at_least = 200``): anything a space
     #: file declares, so a one-off audit needs no file.
     space_set: tuple[str, ...] = domain_key((), note="--space-set lines set over the space file")
-    #: The agent spec (:data:`dsage_ray.domains.gym.agents.GYM_AGENT_FORMS`).
+    #: The agent spec (a form of the registration's ``agents``; :mod:`dsage_ray.agents.kinds`).
     agent: str = domain_key("rllib:ppo_cartpole",
                             note="the agent spec audited (rllib:, torchscript:, sb3:, python:...)")
     objective: GymObjective = domain_key("failure_rate",
@@ -161,6 +161,7 @@ DOMAIN = DomainSpec(
         flags=AUDIT_FLAGS,
         flags_title="any Gymnasium environment (--domain gym)",
     ),
+    # dsage_ray's generic kinds (dsage_ray/agents/kinds.py) over the environment's spaces.
     agents=AgentKinds(forms={
         "rllib": "rllib:PATH", "sb3": "sb3:PATH.zip", "torchscript": "torchscript:PATH",
         "python": "python:MODULE:FUNCTION", "random": "random",

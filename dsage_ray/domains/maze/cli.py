@@ -29,14 +29,14 @@ def add_subparser(subparsers) -> None:
 
 def run_eval(args: argparse.Namespace) -> int:
     """Handler of ``maze eval``; bad input ends it through :func:`dsage_ray.cli.main` in one line."""
-    from dsage_ray import agents
+    from dsage_ray.domains.maze import agents
     from dsage_ray.domains.maze.evaluate import evaluate
     from dsage_ray.domains.maze.layout import load_layout
 
     if args.episodes < 1:
         raise InputError(f"--episodes must be positive, got {args.episodes}")
     level = load_layout(args.layout)
-    agent = agents.load_agent(args.agent)
+    agent = agents.load_maze_agent(args.agent)
     result = evaluate(level, agent, episodes=args.episodes, seed=args.seed, see_through_walls=args.see_through_walls)
     if args.render:
         from dsage_ray.domains.maze.render import render_level

@@ -71,20 +71,20 @@ class MazeDomain:
     def agent(self):
         """The agent ``config.agent`` names, loaded on first use."""
         if self._agent is None:
-            from dsage_ray.agents import load_agent
+            from dsage_ray.domains.maze.agents import load_maze_agent
 
-            self._agent = load_agent(self.config.agent)
+            self._agent = load_maze_agent(self.config.agent)
         return self._agent
 
     @property
     def reference_agent(self):
         """The agent ``config.reference`` names (the ``regression`` objective's baseline), loaded on first use."""
         if self._reference_agent is None:
-            from dsage_ray.agents import load_agent
+            from dsage_ray.domains.maze.agents import load_maze_agent
 
             if not self.config.reference:
                 raise ValueError("maze.reference: no reference agent configured")
-            self._reference_agent = load_agent(self.config.reference)
+            self._reference_agent = load_maze_agent(self.config.reference)
         return self._reference_agent
 
     def __getstate__(self) -> dict[str, Any]:

@@ -172,7 +172,15 @@ DOMAIN = DomainSpec(
                           "limit), past auto's break-even, yet in the same 7 minutes of search DSAGE's audit found "
                           "545 failing cells to the 181 of auto's switch to MAP-Elites (docs/DECISIONS.md)"),
     ),
-    # The policies of dsage_ray.agents (MiniGrid observations): built in, shipped and plug-in kinds.
-    agents=AgentKinds(policies=True),
+    # Policies on MiniGrid's observation: the Maze's own kinds (dsage_ray/domains/maze/agents/: the wall follower,
+    # DCD/ACCEL, and its rllib and torchscript conventions), shipped agents and plug-in kinds.
+    agents=AgentKinds(
+        forms={"builtin": "builtin:NAME", "dcd": "dcd:PATH", "rllib": "rllib:PATH", "torchscript": "torchscript:PATH"},
+        loaders={"builtin": "dsage_ray.domains.maze.agents.builtin:load_builtin_agent",
+                 "dcd": "dsage_ray.domains.maze.agents.dcd:load_dcd_agent",
+                 "rllib": "dsage_ray.domains.maze.agents.rllib:load_rllib_agent",
+                 "torchscript": "dsage_ray.domains.maze.agents.torchscript:load_torchscript_agent"},
+        plugins=True,
+    ),
     cli="dsage_ray.domains.maze.cli",
 )

@@ -16,8 +16,8 @@ from typing import Sequence
 
 import numpy as np
 
-from dsage_ray.agents import constants as minigrid
-from dsage_ray.agents.constants import FORWARD, LEFT, NUM_ACTIONS, RIGHT
+from dsage_ray.domains.maze.agents import constants as minigrid
+from dsage_ray.domains.maze.agents.constants import FORWARD, LEFT, NUM_ACTIONS, RIGHT
 from dsage_ray.domains.maze.level import MazeLevel
 
 # Cell kinds in the padded grid; MiniGrid's (object, colour, state) encoding of each, as MiniGrid's

@@ -9,7 +9,7 @@ import pytest
 
 from dsage_ray.config import RunConfig
 from dsage_ray.domains import build_domain
-from dsage_ray.domains.gym.agents import load_gym_agent
+from dsage_ray.agents import load_agent
 from dsage_ray.domains.gym.simulator import make_env, reset_env, run_episodes
 from dsage_ray.domains.gym.space import SpaceError, build_space, read_space_tables
 
@@ -55,7 +55,7 @@ def test_the_hook_sets_the_initial_force_on_the_reset_seed_terrain(space):
 
 def test_a_crash_is_a_fault_and_measures_are_read_at_first_contact(space):
     env = make_env(space, {"force_x": 0.0, "force_y": 0.0})
-    agent = load_gym_agent("random", observation_space=env.observation_space, action_space=env.action_space)
+    agent = load_agent("random", observation_space=env.observation_space, action_space=env.action_space)
     env.close()
     signals = [space.measure(name).signal for name in ("contact_x", "contact_vy")]
     played = run_episodes(space, agent, {"force_x": 500.0, "force_y": -800.0}, seed=3, episodes=10, signals=signals)
@@ -76,7 +76,7 @@ def test_an_event_that_never_happens_takes_the_fallback():
                      "angle_min": {"obs": 2, "at": "min", "range": [-1, 1]}},
         "success": {"return_at_least": 10}})
     env = make_env(space, {"length": 0.5})
-    agent = load_gym_agent("random", observation_space=env.observation_space, action_space=env.action_space)
+    agent = load_agent("random", observation_space=env.observation_space, action_space=env.action_space)
     env.close()
     signals = [m.signal for name, m in space.measures.items() if name in ("never", "lowest", "third", "angle_min")]
     played = run_episodes(space, agent, {"length": 0.5}, seed=0, episodes=4, signals=signals)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from dsage_ray.agents.base import Agent
-from dsage_ray.agents.constants import NUM_ACTIONS
+from dsage_ray.domains.maze.agents.constants import NUM_ACTIONS
 from dsage_ray.domains.maze.level import MazeLevel
 
 DATA = Path(__file__).parent / "data"

@@ -3,6 +3,7 @@ import json
 import pytest
 
 import dsage_ray.agents
+import dsage_ray.domains.maze.agents
 from dsage_ray.cli import main
 
 from .conftest import DATA, UniformRandomAgent
@@ -15,7 +16,7 @@ def fake_loader(monkeypatch):
             raise dsage_ray.agents.base.AgentError(f"agent spec {spec!r}: unknown kind")
         return UniformRandomAgent(3)
 
-    monkeypatch.setattr(dsage_ray.agents, "load_agent", fake_load_agent, raising=False)
+    monkeypatch.setattr(dsage_ray.domains.maze.agents, "load_maze_agent", fake_load_agent, raising=False)
 
 
 def test_eval_json_and_render(tmp_path, capsys):

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import dsage_ray.agents
+import dsage_ray.domains.maze.agents
 from dsage_ray.domains.maze.domain import MazeDomain
 from dsage_ray.domains.maze.plugin import MazeConfig
 from dsage_ray.types import AuditableDomain, Domain
@@ -20,7 +21,7 @@ def loads(monkeypatch):
         calls.append(spec)
         return UniformRandomAgent(3)
 
-    monkeypatch.setattr(dsage_ray.agents, "load_agent", fake_load_agent, raising=False)
+    monkeypatch.setattr(dsage_ray.domains.maze.agents, "load_maze_agent", fake_load_agent, raising=False)
     return calls
 
 
@@ -113,7 +114,7 @@ class _ReducingAgent(UniformRandomAgent):
 
 
 def test_screen_precision_plays_the_reduced_copy_made_once(monkeypatch):
-    monkeypatch.setattr(dsage_ray.agents, "load_agent", lambda spec: _ReducingAgent(3), raising=False)
+    monkeypatch.setattr(dsage_ray.domains.maze.agents, "load_maze_agent", lambda spec: _ReducingAgent(3), raising=False)
     domain = MazeDomain(config=MazeConfig(height=3, width=4, episodes=10))
     levels = np.zeros((3, 12))
     domain.screen(levels, episodes=1, seed=0, precision="bf16")
@@ -136,7 +137,7 @@ def test_an_agent_without_a_reduced_copy_screens_as_it_is(loads):
 
 
 def test_the_nominal_level_is_an_open_room_scored_with_minigrids_reward():
-    from dsage_ray.agents.builtin import WallFollowerAgent
+    from dsage_ray.domains.maze.agents.builtin import WallFollowerAgent
     from dsage_ray.types import NominalDomain
 
     domain = MazeDomain(config=MazeConfig(height=6, width=5, agent="builtin:wall_follower"))
@@ -162,7 +163,7 @@ def test_an_agent_that_never_reaches_the_goal_scores_nothing_in_the_open_room(mo
         def act(self, obs, state, rng):
             return np.zeros(len(state), dtype=np.int64), state  # turns left for ever
 
-    monkeypatch.setattr(dsage_ray.agents, "load_agent", lambda spec: Spinner(), raising=False)
+    monkeypatch.setattr(dsage_ray.domains.maze.agents, "load_maze_agent", lambda spec: Spinner(), raising=False)
     played = MazeDomain(config=MazeConfig(height=4, width=4)).play_nominal(seed=0)
     assert (played.success_rate, played.mean_return, played.return_std) == (0.0, 0.0, 0.0)
     assert "see_through_walls = true" in played.causes

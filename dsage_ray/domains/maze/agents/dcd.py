@@ -18,7 +18,7 @@ Inference runs one step at a time on matrices precomputed from those weights (:c
 at evaluation batch sizes (≤ 50 rows) per-call overhead, not arithmetic, dominates (SPEC: speed): the conv becomes
 one (75→144) matmul, the heading embedding and both LSTM biases one table row per heading one-hot, and each LSTM
 step two ``addmm`` into one gate buffer. It is the same network with float32 sums taken in a different order,
-so logits match the module-by-module computation to ~1e-6, not bit for bit (``tests/agents/test_dcd_step.py``
+so logits match the module-by-module computation to ~1e-6, not bit for bit (``tests/domains/maze/agents/test_dcd_step.py``
 checks both that and that the real checkpoint takes the same actions on test mazes). Actions are sampled in
 numpy from the caller's ``rng`` (:mod:`dsage_ray.agents.sampling`).
 
@@ -45,10 +45,10 @@ import torch
 from torch import nn
 
 from dsage_ray.agents.base import Agent, AgentError, AgentState, Observation
-from dsage_ray.agents.constants import NUM_ACTIONS, NUM_HEADINGS
 from dsage_ray.agents.loader import (CHECKSUMS_FILE, SpecOptions, describe_exception, require_file, shipped_agent_dir,
                                      shipped_agent_names, verified_files)
 from dsage_ray.agents.sampling import sample_from_logits
+from dsage_ray.domains.maze.agents.constants import NUM_ACTIONS, NUM_HEADINGS
 
 HIDDEN_SIZE = 256
 #: Keys under which training scripts commonly wrap a state_dict; the ACCEL checkpoint itself is bare.

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dsage_ray.agents import load_agent
+from dsage_ray.domains.maze.agents import load_maze_agent
 from dsage_ray.domains.maze import MazeLevel, evaluate
-from tests.agents.mazes import labyrinth13, open_maze, perfect_maze
+from tests.domains.maze.agents.mazes import labyrinth13, open_maze, perfect_maze
 
 
 def test_random_agent_range_and_reproducibility():
     obs = {"image": np.zeros((500, 5, 5, 3), np.uint8), "direction": np.zeros(500, np.int64)}
-    three, seven = load_agent("builtin:random"), load_agent("builtin:random?actions=7")
+    three, seven = load_maze_agent("builtin:random"), load_maze_agent("builtin:random?actions=7")
     a, _ = three.act(obs, three.initial_state(500), np.random.default_rng(0))
     assert a.dtype == np.int64 and set(a.tolist()) == {0, 1, 2}
     b, _ = seven.act(obs, None, np.random.default_rng(0))
@@ -32,14 +32,14 @@ SOLVABLE = [
 @pytest.mark.parametrize("see_through_walls", [True, False])
 @pytest.mark.parametrize("name, make", SOLVABLE, ids=[name for name, _ in SOLVABLE])
 def test_wall_follower_solves_simply_connected_mazes(name, make, see_through_walls):
-    result = evaluate(make(), load_agent("builtin:wall_follower"), episodes=8, seed=0,
+    result = evaluate(make(), load_maze_agent("builtin:wall_follower"), episodes=8, seed=0,
                       see_through_walls=see_through_walls)
     assert result.success_rate == 1.0, f"{name}: lengths {result.episode_lengths}"
     assert (result.episode_lengths >= result.optimal_path_length).all()
 
 
 def test_wall_follower_is_deterministic_and_ignores_the_rng():
-    level, agent = open_maze(16, 0.2, 1), load_agent("builtin:wall_follower")
+    level, agent = open_maze(16, 0.2, 1), load_maze_agent("builtin:wall_follower")
     first = evaluate(level, agent, episodes=12, seed=3)
     again = evaluate(level, agent, episodes=12, seed=3)
     np.testing.assert_array_equal(first.episode_lengths, again.episode_lengths)
@@ -47,7 +47,7 @@ def test_wall_follower_is_deterministic_and_ignores_the_rng():
 
 
 def test_wall_follower_rules_on_hand_made_views():
-    agent = load_agent("builtin:wall_follower")
+    agent = load_maze_agent("builtin:wall_follower")
     wall, empty, goal = (2, 5, 0), (1, 0, 0), (8, 1, 0)
 
     def view(ahead, left, right):

@@ -10,15 +10,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dsage_ray.agents import Agent, load_agent
+from dsage_ray.agents import Agent
+from dsage_ray.domains.maze.agents import load_maze_agent
 from dsage_ray.domains.maze import evaluate
-from tests.agents.conftest import ACCEL_SPEC
-from tests.agents.mazes import labyrinth13, open_maze, perfect_maze
+from tests.domains.maze.agents.conftest import ACCEL_SPEC
+from tests.domains.maze.agents.mazes import labyrinth13, open_maze, perfect_maze
 
 
 @pytest.fixture(scope="module")
 def accel():
-    return load_agent(ACCEL_SPEC)
+    return load_maze_agent(ACCEL_SPEC)
 
 
 class _SwappedView(Agent):
@@ -58,6 +59,6 @@ def test_accel_is_reproducible(accel):
 @pytest.mark.slow
 @pytest.mark.parametrize("spec_suffix", ["", "?heading_quirk=1"])
 def test_accel_on_random_perfect_mazes(spec_suffix):
-    agent = load_agent(f"{ACCEL_SPEC}{spec_suffix}")
+    agent = load_maze_agent(f"{ACCEL_SPEC}{spec_suffix}")
     rates = [evaluate(perfect_maze(13, seed), agent, episodes=50, seed=0).success_rate for seed in range(3)]
     assert np.mean(rates) >= 0.85, rates

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from dsage_ray.agents import load_agent
+from dsage_ray.domains.maze.agents import load_maze_agent
 from dsage_ray.agents.sampling import sample_from_logits
 
 
@@ -18,7 +18,7 @@ def random_obs(rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
 
 @pytest.fixture
 def agent(random_dcd_checkpoint):
-    return load_agent(f"dcd:{random_dcd_checkpoint}")
+    return load_maze_agent(f"dcd:{random_dcd_checkpoint}")
 
 
 def rollout(agent, seed: int, steps: int = 25, n: int = 8) -> np.ndarray:
@@ -32,7 +32,7 @@ def rollout(agent, seed: int, steps: int = 25, n: int = 8) -> np.ndarray:
 
 
 def test_actions_are_reproducible_from_the_rng(agent, random_dcd_checkpoint):
-    other = load_agent(f"dcd:{random_dcd_checkpoint}")
+    other = load_maze_agent(f"dcd:{random_dcd_checkpoint}")
     np.testing.assert_array_equal(rollout(agent, seed=7), rollout(other, seed=7))
     assert not np.array_equal(rollout(agent, seed=7), rollout(agent, seed=8)), "actions must be sampled, not argmax"
 
@@ -98,28 +98,28 @@ def test_select_state(agent):
 
 def test_heading_onehot_correct_and_quirk(random_dcd_checkpoint):
     direction = np.array([0, 2, 2, 3, 1, 1, 1])
-    plain = load_agent(f"dcd:{random_dcd_checkpoint}")
+    plain = load_maze_agent(f"dcd:{random_dcd_checkpoint}")
     np.testing.assert_array_equal(plain.heading_onehot(direction), np.eye(4)[direction])
 
-    whole = load_agent(f"dcd:{random_dcd_checkpoint}?heading_quirk=1&quirk_group=0")
+    whole = load_maze_agent(f"dcd:{random_dcd_checkpoint}?heading_quirk=1&quirk_group=0")
     np.testing.assert_array_equal(whole.heading_onehot(direction), np.ones((7, 4)))
     np.testing.assert_array_equal(whole.heading_onehot(np.array([2, 2])), [[0, 0, 1, 0]] * 2)
 
-    grouped = load_agent(f"dcd:{random_dcd_checkpoint}?heading_quirk=1&quirk_group=3")
+    grouped = load_maze_agent(f"dcd:{random_dcd_checkpoint}?heading_quirk=1&quirk_group=3")
     expected = [[1, 0, 1, 0]] * 3 + [[0, 1, 0, 1]] * 3 + [[0, 1, 0, 0]]  # groups {0,2,2}, {3,1,1}, {1}
     np.testing.assert_array_equal(grouped.heading_onehot(direction), expected)
     assert grouped.heading_onehot(np.zeros(0, np.int64)).shape == (0, 4)
 
 
 def test_quirk_couples_rows_in_a_group(random_dcd_checkpoint):
-    quirky = load_agent(f"dcd:{random_dcd_checkpoint}?heading_quirk=1")  # default group of 10
+    quirky = load_maze_agent(f"dcd:{random_dcd_checkpoint}?heading_quirk=1")  # default group of 10
     obs = random_obs(np.random.default_rng(5), 4)
     obs["direction"] = np.array([0, 0, 0, 0])
     changed = {"image": obs["image"], "direction": np.array([0, 0, 0, 3])}
     before, _ = quirky.logits(obs, quirky.initial_state(4))
     after, _ = quirky.logits(changed, quirky.initial_state(4))
     assert not torch.allclose(before[0], after[0]), "row 0 must see row 3's heading under the quirk"
-    plain = load_agent(f"dcd:{random_dcd_checkpoint}")
+    plain = load_maze_agent(f"dcd:{random_dcd_checkpoint}")
     torch.testing.assert_close(before, plain.logits(obs, plain.initial_state(4))[0])  # same heading: no difference
     torch.testing.assert_close(plain.logits(changed, plain.initial_state(4))[0][0], before[0])
 
@@ -143,6 +143,6 @@ def test_torchscript_export_of_the_dcd_network_acts_identically(agent, tmp_path)
 
     path = tmp_path / "exported.pt"
     torch.jit.script(Exported(agent.network)).save(str(path))
-    scripted = load_agent(f"torchscript:{path}")
+    scripted = load_maze_agent(f"torchscript:{path}")
     assert scripted.state_size == 512
     np.testing.assert_array_equal(rollout(scripted, seed=11), rollout(agent, seed=11))

@@ -1,9 +1,8 @@
-"""MiniGrid's encodings and the observation/action spaces every maze agent and the Maze simulator share.
+"""MiniGrid's encodings and the observation/action spaces every Maze agent and the Maze simulator share.
 
 The values come from MiniGrid itself (``minigrid.core.constants`` and ``minigrid.core.actions``), so a
-change there shows up here rather than in copies. This module sits in the agent layer, not under
-``domains/maze``, because the agent interface (:data:`dsage_ray.agents.base.Observation`) is the lower
-layer: the Maze domain imports agents, and no agent imports a domain.
+change there shows up here rather than in copies. The Maze passes :data:`OBSERVATION_SPACE` and
+:data:`ACTION_SPACE` to :func:`dsage_ray.agents.load_agent`, as the gym domain passes its environment's.
 """
 
 from __future__ import annotations

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 import torch
 
-from dsage_ray.agents import load_agent
-from dsage_ray.agents.dcd import DCDAgent
+from dsage_ray.domains.maze.agents import load_maze_agent
+from dsage_ray.domains.maze.agents.dcd import DCDAgent
 from dsage_ray.domains.maze import MazeLevel, evaluate
-from tests.agents.conftest import ACCEL_SPEC
-from tests.agents.mazes import labyrinth13, open_maze, perfect_maze
-from tests.agents.test_dcd import random_obs
+from tests.domains.maze.agents.conftest import ACCEL_SPEC
+from tests.domains.maze.agents.mazes import labyrinth13, open_maze, perfect_maze
+from tests.domains.maze.agents.test_dcd import random_obs
 
 
 class ModuleDCDAgent(DCDAgent):
@@ -40,7 +40,7 @@ class ModuleDCDAgent(DCDAgent):
 
 @pytest.mark.parametrize("options", ["", "?heading_quirk=1", "?heading_quirk=1&quirk_group=3"])
 def test_step_matches_the_module_computation(random_dcd_checkpoint, options):
-    fast = load_agent(f"dcd:{random_dcd_checkpoint}{options}")
+    fast = load_maze_agent(f"dcd:{random_dcd_checkpoint}{options}")
     slow = ModuleDCDAgent(fast)
     obs_rng = np.random.default_rng(0)
     for n in (1, 7, 50):
@@ -69,7 +69,7 @@ def _random_16x16(seed: int) -> MazeLevel:
 )
 def test_accel_evaluations_are_unchanged(make):
     """Same seed, same level: the fast step and the module computation take identical actions in every episode."""
-    fast = load_agent(ACCEL_SPEC)
+    fast = load_maze_agent(ACCEL_SPEC)
     slow = ModuleDCDAgent(fast)
     level = make()
     a, b = evaluate(level, fast, episodes=50, seed=3), evaluate(level, slow, episodes=50, seed=3)
@@ -81,7 +81,7 @@ def test_accel_evaluations_are_unchanged(make):
 def test_reduced_precision_is_close_to_the_agent_and_leaves_it_as_it_was():
     """The bf16 copy (the screen's) rounds the matrix products, so its logits are near, not equal to, the agent's;
     on a real level it plays about as the agent does; the agent itself keeps float32."""
-    agent = load_agent(ACCEL_SPEC)
+    agent = load_maze_agent(ACCEL_SPEC)
     reduced = agent.reduced_precision()
     assert reduced is not agent and reduced._step.w_hidden.dtype == torch.bfloat16
     assert agent._step.w_hidden.dtype == torch.float32
@@ -102,4 +102,4 @@ def test_reduced_precision_is_close_to_the_agent_and_leaves_it_as_it_was():
 
 
 def test_only_agents_with_a_reduced_copy_offer_one():
-    assert load_agent("builtin:wall_follower").reduced_precision() is None
+    assert load_maze_agent("builtin:wall_follower").reduced_precision() is None

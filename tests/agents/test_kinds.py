@@ -1,4 +1,4 @@
-"""Agents of the gym domain: every kind loads, acts in the environment's spaces, and fails in one line.
+"""dsage_ray's own agent kinds over Gymnasium spaces (the gym domain's agents): every kind loads, acts in the environment's spaces, and fails in one line.
 
 RLlib modules and SB3 models are built untrained (weights at random) and saved to temporary folders: loading
 and acting is what is tested, not what they learned. No Ray cluster starts.
@@ -16,14 +16,13 @@ import numpy as np
 import pytest
 import torch
 
+from dsage_ray.agent_registry import BUILTIN_KINDS
+from dsage_ray.agents import load_agent
 from dsage_ray.agents.base import AgentError
-from dsage_ray.domains.gym.agents import (
-    GYM_AGENT_FORMS,
-    LOADING_RUNS_CODE,
-    RLlibGymAgent,
-    load_gym_agent,
-    stack_observations,
-)
+from dsage_ray.agents.kinds import FORMS
+from dsage_ray.agents.loader import KINDS_RUNNING_CODE
+from dsage_ray.agents.rllib import RLlibAgent
+from dsage_ray.agents.spaces import stack_observations
 
 CARTPOLE_OBS = gym.spaces.Box(np.array([-4.8, -np.inf, -0.42, -np.inf], np.float32),
                               np.array([4.8, np.inf, 0.42, np.inf], np.float32), dtype=np.float32)
@@ -35,16 +34,16 @@ PENDULUM_ACT = gym.spaces.Box(-2.0, 2.0, (1,), np.float32)
 
 
 def cartpole(spec: str, **kwargs):
-    return load_gym_agent(spec, observation_space=CARTPOLE_OBS, action_space=CARTPOLE_ACT, **kwargs)
+    return load_agent(spec, observation_space=CARTPOLE_OBS, action_space=CARTPOLE_ACT, **kwargs)
 
 
 def pendulum(spec: str):
-    return load_gym_agent(spec, observation_space=PENDULUM_OBS, action_space=PENDULUM_ACT)
+    return load_agent(spec, observation_space=PENDULUM_OBS, action_space=PENDULUM_ACT)
 
 
 def load_error(spec: str, observation_space=CARTPOLE_OBS, action_space=CARTPOLE_ACT) -> str:
     with pytest.raises(AgentError) as info:
-        load_gym_agent(spec, observation_space=observation_space, action_space=action_space)
+        load_agent(spec, observation_space=observation_space, action_space=action_space)
     message = str(info.value)
     assert "\n" not in message and "Traceback" not in message
     return message
@@ -71,13 +70,15 @@ def assert_valid(actions: np.ndarray, space: gym.Space, n: int) -> None:
 
 
 def test_every_kind_has_a_form_and_says_whether_loading_runs_code():
-    assert set(GYM_AGENT_FORMS) == set(LOADING_RUNS_CODE) == {"random", "rllib", "sb3", "torchscript", "python"}
-    assert LOADING_RUNS_CODE == {"random": False, "sb3": False, "rllib": True, "torchscript": True, "python": True}
+    assert set(FORMS) == set(BUILTIN_KINDS) == {"random", "rllib", "sb3", "torchscript", "python"}
+    runs_code = {kind: kind in KINDS_RUNNING_CODE for kind in FORMS}
+    assert runs_code == {"random": False, "sb3": False, "rllib": True, "torchscript": True, "python": True}
 
 
 def test_unknown_kind_lists_the_forms():
     message = load_error("dcd:accel")
-    assert "unknown kind 'dcd'" in message and "sb3:PATH.zip" in message
+    # The kinds' names (the one registry's), no longer the gym's own spec forms.
+    assert "unknown kind 'dcd'" in message and "sb3" in message and "torchscript" in message
 
 
 def test_stack_observations_box_discrete_dict_and_tuple():
@@ -100,7 +101,7 @@ def test_stack_observations_box_discrete_dict_and_tuple():
 @pytest.mark.parametrize("space", [CARTPOLE_ACT, PENDULUM_ACT, gym.spaces.Box(-np.inf, np.inf, (2, 2), np.float32),
                                    gym.spaces.MultiDiscrete([3, 2])], ids=str)
 def test_random_agent_gives_valid_reproducible_actions(space):
-    agent = load_gym_agent("random", observation_space=CARTPOLE_OBS, action_space=space)
+    agent = load_agent("random", observation_space=CARTPOLE_OBS, action_space=space)
     obs = batch(CARTPOLE_OBS, 64)
     first = act(agent, obs, seed=3)
     assert first.shape == (64, *space.shape) and all(space.contains(a) for a in first)
@@ -137,7 +138,7 @@ def rllib_modules(tmp_path_factory):
 
 def test_rllib_discrete_samples_with_rng_and_greedy_is_deterministic(rllib_modules):
     agent = cartpole(f"rllib:{rllib_modules['cartpole']}")
-    assert isinstance(agent, RLlibGymAgent)
+    assert isinstance(agent, RLlibAgent)
     obs = batch(CARTPOLE_OBS, 200)
     sampled = act(agent, obs, seed=0)
     assert_valid(sampled, CARTPOLE_ACT, 200)
@@ -338,7 +339,7 @@ def test_python_function_reads_a_text_observation_a_network_could_not(tmp_path):
     assert stacked["mission"].dtype == object and stacked["mission"].tolist() == ["go left", "go"]
     assert stacked["image"].shape == (2, 3, 3, 3) and stacked["direction"].tolist() == [1, 2]
     (tmp_path / "reads.py").write_text("def act(obs):\n    return len(obs['mission']) % 2\n")
-    agent = load_gym_agent(f"python:{tmp_path / 'reads.py'}:act", observation_space=space, action_space=CARTPOLE_ACT)
+    agent = load_agent(f"python:{tmp_path / 'reads.py'}:act", observation_space=space, action_space=CARTPOLE_ACT)
     actions = agent.act(stacked, None, np.random.default_rng(0))[0]
     assert actions.tolist() == [1, 0]  # len('go left') is odd, len('go') even
     # A Sequence observation stays one object per row, even when every row has the same length.

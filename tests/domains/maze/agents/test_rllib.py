@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 import torch
 
-from dsage_ray.agents import AgentError, load_agent
+from dsage_ray.agents import AgentError
+from dsage_ray.domains.maze.agents import load_maze_agent
 from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.agents.loader import ASSETS_DIR
 from dsage_ray.agents.rllib import MODULES_SUBDIR, RLlibAgent
@@ -37,7 +38,7 @@ TINY_TRAINING = ["--train-batch-size", "200", "--minibatch-size", "64", "--num-e
 
 def load_error(spec: str) -> str:
     with pytest.raises(AgentError) as info:
-        load_agent(spec)
+        load_maze_agent(spec)
     message = str(info.value)
     assert "\n" not in message
     return message
@@ -86,7 +87,7 @@ def test_trained_checkpoint_loads_without_ray_and_plays(trained, which):
 
     path = {"checkpoint": trained["checkpoint"], "exported": trained["exported"],
             "module_dir": trained["checkpoint"] / MODULES_SUBDIR / "default_policy"}[which]
-    agent = load_agent(f"rllib:{path}")
+    agent = load_maze_agent(f"rllib:{path}")
     assert isinstance(agent, RLlibAgent) and not agent.recurrent
     assert not ray.is_initialized(), "loading a module must not start Ray"
     level = random_valid_levels(1, seed=3)[0]
@@ -102,7 +103,7 @@ def test_loaded_module_matches_the_trained_weights(trained):
     from ray.rllib.core.rl_module import RLModule
 
     module = RLModule.from_checkpoint((trained["checkpoint"] / MODULES_SUBDIR / "default_policy").resolve())
-    agent = load_agent(f"rllib:{trained['exported']}")
+    agent = load_maze_agent(f"rllib:{trained['exported']}")
     env = RandomMazeEnv()
     obs, _ = env.reset(seed=0)
     batch = {"image": obs["image"][None], "direction": np.array([obs["direction"]])}
@@ -120,7 +121,7 @@ def test_recurrent_module_steps_like_the_whole_sequence(tmp_path):
 
     module = make_module(use_lstm=True, max_seq_len=8)
     module.save_to_path(str(tmp_path / "lstm"))
-    agent = load_agent(f"rllib:{tmp_path / 'lstm'}")
+    agent = load_maze_agent(f"rllib:{tmp_path / 'lstm'}")
     assert agent.recurrent
     rng = np.random.default_rng(0)
     steps, n = 6, 3
@@ -139,7 +140,7 @@ def test_recurrent_module_steps_like_the_whole_sequence(tmp_path):
 
 def test_recurrent_agent_evaluates_with_shrinking_batches(tmp_path):
     make_module(use_lstm=True, max_seq_len=8).save_to_path(str(tmp_path / "lstm"))
-    agent = load_agent(f"rllib:{tmp_path / 'lstm'}")
+    agent = load_maze_agent(f"rllib:{tmp_path / 'lstm'}")
     result = evaluate(random_valid_levels(1, seed=5)[0], agent, episodes=5, seed=2)
     assert result.episodes == 5  # episodes finishing at different times exercise select_state on the dict state
 
@@ -148,7 +149,7 @@ def test_recurrent_agent_evaluates_with_shrinking_batches(tmp_path):
 
 
 def test_greedy_option_and_unknown_policy(trained):
-    agent = load_agent(f"rllib:{trained['checkpoint']}?greedy=1")
+    agent = load_maze_agent(f"rllib:{trained['checkpoint']}?greedy=1")
     assert agent.greedy
     assert "no module 'nope'" in load_error(f"rllib:{trained['checkpoint']}?policy=nope")
 
@@ -201,7 +202,7 @@ def test_shipped_agent_loads_without_deprecation_warnings():
     """``rllib:ppo_maze`` in a fresh process (RLlib warns once per process): nothing on stderr about deprecation."""
     if not (ASSETS_DIR / "ppo_maze").is_dir():
         pytest.skip("no shipped agent in this checkout")
-    code = "from dsage_ray.agents import load_agent; print(type(load_agent('rllib:ppo_maze').module).__name__)"
+    code = "from dsage_ray.domains.maze.agents import load_maze_agent; print(type(load_maze_agent('rllib:ppo_maze').module).__name__)"
     env = dict(os.environ, RAY_AUTH_MODE="disabled", PYTHONPATH=str(REPO_ROOT))
     done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and done.stdout.strip() == "MazeRLModule", done.stderr[-2000:]
@@ -211,6 +212,6 @@ def test_shipped_agent_loads_without_deprecation_warnings():
 def test_shipped_agent_loads_by_name():
     if not (ASSETS_DIR / "ppo_maze").is_dir():
         pytest.skip("no shipped agent in this checkout")
-    agent = load_agent("rllib:ppo_maze")
+    agent = load_maze_agent("rllib:ppo_maze")
     assert isinstance(agent, RLlibAgent)
     assert "shipped agents: ppo_cartpole, ppo_lunarlander, ppo_maze" in load_error("rllib:not_shipped")

@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from dsage_ray.agents.base import Agent, AgentError, AgentState, Observation
-from dsage_ray.agents.constants import FORWARD, LEFT, NUM_ACTIONS, OBJECT_TO_IDX, RIGHT
 from dsage_ray.agents.loader import SpecOptions
+from dsage_ray.domains.maze.agents.constants import FORWARD, LEFT, NUM_ACTIONS, OBJECT_TO_IDX, RIGHT
 
 _EMPTY, _GOAL = OBJECT_TO_IDX["empty"], OBJECT_TO_IDX["goal"]
 # Egocentric view cells, indexed [x, y]: the agent sits at (2, 4) looking toward y = 0.
