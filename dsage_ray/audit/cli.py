@@ -307,7 +307,8 @@ def add_series_subparser(subparsers) -> None:
                         help="series folder (DIR/series.json, DIR/series.html, each checkpoint's audit in "
                              "DIR/checkpoints/<NNN>-<agent>, TensorBoard in DIR/tensorboard); one that holds "
                              "series.json is continued")
-    series.add_argument("--domain", default=DEFAULT_DOMAIN, help="maze (default), mario, gym, or a plug-in domain with audits")
+    series.add_argument("--domain", default=DEFAULT_DOMAIN,
+                        help="maze (default), mario, gym, or a plug-in domain with audits")
     search = series.add_argument_group("each checkpoint's audit")
     add_config_arguments(search, preset_default="cpu")
     search.add_argument("--budget", type=int,
