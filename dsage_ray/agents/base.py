@@ -58,6 +58,12 @@ class Agent(abc.ABC):
         build for this agent."""
         return env
 
+    def observed_space(self, env_space: Any) -> Any:
+        """The observation space this agent acts on, given the environment's: the wrapped environment's where
+        :meth:`wrap_env` wraps it (as recorded when the agent was loaded: some wrappers change the environment they
+        wrap, so an environment is wrapped once, never twice); the default is ``env_space`` itself."""
+        return env_space
+
     def select_state(self, state: AgentState, index: np.ndarray) -> AgentState:
         """Keeps only the episodes at ``index`` (the ones still running)."""
         return tree_map(lambda x: x[index], state)

@@ -108,9 +108,8 @@ def checked(agent: Agent, *, label: str, options: SpecOptions, observation_space
         AgentError: An unknown option, or actions outside the action space (or a failed call); one line.
     """
     options.check_all_used()  # an unknown option is named before anything acts
-    if env is not None:  # the policy sees the environment inside its wrappers
-        observation_space = agent.wrap_env(env).observation_space
-    check_actions(agent, observation_space=observation_space, action_space=action_space, label=label)
+    check_actions(agent, observation_space=agent.observed_space(observation_space), action_space=action_space,
+                  label=label)
     return agent
 
 

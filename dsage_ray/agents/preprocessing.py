@@ -61,14 +61,16 @@ class TrainedAgent(Agent):
     Args:
         policy: The agent that acts on preprocessed observations.
         env_wrappers: ``wrapper(env) -> env`` in the order they were applied in training.
+        wrapped_space: The observation space of an environment inside ``env_wrappers`` (with wrappers).
         normalization: Observation statistics applied before stacking, or None.
         frame_stack: Frame stacking after normalisation, or None.
     """
 
-    def __init__(self, *, policy: Agent, env_wrappers: Sequence[EnvWrapper] = (),
+    def __init__(self, *, policy: Agent, env_wrappers: Sequence[EnvWrapper] = (), wrapped_space: Any = None,
                  normalization: ObservationStats | None = None, frame_stack: FrameStack | None = None) -> None:
         self.policy = policy
         self.env_wrappers = tuple(env_wrappers)
+        self.wrapped_space = wrapped_space
         self.normalization = normalization
         self.frame_stack = frame_stack
 
@@ -76,6 +78,9 @@ class TrainedAgent(Agent):
         for wrapper in self.env_wrappers:
             env = wrapper(env)
         return env
+
+    def observed_space(self, env_space: Any) -> Any:
+        return self.wrapped_space if self.env_wrappers else env_space
 
     def initial_state(self, batch_size: int) -> AgentState:
         frames = self.frame_stack.initial(batch_size) if self.frame_stack else None

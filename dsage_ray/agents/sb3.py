@@ -201,7 +201,7 @@ def load_sb3_agent(target: str, options: SpecOptions, *, observation_space: gymn
     if wrappers:
         if env is None:
             raise AgentError(f"{label}: its env_wrapper needs the environment to be given to the loader")
-        for wrapper in wrappers:
+        for wrapper in wrappers:  # once: a wrapper may change the environment it wraps (TimeFeatureWrapper does)
             env = wrapper(env)
         observation_space = env.observation_space
     stack = FrameStack(space=observation_space, n=run.frame_stack) if run and run.frame_stack > 1 else None
@@ -223,8 +223,8 @@ def load_sb3_agent(target: str, options: SpecOptions, *, observation_space: gymn
         raise AgentError(f"{label}: cannot load it as {algo} ({describe_exception(exc)})") from None
     agent: Agent = SB3Agent(model=model, greedy=greedy)
     if run is not None:
-        agent = TrainedAgent(policy=agent, env_wrappers=wrappers, normalization=run.normalization,
-                             frame_stack=stack)
+        agent = TrainedAgent(policy=agent, env_wrappers=wrappers, wrapped_space=observation_space,
+                             normalization=run.normalization, frame_stack=stack)
         agent.expected_return = run.expected_return
         agent.expected_return_source = f"{folder.name}/evaluations.npz" if run.expected_return is not None else ""
     return agent, label

@@ -18,6 +18,7 @@ import yaml
 
 from benchmarks.zoo_nominal import play
 from dsage_ray.agents.base import Agent, AgentError
+from dsage_ray.agents.rl_zoo import read_zoo_yaml
 from dsage_ray.agents.spaces import stack_observations
 from dsage_ray.agents import load_agent
 from tests.agents.conftest import shared_dir
@@ -29,8 +30,20 @@ ZOO = shared_dir() / "models" / "rl_zoo"
 needs_zoo = pytest.mark.skipif(not ZOO.is_dir(), reason=f"the RL Zoo agents are read from {ZOO} (not present)")
 
 
-def wrapped_cartpole() -> gym.Env:
-    return gym.wrappers.TimeAwareObservation(gym.make("CartPole-v1"))
+#: The env_wrapper entries the zoo writes (Gymnasium's own, and sb3-contrib's that its MuJoCo agents use), and the
+#: wrapper itself, to build the reference pipeline with.
+WRAPPERS = {"gymnasium.wrappers.TimeAwareObservation": lambda env: gym.wrappers.TimeAwareObservation(env),
+            "sb3_contrib.common.wrappers.TimeFeatureWrapper": lambda env: _time_feature(env)}
+
+
+def _time_feature(env: gym.Env) -> gym.Env:
+    from sb3_contrib.common.wrappers import TimeFeatureWrapper
+
+    return TimeFeatureWrapper(env)
+
+
+def wrapped_cartpole(wrapper: str = "gymnasium.wrappers.TimeAwareObservation") -> gym.Env:
+    return WRAPPERS[wrapper](gym.make("CartPole-v1"))
 
 
 def write_zoo_yaml(path, items: dict) -> None:
@@ -43,7 +56,7 @@ def make_run_folder(root, *, frame_stack: int = 2, wrapper: str = "gymnasium.wra
     folder = root / "ppo" / "CartPole-v1_1"
     config_dir = folder / "CartPole-v1"
     config_dir.mkdir(parents=True)
-    venv = VecNormalize(DummyVecEnv([wrapped_cartpole]), norm_reward=True, clip_obs=5.0)
+    venv = VecNormalize(DummyVecEnv([lambda: wrapped_cartpole(wrapper)]), norm_reward=True, clip_obs=5.0)
     venv.seed(0)
     venv.reset()
     for _ in range(200):  # statistics far from (0, 1), so that forgetting them shows
@@ -64,9 +77,11 @@ def make_run_folder(root, *, frame_stack: int = 2, wrapper: str = "gymnasium.wra
     return folder
 
 
-@pytest.fixture(scope="module")
-def run_folder(tmp_path_factory):
-    return make_run_folder(tmp_path_factory.mktemp("zoo"))
+@pytest.fixture(scope="module", params=list(WRAPPERS))
+def run_folder(tmp_path_factory, request):
+    if request.param.startswith("sb3_contrib"):
+        pytest.importorskip("sb3_contrib")
+    return make_run_folder(tmp_path_factory.mktemp("zoo"), wrapper=request.param)
 
 
 class Recorder(Agent):
@@ -89,12 +104,13 @@ def load_cartpole(spec: str) -> Agent:
 
 
 def test_a_run_folder_sees_what_sb3s_pipeline_gives_its_policy_step_for_step(run_folder):
+    wrapper = read_zoo_yaml(run_folder / "CartPole-v1" / "config.yml", label="")["env_wrapper"][0]
     agent = load_cartpole(f"sb3:{run_folder}")
     assert agent.expected_return == 52.0 and agent.expected_return_source.endswith("evaluations.npz")
     inner = agent.policy
     recorder = agent.policy = Recorder()
     reference = VecFrameStack(VecNormalize.load(str(run_folder / "CartPole-v1" / "vecnormalize.pkl"),
-                                                DummyVecEnv([wrapped_cartpole])), 2)
+                                                DummyVecEnv([lambda: wrapped_cartpole(wrapper)])), 2)
     reference.venv.training = False
     reference.seed(7)
     expected = reference.reset()
