@@ -70,6 +70,9 @@ class Config:
     cpu_from: Path | None = None
     #: Or a fixed CPU budget (s) every run goes on to (the table flags a run that ended before its seed's dsage).
     cpu: float | None = None
+    #: Episodes a run plays at least (default: ``episodes``); 1 with a CPU budget: the equal-CPU reading alone, for an
+    #: arm too slow to reach the episode budget here (the table marks its equal-episodes counts as short).
+    min_episodes: int | None = None
     out: Path = Path("peer_runs.jsonl")
     #: A tag kept in each record (``tuning``, ``fresh``), so tuning runs and published runs never mix.
     tag: str = "fresh"
@@ -414,6 +417,8 @@ def table(records: Sequence[dict[str, Any]]) -> str:
         cells += [format_mean_se(*mean_se(getattr(c, name) for c in at), spec)
                   for name, spec in (("faults", ".1f"), ("fault_cells", ".1f"), ("cells", ".1f"),
                                      ("lowest_return", ".1f"), ("cpu", ".0f"))]
+        short = [c.episodes for c in at if c.episodes < budget]
+        cells[2] += f" (short: {min(short)}-{max(short)} episodes)" if short else ""
         if all(r["seed"] in cpu for r in runs):
             at = [count(r["trace"], cpu=cpu[r["seed"]]) for r in runs]
             short = sum(r["trace"][-1]["cpu"] < cpu[r["seed"]] for r in runs)
@@ -438,12 +443,13 @@ def parse_args(argv: list[str] | None = None) -> tuple[Config, list[Path] | None
     parser.add_argument("--table", nargs="+", type=Path, help="print the table of these record files and stop")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="a Config field (mdpfuzz_intensity=20) or ours.KEY=VALUE for the DSAGE arms' config")
-    for name in ("agent", "space", "episodes", "cpu_from", "cpu", "out", "tag"):
-        kind = {"cpu_from": Path, "cpu": float}.get(name) or type(getattr(defaults, name))
+    for name in ("agent", "space", "episodes", "cpu_from", "cpu", "min_episodes", "out", "tag"):
+        kind = {"cpu_from": Path, "cpu": float, "min_episodes": int}.get(name) or type(getattr(defaults, name))
         parser.add_argument(f"--{name.replace('_', '-')}", type=kind, default=getattr(defaults, name))
     args = parser.parse_args(argv)
     config = Config(agent=args.agent, space=args.space, arms=tuple(args.arms), seeds=tuple(args.seeds),
-                    episodes=args.episodes, cpu_from=args.cpu_from, cpu=args.cpu, out=args.out, tag=args.tag)
+                    episodes=args.episodes, cpu_from=args.cpu_from, cpu=args.cpu,
+                    min_episodes=args.min_episodes, out=args.out, tag=args.tag)
     types = {f.name: f.type for f in dataclasses.fields(Config)}
     for item in args.set:
         key, _, value = item.partition("=")
@@ -462,6 +468,11 @@ def main(argv: list[str] | None = None) -> None:
         print(table(load_records(tables, tag=None)))
         return
     cpu = dsage_cpu(load_records([config.cpu_from])) if config.cpu_from else {}
+    import torch
+
+    # Every arm plays on one torch thread, as the runner's steps do (config torch_threads = 1): a second thread
+    # spinning beside a small per-step batch would bill CPU seconds to the arms that play outside the runner.
+    torch.set_num_threads(1)
     domain = make_domain(config)
     # Arm by arm, so that every arm finished has all its seeds.
     for arm in config.arms:
@@ -469,7 +480,7 @@ def main(argv: list[str] | None = None) -> None:
             budget = None if arm == "dsage" else cpu.get(seed, config.cpu)
             if config.cpu_from and arm != "dsage" and budget is None:
                 raise SystemExit(f"{config.cpu_from} holds no dsage run of seed {seed}")
-            ledger = Ledger(domain=domain, episodes=config.episodes, cpu=budget)
+            ledger = Ledger(domain=domain, episodes=config.min_episodes or config.episodes, cpu=budget)
             run_arm(arm, ledger, seed=seed, config=config)
             record = {"arm": arm, "seed": seed, "tag": config.tag, "episodes": config.episodes, "cpu_budget": budget,
                       "config": {k: v for k, v in dataclasses.asdict(config).items()

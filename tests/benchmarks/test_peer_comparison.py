@@ -101,14 +101,17 @@ def test_the_table_reads_each_run_at_equal_episodes_and_at_the_dsage_cpu_of_its_
 
     # dsage spends 3 CPU s (its last episode); rt finds a fault at episode 5 (after the 4-episode budget and after
     # 3 s), so it counts at neither; tpe's fault at episode 2 counts at both.
-    records = [record("dsage", 1, {0}), record("rt", 1, {5}), record("tpe", 1, {2})]
+    records = [record("dsage", 1, {0}), record("rt", 1, {5}), record("tpe", 1, {2}), record("mdpfuzz", 1, {1})]
     records[0]["trace"] = records[0]["trace"][:4]
+    records[3]["trace"] = records[3]["trace"][:2]  # stopped at 2 episodes: short of the budget and of dsage's CPU
     lines = {line.split(" | ")[0].lstrip("| "): line for line in pc.table(records).splitlines()}
     assert lines["rt"].split(" | ")[2:4] == ["0.0", "0.0"]
     assert lines["rt"].split(" | ")[7:9] == ["0.0", "0.0"]
     assert lines["tpe"].split(" | ")[2:4] == ["1.0", "1.0"]
     assert lines["tpe"].split(" | ")[7:9] == ["1.0", "1.0"]
     assert lines["tpe"].rstrip(" |").split(" | ")[-1] == "4"  # episodes that ended within dsage's 3 s: 0..3
+    assert "short: 2-2 episodes" in lines["mdpfuzz"].split(" | ")[2]
+    assert lines["mdpfuzz"].rstrip(" |").split(" | ")[-1] == "2 (1 short)"
 
 
 def test_tpe_plays_through_the_ledger_until_it_is_spent():
