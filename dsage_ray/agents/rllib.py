@@ -224,7 +224,7 @@ def module_class(module_dir: Path) -> type:
     return cls
 
 
-def load_rllib_module(target: str, *, policy: str = "default_policy", check: Callable[..., None] | None):
+def load_rllib_module(target: str, *, policy: str = "default_policy", check: Callable[..., None] | None = None):
     """Loads only the RLModule a checkpoint holds (no Ray cluster, no connector pipelines), with its spaces checked.
 
     Args:
