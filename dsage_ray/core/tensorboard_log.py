@@ -37,9 +37,6 @@ from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 
-# Re-exported for core.runner, which still imports them from here; their home is dsage_ray.qd.growth.
-from dsage_ray.qd.growth import GrowthPoint, growth_curve  # noqa: F401
-
 if TYPE_CHECKING:
     from dsage_ray.core.snapshot import RunSnapshot
 
