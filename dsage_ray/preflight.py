@@ -16,8 +16,12 @@ from dsage_ray.errors import DsageError, InputError, describe
 from dsage_ray.types import PreflightDomain
 
 
-def preflight(*configs: RunConfig) -> None:
+def preflight(*configs: RunConfig) -> list[object]:
     """Builds the domain of each distinct domain section among ``configs`` and runs its ``preflight()``.
+
+    Returns:
+        The domain of each config, in order (configs with the same domain section share one), so that a caller that
+        plays one next (the audit's nominal check) need not build it, and load its agent, again.
 
     Domains without a ``preflight`` method (it is optional, :class:`~dsage_ray.types.AuditableDomain`)
     are only built.
@@ -33,6 +37,7 @@ def preflight(*configs: RunConfig) -> None:
     from dsage_ray.core.warm_start import check_warm_start
 
     domains: dict[tuple[str, str], object] = {}
+    built: list[object] = []
     warm_starts_checked: set[tuple] = set()
     for config in configs:
         values = config.to_dict()
@@ -41,6 +46,7 @@ def preflight(*configs: RunConfig) -> None:
         if fresh:
             domains[key] = build_domain(config)
         domain = domains[key]
+        built.append(domain)
         # A grid shares its warm start: read and check it once per domain section and surrogate section.
         warm_key = (*key, json.dumps(values["surrogate"], sort_keys=True))
         if config.surrogate.init and warm_key not in warm_starts_checked:
@@ -56,3 +62,4 @@ def preflight(*configs: RunConfig) -> None:
             raise
         except (ValueError, OSError) as exc:  # a plug-in's preflight may raise the built-in kinds
             raise InputError(describe(exc)[1]) from exc
+    return built

@@ -262,11 +262,10 @@ def _check_search_loads(search_dir: Path) -> None:
 def _play_nominal(config: RunConfig, *, expect_return: float | None):
     """The nominal check of ``config``'s agent (None for a domain without a nominal level), after the preflight, so
     that an agent that does not load fails with the preflight's line."""
-    from dsage_ray.domains import build_domain
     from dsage_ray.preflight import preflight
 
-    preflight(config)
-    return play_nominal(build_domain(config), run_seed=config.seed, expect_return=expect_return)
+    domain, = preflight(config)  # the preflight's domain: its agent is loaded once
+    return play_nominal(domain, run_seed=config.seed, expect_return=expect_return)
 
 
 def search_on_disk(search_dir: Path, *, config: RunConfig | None = None) -> RunResult:
