@@ -37,10 +37,9 @@ class FrameStack:
         self.frame_space = space
         # SB3's own rule for which axis holds channels, so the stack is laid out as in training.
         # (axis counts the batch axis, as SB3's does)
-        _, self.axis, stacked_shape, repeat_axis = StackedObservations.compute_stacking(n, space)
+        _, self.axis, _, repeat_axis = StackedObservations.compute_stacking(n, space)
         self.space = spaces.Box(low=np.repeat(space.low, n, axis=repeat_axis),
                                 high=np.repeat(space.high, n, axis=repeat_axis), dtype=space.dtype)
-        assert self.space.shape == stacked_shape
         self._width = space.shape[repeat_axis]
 
     def initial(self, batch_size: int) -> np.ndarray:

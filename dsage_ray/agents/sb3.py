@@ -179,7 +179,6 @@ def load_sb3_agent(target: str, options: SpecOptions, *, observation_space: gymn
     except ImportError:
         raise AgentError("sb3: agents need the sb3 extra: pip install 'dsage_ray[sb3]'") from None
     algo = options.get_str("algo", "").upper()
-    greedy_option = options.get_str("greedy", "")
     folder = Path(local_path(target)).expanduser()
     run: RunFolder | None = None
     if folder.is_dir():
@@ -195,8 +194,7 @@ def load_sb3_agent(target: str, options: SpecOptions, *, observation_space: gymn
         raise AgentError(f"{label}: unknown ?algo={algo} (known: {', '.join(ALGORITHMS)})")
     save = read_save(path, label=label)
     algo = algo or (run.algo if run and run.algo in ALGORITHMS else "") or algorithm_of(save, label=label)
-    greedy = (options.get_bool("greedy", False) if greedy_option
-              else run is not None and not _is_atari(run.env_id))
+    greedy = options.get_bool("greedy", run is not None and not _is_atari(run.env_id))
     wrappers = run.env_wrappers(label=label) if run else []
     if wrappers:
         if env is None:
