@@ -130,6 +130,14 @@ class LazyHelp(argparse.Action):
         setattr(namespace, self.dest, values)
 
 
+class LazyTextFormatter(argparse.RawDescriptionHelpFormatter):
+    """:class:`argparse.RawDescriptionHelpFormatter` that also takes a description, an epilog or an argument
+    group's description as a function, called when help is shown (what :class:`LazyHelp` is for an option)."""
+
+    def add_text(self, text: str | Callable[[], str] | None) -> None:
+        super().add_text(text() if callable(text) else text)
+
+
 def preset_budgets(domain: str) -> dict[str, int]:
     """The real evaluations of each preset of ``domain``, in its registration's order."""
     from dsage_ray.config import RunConfig, presets

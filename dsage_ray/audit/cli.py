@@ -9,55 +9,30 @@ from pathlib import Path
 from dsage_ray.domains.registry import DEFAULT_DOMAIN
 from dsage_ray.errors import InputError
 
-AUDIT_EXAMPLES = """\
-examples:
-  dsage-ray audit                                         # a demo: the shipped PPO agent, --preset demo
-  dsage-ray audit --agent dcd:path/to/agent.tar --out tb_logs/audit_mine     # your agent (cpu preset)
-  dsage-ray audit --agent builtin:random --preset tiny --local               # a smoke test, no Ray
-  dsage-ray audit --agent rllib:path/to/new --reference rllib:path/to/old    # where new is worse than old
-  dsage-ray audit --domain mario --agent astar --preset tiny
-  dsage-ray audit --domain gym --env CartPole-v1 --space cartpole --agent rllib:ppo_cartpole --preset demo
-  dsage-ray audit --domain gym --env LunarLander-v3 --param gravity=-11.9:-2 --env-arg enable_wind=true \
-      --space '' --space-set 'success.return_at_least = 200' --agent sb3:model.zip    # no space file
-  dsage-ray compare --agent rllib:ppo_maze --agent builtin:wall_follower --collection tb_logs/audit_mine/collection
-  dsage-ray compare --agent astar --agent astar:200 --collection tb_logs/audit_mario/collection
-  dsage-ray audit --agent dcd:accel --out tb_logs/audit_accel --resume        # after Ctrl+C
-
-Without --agent the audit is a short demo on the domain's shipped agent (Maze: rllib:ppo_maze) with the
-domain's demo preset, and says so; a named agent gets the cpu preset (Maze: 4,000 evaluations).
-Python: dsage_ray.run_audit() takes the same arguments and returns the collection (docs/API.md).
-"""
-
 
 def add_subparser(subparsers) -> None:
     """Registers ``audit`` and ``compare`` on the top-level CLI's sub-parsers."""
-    from dsage_ray.cli_args import LazyHelp, add_config_arguments, add_ray_arguments
+    from dsage_ray.audit import cli_help
+    from dsage_ray.cli_args import LazyHelp, LazyTextFormatter, add_config_arguments, add_ray_arguments
     from dsage_ray.domains.agent_help import agent_kinds_help
 
+    # Every domain says its own part of the help (its AuditSpec), read only when help is shown.
     audit = subparsers.add_parser(
         "audit", help="search for levels where an agent fails (or does worse than a reference) and save them",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=LazyTextFormatter,
         description="Runs DSAGE with a failure-eliciting objective on valid levels (through Ray Tune unless "
                     "--local),\nthen re-evaluates every elite with a recorded seed and writes collection.json, "
                     "level files,\nPNGs, the heatmap and report.html.",
-        epilog=AUDIT_EXAMPLES)
+        epilog=cli_help.audit_epilog)
     what = audit.add_argument_group("what to audit")
-    what.add_argument("--domain", default=DEFAULT_DOMAIN,
-                      help="maze (default), mario, gym (any Gymnasium environment: --env, --space, --param), or a "
-                           "plug-in domain that declares audits")
+    what.add_argument("--domain", default=DEFAULT_DOMAIN, action=LazyHelp, help_text=cli_help.domain_help)
     what.add_argument("--agent", metavar="SPEC", action=LazyHelp,
                       help_text=lambda: f"agent spec, of a kind the domain plays ({agent_kinds_help()}). Without it: a "
-                                        f"demo audit of the domain's shipped agent (maze: rllib:ppo_maze) with the "
-                                        f"demo preset")
-    what.add_argument("--reference", metavar="SPEC",
-                      help="maze: search where --agent does worse than this agent, on the same seeds "
-                           "(objective regression)")
+                                        f"demo audit of the domain's shipped agent ({cli_help.demo_agents()}) with "
+                                        f"the demo preset")
+    what.add_argument("--reference", metavar="SPEC", action=LazyHelp, help_text=cli_help.reference_help)
     add_domain_arguments(audit)
-    nominal = audit.add_argument_group(
-        "the nominal check", "Before the search the agent plays the domain's nominal level (gym: the environment as "
-        "registered, or the space's [nominal] values; maze: an open room; mario: a flat level). The audit stops "
-        "where it does far worse there than expected (below E - max(0.25*|E|, 3 standard errors)), or never "
-        "succeeds there when no return is expected (docs/GUIDE.md)")
+    nominal = audit.add_argument_group("the nominal check", cli_help.nominal_help)
     nominal.add_argument("--expect-return", type=float, metavar="X",
                          help="the agent's mean return on the nominal level (default: its own training record, e.g. "
                               "an RL Zoo folder's evaluations.npz)")
@@ -70,22 +45,18 @@ def add_subparser(subparsers) -> None:
                              "(experiments/audit_comparison.py compares them). The same as --set variant=VARIANT; "
                              "both at once must agree")
     search.add_argument("--budget", type=int, help="real evaluations of the search (default: the preset's)")
-    search.add_argument("--objective",
-                        help="what the search maximises on valid levels. maze: failure_rate (default), regret, "
-                             "regression (the default with --reference); mario: incompletion (1 - completion)")
-    search.add_argument("--measures",
-                        help="comma-separated measures. maze default num_walls,optimal_path_length (the paper's: "
-                             "num_walls,mean_path_length); mario default the paper's sky_tiles,mean_jumps")
+    search.add_argument("--objective", action=LazyHelp, help_text=cli_help.objective_help)
+    search.add_argument("--measures", action=LazyHelp, help_text=cli_help.measures_help)
     search.add_argument("--seed", type=int, default=0, help="run seed (also seeds the collection's re-evaluations)")
     collection = audit.add_argument_group("the collection")
-    collection.add_argument("--episodes", type=int, help="episodes (mario: runs) per re-evaluation in the collection")
+    collection.add_argument("--episodes", type=int, action=LazyHelp,
+                            help_text=lambda: cli_help.episodes_help("per re-evaluation in the collection"))
     collection.add_argument("--max-levels", type=int, help="keep only the N worst elites in the collection")
-    collection.add_argument("--out", metavar="DIR",
-                            help="audit folder (default tb_logs/audit-<agent>-<YYYYMMDD-HHMMSS>, <agent> being the "
-                                 "spec, or its last path part, with _ for other characters than letters and digits: "
-                                 "tb_logs/audit-rllib_ppo_maze-20260101-093000 for rllib:ppo_maze, "
-                                 "tb_logs/audit-accel_tar-... for dcd:runs/accel.tar); the search goes to DIR/search, "
-                                 "the collection and its report to DIR/collection")
+    collection.add_argument("--out", metavar="DIR", action=LazyHelp, help_text=lambda: (
+        f"audit folder (default tb_logs/audit-<agent>-<YYYYMMDD-HHMMSS>, <agent> being the spec, or its last path "
+        f"part, with _ for other characters than letters and digits: tb_logs/audit-{_slug(cli_help.default_agent())}"
+        f"-20260101-093000 for {cli_help.default_agent()}, tb_logs/audit-accel_tar-... for dcd:runs/accel.tar); the "
+        f"search goes to DIR/search, the collection and its report to DIR/collection"))
     collection.add_argument("--collect-only", action="store_true",
                             help="skip the search: build the collection from the last checkpoint of the search "
                                  "in --out")
@@ -106,18 +77,25 @@ def add_subparser(subparsers) -> None:
     compare.add_argument("--episodes", type=int, help="override the recorded episodes per level")
     compare.add_argument("--workers", type=int,
                          help="evaluate on N Ray simulator actors (default: in this process)")
-    compare.add_argument("--html", metavar="FILE",
-                         help="HTML page to write (default DIR/compare-<A>-vs-<B>.html, each agent named as in "
-                              "audit's --out: compare-rllib_ppo_maze-vs-builtin_random.html for --agent "
-                              "rllib:ppo_maze --agent builtin:random)")
+    compare.add_argument("--html", metavar="FILE", action=LazyHelp, help_text=lambda: (
+        f"HTML page to write (default DIR/compare-<A>-vs-<B>.html, each agent named as in audit's --out: "
+        f"{default_compare_page('', cli_help.default_agent(), 'builtin:random')} for --agent "
+        f"{cli_help.default_agent()} --agent builtin:random)"))
     compare.set_defaults(handler=run_compare_command)
     report = subparsers.add_parser(
-        "report", help="write a collection's report.html again (after an upgrade, or for a collection received)",
+        "report", help="write a collection's report.html again (with this version's report, or for a collection received)",
         description="Renders report.html from a collection's own files (collection.json, the level pictures, the "
                     "heatmap): reading them runs no code and evaluates nothing.")
     report.add_argument("collection", metavar="DIR", help="a collection folder, or the audit folder holding one")
     report.set_defaults(handler=run_report_command)
     add_series_subparser(subparsers)
+
+
+def _slug(spec: str) -> str:
+    """:func:`~dsage_ray.audit.collection.agent_slug`, imported only when the help that shows it is."""
+    from dsage_ray.audit.collection import agent_slug
+
+    return agent_slug(spec)
 
 
 def flagged_domains() -> list:
@@ -144,7 +122,7 @@ def _dest(domain: str, key: str) -> str:
 
 
 def add_domain_arguments(parser) -> None:
-    """Each domain's own audit flags (the gym domain's ``--env``, ``--param``...), one help group per domain."""
+    """Each domain's own audit flags (:attr:`~dsage_ray.domains.AuditSpec.flags`), one help group per domain."""
     for spec in flagged_domains():
         group = parser.add_argument_group(spec.audit.flags_title or f"--domain {spec.name}")
         for flag in spec.audit.flags:
@@ -291,6 +269,7 @@ until Ctrl+C (or --max-checkpoints). Python: dsage_ray.AuditSeries (docs/API.md)
 
 def add_series_subparser(subparsers) -> None:
     """Registers ``audit-series``."""
+    from dsage_ray.audit import cli_help
     from dsage_ray.cli_args import LazyHelp, add_config_arguments, add_ray_arguments
     from dsage_ray.domains.agent_help import agent_kinds_help, checkpoint_kinds
 
@@ -307,16 +286,16 @@ def add_series_subparser(subparsers) -> None:
                         help="series folder (DIR/series.json, DIR/series.html, each checkpoint's audit in "
                              "DIR/checkpoints/<NNN>-<agent>, TensorBoard in DIR/tensorboard); one that holds "
                              "series.json is continued")
-    series.add_argument("--domain", default=DEFAULT_DOMAIN,
-                        help="maze (default), mario, gym, or a plug-in domain with audits")
+    series.add_argument("--domain", default=DEFAULT_DOMAIN, action=LazyHelp,
+                        help_text=lambda: cli_help.domain_help(summaries=False))
     search = series.add_argument_group("each checkpoint's audit")
     add_config_arguments(search, preset_default="cpu")
     search.add_argument("--budget", type=int,
                         help="real evaluations per checkpoint (default: a quarter of the preset's, at least "
                              "n_rand + selection.count)")
     search.add_argument("--seed", type=int, default=0, help="run seed; checkpoint k's search uses SEED + k")
-    search.add_argument("--episodes", type=int,
-                        help="episodes (mario: runs) per level, in the suite and the collections")
+    search.add_argument("--episodes", type=int, action=LazyHelp,
+                        help_text=lambda: cli_help.episodes_help("per level, in the suite and the collections"))
     search.add_argument("--no-warm-start", dest="warm_start", action="store_false",
                         help="start every search cold instead of from the previous audit's surrogate. "
                              "--surrogate-init FILE overrides both: every search then starts from FILE")

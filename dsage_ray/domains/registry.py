@@ -155,6 +155,17 @@ class AuditSpec:
             in searches for QD-score; where failures are the slow levels to play (a maze the agent never solves
             runs to the step limit), an audit's picks cost more than that for every search that finds failures,
             and equal-time audits are the measurement that decides.
+        summary: A few words after the domain's name in ``--domain``'s help (gym: ``"any Gymnasium environment:
+            --env, --space, --param"``).
+        nominal: What the domain's nominal level is, in the help of the audit's nominal check (Maze: ``"an open
+            room"``).
+        episodes_word: What the help calls the episodes of an evaluation (Mario: ``"runs"``).
+        objective_notes: A few words on an objective, by name, after it in ``--objective``'s help (Mario:
+            ``{"incompletion": "1 - completion"}``).
+        measures_note: Said after :attr:`measures` in ``--measures``' help, or in their place when there are none
+            (Maze: the paper's other measures; gym: ``"the space's [audit] measures"``).
+        examples: Lines of ``dsage-ray audit --help``'s examples, each a command then ``# what it shows``: the
+            domain's ``audit`` and ``compare`` commands (the default domain's come first).
     """
 
     objectives: tuple[str, ...]
@@ -168,6 +179,12 @@ class AuditSpec:
     upgrade: str | None = None
     surrogate_keys: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     auto_keeps_dsage: str = ""
+    summary: str = ""
+    nominal: str = ""
+    episodes_word: str = "episodes"
+    objective_notes: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    measures_note: str = ""
+    examples: tuple[str, ...] = ()
 
     def upgrade_collection(self, collection: dict[str, Any], *, folder: Any) -> None:
         """Runs :attr:`upgrade` on a collection just read from ``folder`` (nothing when there is none)."""

@@ -160,6 +160,14 @@ DOMAIN = DomainSpec(
                   ReportField(key="max_steps", label="step limit", format="{} steps per episode")),
         flags=AUDIT_FLAGS,
         flags_title="any Gymnasium environment (--domain gym)",
+        summary="any Gymnasium environment: --env, --space, --param",
+        nominal="the environment as registered, or the space's [nominal] values",
+        measures_note="the space's [audit] measures",
+        examples=(
+            "dsage-ray audit --domain gym --env CartPole-v1 --space cartpole --agent rllib:ppo_cartpole --preset demo",
+            "dsage-ray audit --domain gym --env LunarLander-v3 --param gravity=-11.9:-2 --env-arg enable_wind=true \\",
+            "    --space '' --space-set 'success.return_at_least = 200' --agent sb3:model.zip    # no space file",
+        ),
     ),
     # dsage_ray's generic kinds (dsage_ray/agents/kinds.py) over the environment's spaces.
     agents=AgentKinds(forms={

@@ -135,6 +135,12 @@ DOMAIN = DomainSpec(
             ReportField(key="kills", tooltip="mean enemies killed per run"),
             ReportField(key="sky_tiles", tooltip="non-empty tiles in the top 9 rows"),
         ),
+        nominal="a flat level",
+        episodes_word="runs",
+        objective_notes={"incompletion": "1 - completion"},
+        measures_note="the paper's",
+        examples=("dsage-ray audit --domain mario --agent astar --preset tiny",
+                  "dsage-ray compare --agent astar --agent astar:200 --collection tb_logs/audit_mario/collection"),
     ),
     # Robin Baumgarten's A* agent, the only one the simulator plays; ITERATIONS per tick (0: the 40 ms timer).
     agents=AgentKinds(forms={"astar": "astar[:ITERATIONS]"}),

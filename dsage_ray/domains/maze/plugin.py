@@ -171,6 +171,17 @@ DOMAIN = DomainSpec(
         auto_keeps_dsage=("its picks cost 4.5-5.3x a random maze (a maze the agent never solves runs to the step "
                           "limit), past auto's break-even, yet in the same 7 minutes of search DSAGE's audit found "
                           "545 failing cells to the 181 of auto's switch to MAP-Elites (docs/DECISIONS.md)"),
+        nominal="an open room",
+        measures_note="the paper's: num_walls,mean_path_length",
+        examples=(
+            "dsage-ray audit                                         # a demo: the shipped PPO agent, --preset demo",
+            "dsage-ray audit --agent dcd:path/to/agent.tar --out tb_logs/audit_mine     # your agent (cpu preset)",
+            "dsage-ray audit --agent builtin:random --preset tiny --local               # a smoke test, no Ray",
+            "dsage-ray audit --agent rllib:path/to/new --reference rllib:path/to/old    # where new is worse than old",
+            "dsage-ray compare --agent rllib:ppo_maze --agent builtin:wall_follower --collection "
+            "tb_logs/audit_mine/collection",
+            "dsage-ray audit --agent dcd:accel --out tb_logs/audit_accel --resume        # after Ctrl+C",
+        ),
     ),
     # Policies on MiniGrid's observation: the Maze's own kinds (dsage_ray/domains/maze/agents/: the wall follower,
     # DCD/ACCEL, and its rllib and torchscript conventions), shipped agents and plug-in kinds.
