@@ -1,7 +1,5 @@
 """Suite-wide test settings."""
 
-import contextlib
-import fcntl
 import importlib.util
 import os
 
@@ -27,65 +25,61 @@ def one_torch_thread():
 
 
 @pytest.fixture(scope="session")
-def ray_session():
+def agent_plugin_site(tmp_path_factory):
+    """The folder that the test agent plug-in (tests/fixtures/agent_plugin) is installed into for the session.
+
+    Its own folder (``pip install --target``, tests/plugin_package.py), not this environment: the suite leaves
+    the environment as it found it, and each pytest worker has its own copy, so none waits on or removes
+    another's. ``None`` without pip: the plug-in tests skip, and Ray's tests run without it.
+    """
+    from tests import plugin_package
+
+    if importlib.util.find_spec("pip") is None:
+        return None
+    return plugin_package.install(tmp_path_factory.mktemp("agent_plugin"))
+
+
+@pytest.fixture(scope="session")
+def ray_session(agent_plugin_site):
     """One 2-CPU local cluster for every test that needs Ray (starting one costs seconds and ~0.6 GB).
 
-    The multi-node test runs in a subprocess.
+    Its workers have the test agent plug-in's folder on ``PYTHONPATH`` (an actor reads the entry points
+    itself, and a worker's path is set when the cluster starts, before any test asks for the plug-in); only
+    a plug-in kind named in a spec loads from it. The multi-node test runs in a subprocess.
     """
     import ray
     import torch
 
     from dsage_ray.ray.session import start_ray
+    from tests import plugin_package
 
     # The reference runs happen in this process; with torch's default of one thread per core
     # they crawl when the cores are shared (measured: 4.5 min instead of 24 s).
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
-    start_ray(num_cpus=2, log_to_driver=False)  # as the CLI starts it: on 127.0.0.1 (tests/ray/test_session.py)
+    # The job's env_vars reach every actor (merged with those an actor sets itself, e.g. the pool's threads).
+    plugin_path = {"PYTHONPATH": plugin_package.python_path(agent_plugin_site)} if agent_plugin_site else None
+    # As the CLI starts it: on 127.0.0.1 (tests/ray/test_session.py).
+    start_ray(num_cpus=2, log_to_driver=False, runtime_env=plugin_path and {"env_vars": plugin_path})
     yield ray
     ray.shutdown()
     torch.set_num_threads(threads)
 
 
 @pytest.fixture(scope="session")
-def agent_plugin(tmp_path_factory):
-    """The test agent plug-in (tests/fixtures/agent_plugin) installed as a package; yields the kind it provides.
+def agent_plugin(agent_plugin_site):
+    """The test agent plug-in, found by this process for the session; yields the kind it provides.
 
-    Installed with pip into this environment for the session and uninstalled after it, so that Ray's
-    actors find it exactly as they would find a user's package (tests/plugin_package.py). ``make test``'s
-    two pytest workers share the environment, so the install is counted: the first user installs it and the
-    last one uninstalls it.
+    Installed into a folder of its own (``agent_plugin_site``), on ``sys.path`` here and on ``PYTHONPATH`` for
+    Ray's workers (``ray_session``), so that both find it exactly as they would find a user's package: through
+    its entry point in the folder's ``dist-info``.
     """
     from tests import plugin_package
 
-    if importlib.util.find_spec("pip") is None:
+    if agent_plugin_site is None:
         pytest.skip("pip is not installed in this environment")
-    with _plugin_users(tmp_path_factory, +1) as users:
-        if users == 1:
-            plugin_package.install(tmp_path_factory.mktemp("agent_plugin"))
-    try:
+    with plugin_package.on_path(agent_plugin_site):
         yield plugin_package.KIND
-    finally:
-        with _plugin_users(tmp_path_factory, -1) as users:
-            if users == 0:
-                plugin_package.uninstall()
-
-
-@contextlib.contextmanager
-def _plugin_users(tmp_path_factory, change: int):
-    """Changes the count of this run's workers using the installed plug-in; holds a lock across the block."""
-    base = tmp_path_factory.getbasetemp()
-    shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base  # one run's workers share the parent
-    with open(shared / "agent_plugin.lock", "a+") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        count_file = shared / "agent_plugin.users"
-        users = int(count_file.read_text()) if count_file.exists() else 0
-        users += change
-        count_file.write_text(str(users))
-        try:
-            yield users
-        finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)
 
 
 #: Files whose tests take most of the suite's time (Tune experiments, Ray pools, JVM runs). ``make test`` runs

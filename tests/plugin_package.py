@@ -1,19 +1,25 @@
 """Installs the test agent plug-in (tests/fixtures/agent_plugin) as a real package, for the plug-in tests.
 
 The package is a wheel written here (a zip with the module and its ``dist-info``: no build backend and
-no network needed) and installed with pip into the running environment, so that every process of it,
-Ray's actors included, finds its entry point as it would a user's package. It is uninstalled afterwards.
+no network needed) and installed with pip into a folder of its own (``pip install --target``), never into the
+running environment: the suite leaves the environment as it found it (a user's own install of a package of
+that name stays). Entry points are read through ``importlib.metadata`` from ``sys.path``, so a process that has
+the folder on its path (this one, via :func:`on_path`; Ray's workers, via ``PYTHONPATH``) finds the plug-in's
+entry point as it would a user's package.
 """
 
 from __future__ import annotations
 
 import base64
+import contextlib
 import hashlib
 import importlib
+import os
 import subprocess
 import sys
 import zipfile
 from pathlib import Path
+from typing import Iterator
 
 #: Distribution and module of the test plug-in, and the agent kind it provides.
 DIST_NAME, MODULE, KIND = "dsage-ray-test-agent-plugin", "dsage_ray_test_agent_plugin", "constant_test"
@@ -45,15 +51,31 @@ def pip(*args: str) -> None:
                    capture_output=True, timeout=300)
 
 
-def install(folder: Path) -> None:
-    pip("install", "--no-deps", "--no-index", "--no-cache-dir", str(build_wheel(folder)))
-    importlib.invalidate_caches()  # this process looks for the new module and metadata afresh
+def install(folder: Path) -> Path:
+    """Installs the plug-in into ``folder/site`` and returns that folder; nothing outside it changes."""
+    site = folder / "site"
+    pip("install", "--no-deps", "--no-index", "--no-cache-dir", "--target", str(site), str(build_wheel(folder)))
+    return site
 
 
-def uninstall() -> None:
-    pip("uninstall", "-y", DIST_NAME)
-    importlib.invalidate_caches()
-    sys.modules.pop(MODULE, None)
+@contextlib.contextmanager
+def on_path(site: Path) -> Iterator[None]:
+    """This process finds the plug-in in ``site`` while the block runs, and forgets it after."""
+    # First, as PYTHONPATH puts it for Ray's workers: the tests load this copy even where the environment has
+    # a package of the same name (the folder holds nothing else, so it shadows nothing more).
+    sys.path.insert(0, str(site))
+    importlib.invalidate_caches()  # the entry-point scan and the import read the new folder
+    try:
+        yield
+    finally:
+        sys.path.remove(str(site))
+        sys.modules.pop(MODULE, None)
+        importlib.invalidate_caches()
+
+
+def python_path(site: Path) -> str:
+    """``PYTHONPATH`` for a process that should find the plug-in: ``site`` first, then this one's own."""
+    return os.pathsep.join([str(site), *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))])
 
 
 def _digest(data: bytes) -> str:
