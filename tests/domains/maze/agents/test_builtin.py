@@ -6,8 +6,16 @@ import numpy as np
 import pytest
 
 from dsage_ray.domains.maze.agents import load_maze_agent
+from dsage_ray.domains.maze.agents.builtin import RandomAgent, WallFollowerAgent
 from dsage_ray.domains.maze import MazeLevel, evaluate
 from tests.domains.maze.agents.mazes import labyrinth13, open_maze, perfect_maze
+
+
+def test_builtin_specs_load_and_record_spec():
+    assert isinstance(load_maze_agent("builtin:random"), RandomAgent)
+    agent = load_maze_agent("builtin:wall_follower")
+    assert isinstance(agent, WallFollowerAgent) and agent.spec == "builtin:wall_follower"
+    assert load_maze_agent("builtin:random?actions=7").num_actions == 7
 
 
 def test_random_agent_range_and_reproducibility():

@@ -1,13 +1,28 @@
-"""The DCD/ACCEL agent's mechanics on a random-weight checkpoint of the same format (no shared files needed)."""
+"""The DCD/ACCEL agent (dcd.py): its mechanics on a random-weight checkpoint of the same format (no shared files
+needed), its files (good ones load strictly, bad ones fail with one clear line naming the file), and the shipped
+ACCEL checkpoint (``dcd:accel``: the published file, verified on every load)."""
 
 from __future__ import annotations
+
+import hashlib
+import pickle
+import shutil
 
 import numpy as np
 import pytest
 import torch
+from torch import nn
 
-from dsage_ray.domains.maze.agents import load_maze_agent
+from dsage_ray.agents import loader
+from dsage_ray.agents.loader import ASSETS_DIR
 from dsage_ray.agents.sampling import sample_from_logits
+from dsage_ray.domains.maze.agents import load_maze_agent
+from dsage_ray.domains.maze.agents.dcd import DCDAgent, DCDNetwork
+from tests.agents.conftest import shared_dir
+from tests.domains.maze.agents.conftest import ACCEL_SPEC, load_error
+
+#: The published ACCEL checkpoint (SPEC §2: sha256 5ad0ce09…634ae).
+ACCEL_SHA256 = "5ad0ce09ce1f1763f4b2c16f2ec08da1abb6a0564b0cf715e9be4c0ac7a634ae"
 
 
 def random_obs(rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
@@ -146,3 +161,145 @@ def test_torchscript_export_of_the_dcd_network_acts_identically(agent, tmp_path)
     scripted = load_maze_agent(f"torchscript:{path}")
     assert scripted.state_size == 512
     np.testing.assert_array_equal(rollout(scripted, seed=11), rollout(agent, seed=11))
+
+
+# --- dcd files ----------------------------------------------------------------------------------------------
+
+
+def test_dcd_loads_bare_and_wrapped_state_dicts(random_dcd_checkpoint, tmp_path):
+    assert isinstance(load_maze_agent(f"dcd:{random_dcd_checkpoint}"), DCDAgent)
+    wrapped = tmp_path / "wrapped.tar"
+    torch.save({"model_state_dict": torch.load(random_dcd_checkpoint), "num_updates": 3}, wrapped)
+    assert isinstance(load_maze_agent(f"dcd:{wrapped}"), DCDAgent)
+
+
+def test_dcd_options(random_dcd_checkpoint):
+    agent = load_maze_agent(f"dcd:{random_dcd_checkpoint}?heading_quirk=1&quirk_group=5")
+    assert agent.heading_quirk and agent.quirk_group == 5
+    assert "not a boolean" in str(load_error(f"dcd:{random_dcd_checkpoint}?heading_quirk=maybe"))
+    assert "unknown option(s) temperature" in str(load_error(f"dcd:{random_dcd_checkpoint}?temperature=2"))
+
+
+def test_dcd_missing_file_and_directory(tmp_path):
+    err = load_error(f"dcd:{tmp_path / 'nope.tar'}")
+    assert "nope.tar" in str(err) and "file not found" in str(err)
+    assert "not a regular file" in str(load_error(f"dcd:{tmp_path}"))
+
+
+def test_dcd_garbage_file(tmp_path):
+    path = tmp_path / "garbage.tar"
+    path.write_bytes(b"this is not a checkpoint at all\n" * 10)
+    err = load_error(f"dcd:{path}")
+    assert "garbage.tar" in str(err) and "not a readable PyTorch checkpoint" in str(err)
+
+
+def test_dcd_truncated_file(random_dcd_checkpoint):
+    data = random_dcd_checkpoint.read_bytes()
+    random_dcd_checkpoint.write_bytes(data[: len(data) // 2])
+    err = load_error(f"dcd:{random_dcd_checkpoint}")
+    assert "model.tar" in str(err) and "not a readable PyTorch checkpoint" in str(err)
+
+
+def test_dcd_pickle_with_foreign_objects_is_rejected_not_executed(tmp_path):
+    path = tmp_path / "evil.tar"
+    path.write_bytes(pickle.dumps({"image_conv.0.weight": np.zeros(3)}))  # numpy global: refused by weights_only
+    assert "not a readable PyTorch checkpoint" in str(load_error(f"dcd:{path}"))
+
+
+class _RunsShell:
+    def __reduce__(self):
+        import os
+
+        return os.system, ("true",)
+
+
+def test_a_dcd_file_holding_code_is_refused_without_torchs_advice_to_run_it(tmp_path):
+    path = tmp_path / "evil.tar"
+    torch.save({"image_conv.0.weight": _RunsShell()}, path)
+    message = str(load_error(f"dcd:{path}"))
+    assert "GLOBAL posix.system" in message and "read as data only; nothing in it ran" in message
+    assert "weights_only" not in message and "\n" not in message
+
+
+def test_dcd_not_a_state_dict(tmp_path):
+    path = tmp_path / "tensor.tar"
+    torch.save(torch.zeros(3), path)
+    assert "holds a Tensor, not a state_dict" in str(load_error(f"dcd:{path}"))
+
+
+def test_dcd_wrong_keys(tmp_path):
+    path = tmp_path / "mlp.tar"
+    torch.save(nn.Sequential(nn.Linear(4, 4)).state_dict(), path)
+    err = str(load_error(f"dcd:{path}"))
+    assert "mlp.tar" in err and "missing keys" in err and "unexpected keys 0.bias, 0.weight" in err
+
+
+def test_dcd_extra_key_fails_strict_matching(random_dcd_checkpoint):
+    state = torch.load(random_dcd_checkpoint)
+    state["actor.2.weight"] = torch.zeros(1)
+    torch.save(state, random_dcd_checkpoint)
+    assert "unexpected keys actor.2.weight" in str(load_error(f"dcd:{random_dcd_checkpoint}"))
+
+
+def test_dcd_wrong_shape(random_dcd_checkpoint):
+    state = torch.load(random_dcd_checkpoint)
+    state["actor.1.linear.weight"] = torch.zeros(3, 32)  # a 3-action head
+    torch.save(state, random_dcd_checkpoint)
+    err = str(load_error(f"dcd:{random_dcd_checkpoint}"))
+    assert "actor.1.linear.weight has shape (3, 32), expected (7, 32)" in err
+
+
+def test_real_accel_checkpoint_loads_strictly(accel_checkpoint):
+    state = torch.load(accel_checkpoint, map_location="cpu", weights_only=True)
+    assert set(state) == set(DCDNetwork().state_dict()), "the real file is a bare state_dict with exactly our keys"
+    agent = load_maze_agent(ACCEL_SPEC)
+    assert agent.spec == ACCEL_SPEC
+    for key, tensor in agent.network.state_dict().items():
+        assert torch.equal(tensor, state[key])
+
+
+# --- shipped agents -----------------------------------------------------------------------------------------
+
+
+def test_shipped_accel_is_the_published_file_with_its_notice():
+    folder = ASSETS_DIR / "accel"
+    assert hashlib.sha256((folder / "model_20000.tar").read_bytes()).hexdigest() == ACCEL_SHA256
+    assert f"{ACCEL_SHA256}  model_20000.tar" in (folder / "SHA256SUMS").read_text()
+    assert ACCEL_SHA256 in (folder / "README.md").read_text()
+    license_text = (folder / "LICENSE").read_text()
+    assert "MIT License" in license_text and "Copyright (c) 2022 ICAROS Lab" in license_text
+    original = shared_dir() / "models" / "accel_seed_1" / "model_20000.tar"
+    if original.is_file():  # optional: the authors' file as distributed beside the repository
+        assert (folder / "model_20000.tar").read_bytes() == original.read_bytes()
+
+
+@pytest.fixture
+def assets_copy(tmp_path, monkeypatch):
+    """A writable copy of the shipped agents, installed in place of the package's."""
+    copy = tmp_path / "agents"
+    shutil.copytree(ASSETS_DIR, copy)
+    monkeypatch.setattr(loader, "ASSETS_DIR", copy)
+    return copy
+
+
+def test_corrupt_shipped_checkpoint_is_refused(assets_copy):
+    checkpoint = assets_copy / "accel" / "model_20000.tar"
+    data = bytearray(checkpoint.read_bytes())
+    data[len(data) // 2] ^= 0x01  # one flipped bit in the weights: torch would load it without complaint
+    checkpoint.write_bytes(bytes(data))
+    err = str(load_error("dcd:accel"))
+    assert "model_20000.tar" in err and "is corrupt" in err and ACCEL_SHA256 in err
+    checkpoint.unlink()
+    assert "cannot read" in str(load_error("dcd:accel"))
+    (assets_copy / "accel" / "SHA256SUMS").write_text("not a checksum line\n")
+    assert "is not '<sha256>  <file>'" in str(load_error("dcd:accel"))
+
+
+def test_shipped_names_resolve_only_as_bare_names(assets_copy, tmp_path, monkeypatch):
+    assert "file not found (shipped: dcd:accel)" in str(load_error("dcd:acel"))
+    assert "not a dcd checkpoint" in str(load_error("dcd:ppo_maze"))
+    assert "file not found" in str(load_error("dcd:./accel"))  # a path, not a name
+    # A local file of the same name wins over the shipped agent: shipping never changes what a spec loads.
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "accel").write_bytes(b"not a checkpoint")
+    assert "not a readable PyTorch checkpoint" in str(load_error("dcd:accel"))
