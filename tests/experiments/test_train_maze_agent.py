@@ -14,10 +14,17 @@ from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.domains.maze.layout import format_layout
 from dsage_ray.errors import InputError
 from tests.integrations.conftest import SCRIPT, write_collection
+from tests.scripts import import_script
 
 sys.path.insert(0, str(SCRIPT.parent))  # the training env lives beside the training script
 
 from maze_training_env import RandomMazeEnv, make_random_maze_env  # noqa: E402
+
+
+@pytest.fixture
+def script(monkeypatch):
+    """``experiments/train_maze_agent.py`` imported as a module (kept in ``sys.modules`` for tyro)."""
+    return import_script(SCRIPT, monkeypatch)
 
 
 @pytest.fixture

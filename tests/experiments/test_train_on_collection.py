@@ -1,5 +1,5 @@
 """``experiments/train_on_collection.py``: its test sets, training commands and table (the trainings themselves
-are ``train_maze_agent.py``'s, tested in tests/integrations)."""
+are ``train_maze_agent.py``'s, tested in test_train_maze_agent.py)."""
 
 from __future__ import annotations
 
