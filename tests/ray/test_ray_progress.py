@@ -11,29 +11,11 @@ import pytest
 
 from dsage_ray.cli import main
 from dsage_ray.core.tensorboard_log import tensorboard_hint
-from dsage_ray.ray.experiment import run_experiment
-from tests.ray.helpers import bitmap_domain, small_config, tensorboard_scalars, tensorboard_tags
+from tests.ray.helpers import tensorboard_scalars, tensorboard_tags
 
 #: A maze run through the real CLI, as small as it gets: 2 outer iterations.
 MAZE_RUN = ["run", "experiments/configs/maze_dsage.toml", "--preset", "tiny", "--set", "maze.agent=builtin:wall_follower",
             "--set", "budget=30", "--set", "n_rand=20", "--set", "selection.count=10", "--set", "maze.episodes=1"]
-
-
-@pytest.mark.usefixtures("ray_session")
-def test_tune_with_its_new_console_output_prints_our_progress_lines_and_not_its_tensorboard_hint(
-        tmp_path, monkeypatch, capfd):
-    # The conftest selects the legacy engine for every test; a user's shell does not.
-    monkeypatch.delenv("RAY_AIR_NEW_OUTPUT", raising=False)
-    config = small_config(budget=50)
-    run_experiment(config.to_flat(), name="quiet", storage_path=tmp_path, max_failures=0,
-                   domain_factory=bitmap_domain)
-    captured = capfd.readouterr()
-    output = captured.out + captured.err
-    assert "tensorboard --logdir" not in output
-    assert "Trial status" not in output  # Tune's periodic status table
-    lines = [line for line in captured.out.splitlines() if line.startswith("iter ")]
-    assert lines[0].startswith("iter 1/~") and lines[-1].startswith(f"iter {len(lines)}/{len(lines)}  evals 50/50")
-    assert "RAY_AIR_NEW_OUTPUT" not in os.environ  # set for the run only
 
 
 def _pointer_lines(stdout: str) -> tuple[str, str]:
@@ -50,9 +32,21 @@ def _logdir(tensorboard_line: str) -> Path:
 
 
 @pytest.mark.usefixtures("ray_session")
-def test_run_through_tune_ends_with_the_run_folder_and_the_tensorboard_command_to_open(tmp_path, capsys):
+def test_run_through_tune_prints_our_progress_lines_not_tunes_hint_and_ends_with_the_run_folder_and_tensorboard(
+        tmp_path, monkeypatch, capfd):
+    # One Tune run for both what it prints and where it points: a Tune start costs more than the run.
+    # The conftest selects the legacy engine for every test; a user's shell does not.
+    monkeypatch.delenv("RAY_AIR_NEW_OUTPUT", raising=False)
     assert main([*MAZE_RUN, "--out", str(tmp_path)]) == 0
-    folder_line, tensorboard_line = _pointer_lines(capsys.readouterr().out)
+    captured = capfd.readouterr()
+    output = captured.out + captured.err
+    # Tune's new console output prints its own TensorBoard hint and its periodic status table: only ours is left.
+    assert output.count("tensorboard --logdir") == 1
+    assert "Trial status" not in output
+    lines = [line for line in captured.out.splitlines() if line.startswith("iter ")]
+    assert lines[0].startswith("iter 1/~") and lines[-1].startswith(f"iter {len(lines)}/{len(lines)}  evals 30/30")
+    assert "RAY_AIR_NEW_OUTPUT" not in os.environ  # set for the run only
+    folder_line, tensorboard_line = _pointer_lines(captured.out)
     run_dir = tmp_path / folder_line.removeprefix("run folder: ")
     assert (run_dir / "metrics.json").exists()
     assert tensorboard_line == f"open it in TensorBoard: {tensorboard_hint(run_dir)}"
