@@ -8,7 +8,7 @@ import os
 import shlex
 import sys
 
-from dsage_ray import __version__, checkpoint_cli, surrogate_cli
+from dsage_ray import __version__, surrogate_cli
 from dsage_ray.audit import cli as audit_cli
 from dsage_ray.cli_args import add_config_arguments, add_ray_arguments, config_overrides, load_run_config
 from dsage_ray.errors import DsageError, Interrupted, describe
@@ -61,7 +61,6 @@ def build_parser() -> argparse.ArgumentParser:
     _add_config(subparsers)
     audit_cli.add_subparser(subparsers)
     surrogate_cli.add_subparser(subparsers)
-    checkpoint_cli.add_subparser(subparsers)
     for module_name in domain_command_modules():
         try:
             module = importlib.import_module(module_name)

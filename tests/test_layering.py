@@ -41,7 +41,7 @@ SUBTREES: dict[str, int] = {
     "dsage_ray.plugins": BASE, "dsage_ray.safe_pickle": BASE, "dsage_ray.types": BASE,
     "dsage_ray.core": ALGORITHM, "dsage_ray.qd": ALGORITHM, "dsage_ray.surrogate": ALGORITHM,
     "dsage_ray.agents": DOMAINS_AND_AGENTS, "dsage_ray.domains": DOMAINS_AND_AGENTS,
-    "dsage_ray.api": PRODUCT, "dsage_ray.audit": PRODUCT, "dsage_ray.checkpoint_cli": PRODUCT, "dsage_ray.cli": PRODUCT,
+    "dsage_ray.api": PRODUCT, "dsage_ray.audit": PRODUCT, "dsage_ray.cli": PRODUCT,
     "dsage_ray.cli_args": PRODUCT, "dsage_ray.config_listing": PRODUCT, "dsage_ray.integrations": PRODUCT,
     "dsage_ray.preflight": PRODUCT, "dsage_ray.ray": PRODUCT, "dsage_ray.results": PRODUCT, "dsage_ray.runs": PRODUCT,
     "dsage_ray.surrogate_cli": PRODUCT,

@@ -18,8 +18,7 @@ entry's ``reproduce`` command prints it again. A side effect is honest numbers: 
 *luckiest* evaluations, and a fresh evaluation removes that selection bias (the search's own value is kept
 as ``search_objective``).
 
-Collection folder (format ``dsage_ray.collection.v2``; v1 folders still load, and a domain's registration
-fills in what its older collections lack)::
+Collection folder (format ``dsage_ray.collection.v2``)::
 
     collection.json        one entry per valid elite, worst first (see :func:`build_collection`)
     levels/level_0000.txt  level files (``dsage-ray maze eval --layout`` / ``dsage-ray mario eval --level``)

@@ -66,7 +66,7 @@ def failure_summary(collection: dict[str, Any]) -> dict[str, Any]:
     """The failure-diversity numbers of a collection (module docstring).
 
     Args:
-        collection: A loaded ``collection.json`` (v1 or v2).
+        collection: A loaded ``collection.json``.
 
     Returns:
         ``{"levels", "with_failures", "never_solved", "failure_cells", "cvar10"}``, plus ``"regressed"`` and

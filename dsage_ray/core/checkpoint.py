@@ -13,10 +13,8 @@ A file is three parts::
 ``numpy.random.Generator`` states, which pickle exactly and nothing else stores, so the payload is a pickle, read
 by :mod:`~dsage_ray.safe_pickle`: only an allowlist of data classes is resolved, torch tensors are stored as
 raw bytes, and a pickle naming anything else is refused before it is called. A checkpoint can be shared like any
-data file. Format 2 (dsage_ray before this) was a plain pickle, which runs code when opened; it is refused, and
-``dsage-ray checkpoint convert PATH --trust`` rewrites it once for whoever trusts where it came from.
-:func:`save_checkpoint` reads back what it wrote, so a state this reader would refuse fails when it is saved, not
-when a run resumes.
+data file. :func:`save_checkpoint` reads back what it wrote, so a state this reader would refuse fails when it is
+saved, not when a run resumes.
 
 Pickles restore objects by their classes' private layout, so the header records the versions of the libraries
 whose objects the state holds and :func:`load_checkpoint` compares them with the running ones:
@@ -38,7 +36,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
-import pickle  # only to convert format-2 checkpoints their owner trusts
 import warnings
 from importlib import metadata
 from pathlib import Path
@@ -53,13 +50,8 @@ if TYPE_CHECKING:
 
 #: File name of a checkpoint: in a ``--local`` run folder, and inside each Tune checkpoint folder.
 CHECKPOINT_NAME = "checkpoint.dsage"
-#: Checkpoint files of dsage_ray before this format (pickle in run folders, torch.save in Tune's); not read,
-#: only recognised, so that a run folder holding one is neither overwritten nor reported as empty.
-LEGACY_CHECKPOINT_NAMES = ("checkpoint.pkl", "runner_state.pt")
 #: Version of the file layout above; a reader refuses other versions.
 FORMAT_VERSION = 3
-#: The plain-pickle format before it; read only by :func:`convert_trusted_checkpoint`.
-_UNSAFE_FORMAT = 2
 _MAGIC = b"dsage_ray checkpoint\n"
 #: Distribution names of the libraries whose versions the header records (pyribs is ``ribs``).
 _LIBRARIES = ("dsage_ray", "ribs", "numpy", "torch")
@@ -147,15 +139,14 @@ def latest_tune_checkpoint(folder: Path, trials: str) -> Path | None:
 
 
 def checkpoint_config(path: str | Path) -> "RunConfig":
-    """The config of the run that wrote the checkpoint at ``path``: from its header, or, for a checkpoint written
-    before the header held it, from its state.
+    """The config of the run that wrote the checkpoint at ``path``, read from its header (unpickling nothing).
 
     Raises:
-        CheckpointError: As :func:`load_checkpoint`, or a config this version cannot read (the message says why).
+        CheckpointError: As :func:`read_header`, or a config this version cannot read (the message says why).
     """
     from dsage_ray.config import ConfigError, RunConfig
 
-    stored = read_header(path).get("config") or load_checkpoint(path).get("config")
+    stored = read_header(path).get("config")
     if not isinstance(stored, dict):
         raise CheckpointError(f"{path}: holds no run config (not a checkpoint dsage_ray wrote, or a damaged one)")
     try:
@@ -221,27 +212,14 @@ def _read(path: Path, limit: int = -1) -> bytes:
         with path.open("rb") as handle:
             return handle.read(limit)
     except FileNotFoundError:
-        raise CheckpointError(f"{path}: no such checkpoint{legacy_hint(path.parent)}") from None
+        raise CheckpointError(f"{path}: no such checkpoint") from None
     except IsADirectoryError:
         raise CheckpointError(f"{path}: is a folder, not a checkpoint file") from None
     except OSError as exc:
         raise CheckpointError(f"{path}: cannot read the checkpoint ({exc.strerror or exc})") from None
 
 
-def legacy_checkpoint(folder: str | Path) -> Path | None:
-    """The checkpoint of an earlier dsage_ray format in ``folder``, if it holds one."""
-    found = [Path(folder) / name for name in LEGACY_CHECKPOINT_NAMES if (Path(folder) / name).is_file()]
-    return found[0] if found else None
-
-
-def legacy_hint(folder: str | Path) -> str:
-    """``" (it holds checkpoint.pkl, ...)"`` when ``folder`` holds an old-format checkpoint, else ``""``."""
-    legacy = legacy_checkpoint(folder)
-    return (f" (it holds {legacy.name}, a checkpoint of an earlier dsage_ray that this version does not read; "
-            f"continue that run with the version that wrote it)") if legacy else ""
-
-
-def _split(path: Path, data: bytes, *, formats: tuple[int, ...] = (FORMAT_VERSION,)) -> tuple[dict[str, Any], bytes]:
+def _split(path: Path, data: bytes) -> tuple[dict[str, Any], bytes]:
     """``(header, payload)`` of a checkpoint's bytes (the payload may be cut short when only the header was read)."""
     if not data.startswith(_MAGIC):
         raise CheckpointError(f"{path}: not a dsage_ray checkpoint (it does not start with {_MAGIC.strip()!r})")
@@ -254,13 +232,8 @@ def _split(path: Path, data: bytes, *, formats: tuple[int, ...] = (FORMAT_VERSIO
         header = None
     if not isinstance(header, dict) or not isinstance(header.get("format"), int):
         raise CheckpointError(f"{path}: damaged checkpoint (its header is not the JSON object it should be)")
-    if header["format"] in formats:
+    if header["format"] == FORMAT_VERSION:
         return header, data[end + 1:]
-    if header["format"] == _UNSAFE_FORMAT:
-        raise CheckpointError(
-            f"{path}: a checkpoint of dsage_ray {header.get('libraries', {}).get('dsage_ray')} (format 2), a plain "
-            f"pickle that runs code when opened, so it is not read. If you trust where it came from, convert it once: "
-            f"dsage-ray checkpoint convert {path} --trust")
     raise CheckpointError(f"{path}: checkpoint format {header['format']}, this dsage_ray reads format "
                           f"{FORMAT_VERSION} (written by dsage_ray {header.get('libraries', {}).get('dsage_ray')})")
 
@@ -271,31 +244,3 @@ def _minor(version: str) -> tuple[str, ...]:
 
 def _format_versions(versions: Mapping[str, str]) -> str:
     return ", ".join(f"{name} {version}" for name, version in sorted(versions.items())) or "unknown versions"
-
-
-def convert_trusted_checkpoint(path: str | Path) -> Path:
-    """Rewrites a format-2 checkpoint (a plain pickle) in this format, in place.
-
-    **This runs any code the file holds**: call it only on a file you trust (``dsage-ray checkpoint convert PATH
-    --trust``). The converted file then opens without running code, like any other checkpoint.
-
-    Raises:
-        CheckpointError: Not a dsage_ray checkpoint, a damaged one, not of format 2, or a state that does not
-            convert (the message says why).
-    """
-    path = Path(path)
-    header, payload = _split(path, _read(path), formats=(FORMAT_VERSION, _UNSAFE_FORMAT))
-    if header["format"] == FORMAT_VERSION:
-        raise CheckpointError(f"{path}: already a format-{FORMAT_VERSION} checkpoint (it opens without running code); "
-                              f"nothing to convert")
-    if hashlib.sha256(payload).hexdigest() != header.get("payload_sha256"):
-        raise CheckpointError(f"{path}: damaged checkpoint (its contents do not match the checksum in its header)")
-    state = pickle.loads(payload)  # noqa: S301 - the caller said it trusts this file
-    if not isinstance(state, dict):
-        raise CheckpointError(f"{path}: the checkpoint holds a {type(state).__name__}, not a run state")
-    try:  # a random emitter's sampler (code, pickled by format 2) is left out by the emitter's own __getstate__
-
-        return save_checkpoint(state, path)
-    except TypeError as exc:
-        raise CheckpointError(f"{path}: does not convert ({exc})") from None
-

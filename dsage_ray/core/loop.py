@@ -19,8 +19,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Mapping, Protocol, Sequence
 
-from dsage_ray.core.checkpoint import (CHECKPOINT_NAME, legacy_checkpoint, legacy_hint, load_checkpoint,
-                                       save_checkpoint)
+from dsage_ray.core.checkpoint import CHECKPOINT_NAME, load_checkpoint, save_checkpoint
 from dsage_ray.errors import InputError
 from dsage_ray.io import folder_lock
 
@@ -133,10 +132,10 @@ def run_locally(
 
     out_dir = Path(out_dir)
     checkpoint = out_dir / CHECKPOINT_NAME
-    if (checkpoint.exists() or legacy_checkpoint(out_dir)) and not resume:
+    if checkpoint.exists() and not resume:
         raise InputError(f"{out_dir} already holds a run: pass --resume to continue it, or another --out")
     if resume and not checkpoint.exists():
-        raise InputError(f"{out_dir} holds no run to resume ({CHECKPOINT_NAME} is missing){legacy_hint(out_dir)}")
+        raise InputError(f"{out_dir} holds no run to resume ({CHECKPOINT_NAME} is missing)")
     with folder_lock(out_dir, what="run"):  # before the runner: an unwritable folder fails before any work
         progress = ConsoleProgress(budget=config.budget, time_budget=config.time_budget) if console else None
         runner = DSAGE(config=config, domain=domain, evaluator=evaluator,

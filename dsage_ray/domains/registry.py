@@ -145,9 +145,6 @@ class AuditSpec:
         flags: The flags ``dsage-ray audit`` takes for this domain only (the gym domain's ``--env``, ``--param``),
             shown in the help as one group titled ``flags_title``.
         flags_title: The title of :attr:`flags`' group in the help (default: ``--domain NAME``).
-        upgrade: A function as ``"module:function"``, imported when a collection of the domain is read:
-            ``function(collection, folder=Path)`` fills in, in place, what a collection written by an older
-            version lacks.
         surrogate_keys: Dotted config keys an audit adds when its search is a DSAGE variant whose QD emitter
             mutates (``RunConfig.mutates_elites``), under the user's own keys; other searches leave them out.
         auto_keeps_dsage: Why ``search = "auto"`` keeps DSAGE in this domain's audits (empty: an audit's ``auto``
@@ -176,7 +173,6 @@ class AuditSpec:
     settings: tuple[ReportField, ...] = ()
     flags: tuple[AuditFlag, ...] = ()
     flags_title: str = ""
-    upgrade: str | None = None
     surrogate_keys: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     auto_keeps_dsage: str = ""
     summary: str = ""
@@ -185,11 +181,6 @@ class AuditSpec:
     objective_notes: Mapping[str, str] = dataclasses.field(default_factory=dict)
     measures_note: str = ""
     examples: tuple[str, ...] = ()
-
-    def upgrade_collection(self, collection: dict[str, Any], *, folder: Any) -> None:
-        """Runs :attr:`upgrade` on a collection just read from ``folder`` (nothing when there is none)."""
-        if self.upgrade:
-            _import(self.upgrade)(collection, folder=folder)
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)

@@ -144,33 +144,6 @@ def test_search_auto_keeps_dsage_in_maze_audits_and_chooses_in_other_domains():
     assert audit_config(agent=AUDITED, overrides={"search": "auto"}, started=begun).search == "auto"
 
 
-def test_v1_collections_still_load_and_compare(collection, tmp_path, capsys):
-    """A collection in the v1 format (Maze only, no domain/reference/level_file/reproduce) reads as v2."""
-    import shutil
-
-    v1 = tmp_path / "v1"
-    shutil.copytree(collection, v1)
-    data = json.loads((v1 / "collection.json").read_text())
-    data["format"] = "dsage_ray.collection.v1"
-    for key in ("domain", "reference", "failed_reevaluations"):
-        del data[key]
-    for lv in data["levels"]:
-        del lv["level_file"], lv["reproduce"]
-    (v1 / "collection.json").write_text(json.dumps(data))
-
-    c = load_collection(v1)
-    assert c["format"] == "dsage_ray.collection.v1" and c["domain"] == "maze" and c["reference"] is None
-    first = c["levels"][0]
-    assert first["level_file"] == first["layout_file"]
-    capsys.readouterr()
-    assert main(shlex.split(first["reproduce"])[1:] + ["--json"]) == 0
-    again = json.loads(capsys.readouterr().out)
-    assert (again["success_rate"], again["episode_lengths"]) == (first["success_rate"], first["episode_lengths"])
-    comparison = compare_agents(AUDITED, "builtin:wall_follower", collection_dir=v1)
-    recorded = {lv["id"]: lv["success_rate"] for lv in c["levels"]}
-    assert {r["id"]: r["success_a"] for r in comparison["levels"]} == recorded
-
-
 def test_a_cpu_audit_predicts_the_path_length_as_the_occupancy_sum_only_when_it_is_a_measure():
     # The Maze cpu preset turns the occupancy sum on; the default audit measures have no path length.
     default = audit_config(agent=AUDITED, preset="cpu").surrogate
@@ -228,14 +201,9 @@ def test_a_gym_audit_resumes_with_the_preset_values_it_began_with(tmp_path):
     assert (fresh.qd.sigma0, fresh.selection.elite_mutants) == (0.2, 0)
 
 
-def test_a_search_on_disk_reports_its_config_from_the_checkpoint_header_or_an_older_checkpoints_state(
-        collection, monkeypatch):
+def test_a_search_on_disk_reports_its_config_from_the_checkpoint_header(collection):
     from dsage_ray.audit.run import search_on_disk
-    from dsage_ray.core import checkpoint
 
-    assert search_on_disk(collection.parent / "search").config.seed == 3
-    header = checkpoint.read_header  # a checkpoint written before the header held the config
-    monkeypatch.setattr(checkpoint, "read_header", lambda path: {k: v for k, v in header(path).items() if k != "config"})
     assert search_on_disk(collection.parent / "search").config.seed == 3
 
 

@@ -1,4 +1,4 @@
-"""report.html without a browser: self-contained, the summary numbers, v1 and regression collections, pictures."""
+"""report.html without a browser: self-contained, the summary numbers, regression collections, pictures."""
 
 from __future__ import annotations
 
@@ -27,12 +27,8 @@ def _png(colour: tuple[int, int, int]) -> bytes:
     return buffer.getvalue()
 
 
-def make_collection(folder: Path, *, levels: int = 15, regression: bool = False, v1: bool = False) -> Path:
-    """A Maze collection written by hand: success rates cycle 0, 0.25, ..., 1; measures spread over a corner.
-
-    v2 by default (the collection module's current format); ``v1`` writes the old Maze-only keys
-    (``layout_file``, no ``reproduce``, no ``domain``/``reference``).
-    """
+def make_collection(folder: Path, *, levels: int = 15, regression: bool = False) -> Path:
+    """A Maze collection written by hand: success rates cycle 0, 0.25, ..., 1; measures spread over a corner."""
     (folder / "levels").mkdir(parents=True)
     entries = []
     for i in range(levels):
@@ -46,12 +42,9 @@ def make_collection(folder: Path, *, levels: int = 15, regression: bool = False,
             "num_walls": 100 + 3 * i, "optimal_path_length": 20 + (i % 7), "mean_path_length": 50.5 + i,
             "seed": 1000 + i, "episodes": 4, "search_objective": 0.9, "search_measures": {},
         }
-        if v1:
-            entry.update(layout_file=f"{stem}.txt", layout="S..\n.#.\n..G\n")
-        else:
-            entry.update(level_file=f"{stem}.txt", layout_file=f"{stem}.txt",
-                         reproduce=f"dsage-ray maze eval --agent {AGENT} --layout {folder}/{stem}.txt --episodes 4 "
-                                   f"--seed {1000 + i}")
+        entry.update(level_file=f"{stem}.txt", layout_file=f"{stem}.txt",
+                     reproduce=f"dsage-ray maze eval --agent {AGENT} --layout {folder}/{stem}.txt --episodes 4 "
+                               f"--seed {1000 + i}")
         if regression:
             reference_success = min(1.0, success + (0.5 if i % 3 else 0.0))
             entry["reference"] = {"success_rate": reference_success, "mean_path_length": 30.25 + i, "seed": 1000 + i}
@@ -61,17 +54,14 @@ def make_collection(folder: Path, *, levels: int = 15, regression: bool = False,
     if regression:
         entries.sort(key=lambda e: -e["regression"])
     data = {
-        "format": "dsage_ray.collection.v1" if v1 else collection_module.FORMAT,
+        "format": collection_module.FORMAT,
         "agent": AGENT, "objective": "regression" if regression else "failure_rate",
         "measures": ["num_walls", "optimal_path_length"], "measure_ranges": [[0.0, 256.0], [0.0, 256.0]],
         "archive_dims": [256, 256], "episodes": 4, "run_seed": 7, "search_dir": "/somewhere/search",
         "search_elites": levels, "search_invalid_elites": 0,
         "config": {"preset": "tiny", "budget": 150}, "created": "2026-01-02 03:04:05", "levels": entries,
+        "domain": "maze", "reference": REFERENCE if regression else None,
     }
-    if v1:
-        data["see_through_walls"] = False
-    else:
-        data.update(domain="maze", reference=REFERENCE if regression else None)
     (folder / "collection.json").write_text(json.dumps(data))
     return folder
 
@@ -123,15 +113,6 @@ def test_table_has_every_level_worst_first_with_its_command(tmp_path):
     # The copy button's command names the level file relative to the collection folder.
     assert re.search(r"data-cmd='dsage-ray maze eval [^']*--layout levels/level_0003\.txt [^']*--seed 1003'",
                      rows[3][3])
-
-
-def test_v1_collection_renders_with_rebuilt_commands(tmp_path):
-    folder = make_collection(tmp_path / "old", levels=4, v1=True)
-    page = write_report(folder).read_text()
-    assert "<dt>domain</dt><dd>maze</dd>" in page and "<dt>reference</dt><dd>none</dd>" in page
-    for i in range(4):
-        assert re.search(rf"dsage-ray maze eval --agent {AGENT} --layout \S*levels/level_000{i}\.txt "
-                         rf"--episodes 4 --seed {1000 + i} --no-see-through-walls", page), i
 
 
 def test_regression_collection_shows_both_agents(tmp_path):
@@ -318,10 +299,10 @@ def test_worst_level_is_a_link_to_its_row_and_sorts_as_a_number(tmp_path):
         assert key == target == text and target in rows
 
 
-def test_step_limit_is_explained_from_the_config(tmp_path):
+def test_step_limit_is_explained_from_the_collection(tmp_path):
     folder = make_collection(tmp_path / "c", levels=5)
     data = json.loads((folder / "collection.json").read_text())
-    data["config"]["maze"] = {"height": 10, "width": 12}  # 2·(10+2)·(12+2) = 336 steps
+    data["max_steps"] = 336  # as the Maze records it for a 10×12 maze: 2·(10+2)·(12+2)
     (folder / "collection.json").write_text(json.dumps(data))
     page = write_report(folder).read_text()
     assert "<dt>step limit</dt><dd>336 steps per episode</dd>" in page
@@ -332,7 +313,7 @@ def test_step_limit_is_explained_from_the_config(tmp_path):
     assert re.search(rf"<th class='num' title='{note}'><button[^>]*>mean_<wbr>path_<wbr>length<", page)
     assert re.search(rf"title='{note}'><button[^>]*>mean path length<", page)
     assert page.count(f"<td class='l' title='{note}'>mean_path_length</td>") == 5
-    # A collection that records its domain's limit uses it.
+    # The limit is the collection's, not one the report knows.
     data["max_steps"] = 99
     (folder / "collection.json").write_text(json.dumps(data))
     assert "<dd>99 steps per episode</dd>" in write_report(folder).read_text()

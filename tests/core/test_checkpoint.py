@@ -136,10 +136,10 @@ def test_other_versions_that_load_are_a_warning(tmp_path, state, monkeypatch, li
     assert loaded["evals"] == 10
 
 
-def forged(path, payload: bytes, *, file_format: int = checkpoint.FORMAT_VERSION):
+def forged(path, payload: bytes):
     """A checkpoint file around ``payload`` with a correct header: what anyone can write (the checksum is no seal)."""
-    header = {"format": file_format, "libraries": checkpoint.library_versions(), "payload_bytes": len(payload),
-              "payload_sha256": hashlib.sha256(payload).hexdigest()}
+    header = {"format": checkpoint.FORMAT_VERSION, "libraries": checkpoint.library_versions(),
+              "payload_bytes": len(payload), "payload_sha256": hashlib.sha256(payload).hexdigest()}
     path.write_bytes(checkpoint._MAGIC + json.dumps(header).encode() + b"\n" + payload)
     return path
 
@@ -214,30 +214,6 @@ def test_a_state_the_reader_would_refuse_fails_when_saved_not_when_resumed(tmp_p
     with pytest.raises(TypeError, match="cannot save a checkpoint .*names posix.getcwd"):
         save_checkpoint({"thing": RunsCode(os.getcwd)}, tmp_path / "c.dsage")
     assert not (tmp_path / "c.dsage").exists()
-
-
-def test_a_format_2_checkpoint_is_refused_with_the_conversion_command_and_converts_when_trusted(tmp_path, state,
-                                                                                                capsys):
-    from dsage_ray.cli import main
-
-    path = forged(tmp_path / "old.dsage", pickle.dumps(state), file_format=2)
-    with pytest.raises(CheckpointError, match=re.escape(f"dsage-ray checkpoint convert {path} --trust")):
-        load_checkpoint(path)
-    assert main(["checkpoint", "convert", str(tmp_path)]) == 2  # a folder, and no --trust
-    assert "add --trust" in capsys.readouterr().err
-    assert main(["checkpoint", "convert", str(path), "--trust"]) == 0
-    assert f"converted: {path}" in capsys.readouterr().out
-    loaded = load_checkpoint(path)
-    np.testing.assert_array_equal(loaded["archive"].data("objective"), state["archive"].data("objective"))
-    assert main(["checkpoint", "convert", str(path), "--trust"]) == 2
-    assert "nothing to convert" in capsys.readouterr().err
-
-
-def test_a_tune_folder_of_the_old_format_says_so(tmp_path):
-    torch.save({"archive": None}, tmp_path / "runner_state.pt")
-    with pytest.raises(CheckpointError, match=r"no such checkpoint \(it holds runner_state.pt, a checkpoint of an "
-                                              r"earlier dsage_ray"):
-        load_checkpoint(tmp_path / checkpoint.CHECKPOINT_NAME)
 
 
 def test_a_checkpoint_without_a_run_config_is_named_not_a_key_error(tmp_path, state):

@@ -84,11 +84,3 @@ def test_console_progress_prints_a_line_per_iteration(tmp_path, capsys):
     iterations = len(json.loads((tmp_path / "metrics.json").read_text()))
     assert len(lines) == iterations and lines[0].startswith("iter 1/~")
     assert lines[-1].startswith(f"iter {iterations}/{iterations}  evals 50/50") and lines[-1].endswith("ETA done")
-
-
-def test_a_folder_with_an_old_format_checkpoint_is_neither_overwritten_nor_resumed(tmp_path):
-    (tmp_path / "checkpoint.pkl").write_bytes(b"old")
-    with pytest.raises(InputError, match="already holds a run"):
-        run_locally(config(), out_dir=tmp_path, domain=BitmapDomain(), console=False)
-    with pytest.raises(InputError, match=r"it holds checkpoint.pkl, a checkpoint of an earlier dsage_ray"):
-        run_locally(config(), out_dir=tmp_path, resume=True, domain=BitmapDomain(), console=False)

@@ -16,8 +16,6 @@ field that is not), and a file named by a field is linked, or its picture embedd
 relative path inside the collection folder (:func:`~dsage_ray.audit.report.blocks.collection_href`): a
 ``javascript:`` or ``http:`` name, an absolute path or a ``..`` step out is shown as text, not linked.
 
-Reads both collection formats through :func:`~dsage_ray.audit.collection_file.load_collection`, which gives a
-v1 collection (Maze only) the v2 keys (``domain``, ``reference``, each level's ``reproduce``): only v2 here.
 Nothing here knows a domain: which of an entry's numbers are shown, under which label, in which format and
 with which explanation, and which of the collection's settings, is the domain's registration's
 (:class:`~dsage_ray.domains.AuditSpec` ``columns`` and ``settings``).

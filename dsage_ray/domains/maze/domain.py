@@ -410,21 +410,3 @@ class MazeDomain:
             "repeated_visits": float(info["repeated_visits"]),
         }
 
-
-def upgrade_collection(collection: dict[str, Any], *, folder: Path) -> None:
-    """Fills in what older Maze collections lack: the v2 keys of a v1 collection (``domain``, ``reference``,
-    each level's ``level_file`` and ``reproduce``) and ``max_steps``, the step limit of the recorded level size."""
-    if collection.get("max_steps") is None:
-        size = (collection.get("config") or {}).get("maze") or {}
-        if "height" in size and "width" in size:
-            collection["max_steps"] = max_steps_for(int(size["height"]), int(size["width"]))
-    if collection.get("format") != "dsage_ray.collection.v1":
-        return
-    collection.setdefault("reference", None)
-    # The agent's evaluation as v1 recorded it, for its reproduce commands.
-    domain = MazeDomain(config=MazeConfig(agent=collection["agent"], episodes=int(collection["episodes"]),
-                                          see_through_walls=bool(collection.get("see_through_walls", True))))
-    for level in collection["levels"]:
-        level.setdefault("level_file", level["layout_file"])
-        level.setdefault("reproduce", domain.reproduce_command(folder.resolve() / level["layout_file"],
-                                                               seed=level["seed"]))

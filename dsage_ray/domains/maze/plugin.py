@@ -164,7 +164,6 @@ DOMAIN = DomainSpec(
         episodes_key="maze.episodes",
         columns=COLUMNS,
         settings=(ReportField(key="max_steps", label="step limit", format="{} steps per episode"),),
-        upgrade="dsage_ray.domains.maze.domain:upgrade_collection",
         # Mutants of the never-solved mazes found so far, beside the surrogate's picks: at equal search time
         # they multiplied the never-solved mazes an audit finds (docs/DECISIONS.md).
         surrogate_keys={"selection.elite_mutants": 150},
