@@ -76,12 +76,14 @@ def markdown() -> str:
         parts += ["", f"## The `{name}` section ({len(section)}, with `--domain {name}`)", "", _table(section)]
     experimental = key_lines(experimental=True)[len(run):]
     parts += ["", f"## Experimental ({len(experimental)}, listed with `--experimental`)", "", _table(experimental),
-              "", "## Renamed keys", "", "An old name still reads, in a config file, `--set` or a stored run.", "",
+              "", "## Renamed keys", "",
+              "No release had these names; they still read because commands in docs/results/ use them.", "",
               "| old name | new name |", "|---|---|",
               *(f"| `{old}` | `{new}` |" for old, new in RENAMED_KEYS.items()),
               "", "## Removed keys", "",
-              "A stored run (or a file) that holds the value listed loads as before; any other value is refused with "
-              "the reason, since today's code would run something else.", "",
+              "Kept for the commands in docs/results/ that set them: the value listed loads as before; any other value "
+              "is refused with the reason, since today's code would run something else. Any other key that is gone is "
+              "an unknown key (docs/DECISIONS.md lists what was tried and dropped).", "",
               "| key | loads at | why |", "|---|---|---|",
               *(f"| `{key}` | {', '.join(f'`{shown_value(v)}`' for v in removed.accepted) or 'any value'} | "
                 f"{removed.why} |" for key, removed in REMOVED_KEYS.items())]

@@ -161,7 +161,7 @@ def test_a_run_name_cannot_leave_the_runs_folder(name):
 
 
 def test_a_renamed_key_still_reads_under_its_old_name():
-    """Keys moved into ``experimental`` (a stored run, an old config file or ``--set`` may name them as they were)."""
+    """Keys moved into ``experimental``, as the records' commands (docs/results/) still name them."""
     config = RunConfig.build({"surrogate.holdout_levels": 7, "selection.screen_pool": 2.0})
     assert (config.experimental.holdout_levels, config.experimental.screen_pool) == (7, 2.0)
     assert "surrogate.holdout_levels" not in config.to_flat()
@@ -170,9 +170,14 @@ def test_a_renamed_key_still_reads_under_its_old_name():
 def test_a_removed_key_loads_at_the_value_that_runs_now_and_is_refused_with_its_reason_otherwise():
     from dsage_ray.config import REMOVED_KEYS
 
-    stored = RunConfig.build({}).to_flat() | {"selection.expected_gain": False, "surrogate.dilations": [1, 1],
-                                              "checkpoint_every": 3}
+    stored = RunConfig.build({}).to_flat() | {"selection.cost_offset": 200, "image_levels": 3}
     assert RunConfig.build(stored) == RunConfig.build({})
-    with pytest.raises(ConfigError, match=r"surrogate.dilations: this key was removed \(measured not to help"):
-        RunConfig.build({"surrogate.dilations": [1, 2, 4]})
+    with pytest.raises(ConfigError, match=r"selection.cost_offset: this key was removed \(the screen's cost model"):
+        RunConfig.build({"selection.cost_offset": 74})
     assert not REMOVED_KEYS.keys() & RunConfig.build({}).to_flat().keys()
+
+
+def test_a_key_gone_without_a_record_that_needs_it_is_an_unknown_key_with_the_closest_current_ones():
+    with pytest.raises(ConfigError, match=r"selection.gain_window: unknown config key \(did you mean "
+                                          r"experimental.gain_window"):
+        RunConfig.build({"selection.gain_window": 4})

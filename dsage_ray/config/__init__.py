@@ -13,7 +13,7 @@ Resolution order when building a config: dataclass defaults → the domain's *pr
 
 One module per job: :mod:`~dsage_ray.config.schema` (the sections and their keys),
 :mod:`~dsage_ray.config.layering` (presets and variants), :mod:`~dsage_ray.config.validation` (the rules),
-:mod:`~dsage_ray.config.migration` (renamed and removed keys), :mod:`~dsage_ray.config.parsing` (values, files,
+:mod:`~dsage_ray.config.migration` (old key names the records use), :mod:`~dsage_ray.config.parsing` (values, files,
 ``--set``) and :mod:`~dsage_ray.config.run` (:class:`RunConfig`, built from them).
 """
 

@@ -185,7 +185,7 @@ def test_a_run_with_elite_mutants_spends_its_budget_and_resumes_exactly():
 @pytest.mark.parametrize("overrides, key", [
     ({"experimental.gain_window": 0}, "experimental.gain_window"),
     ({"experimental.gain_neighbours": 0}, "experimental.gain_neighbours"),
-    ({"selection.expected_gain": True}, "selection.expected_gain: this key was removed"),
+    ({"selection.cost_offset": 74}, "selection.cost_offset: this key was removed"),
     ({"variant": "map_elites", "selection.elite_mutants": 10}, "selection.elite_mutants"),
     ({"variant": "dsage", "selection.elite_mutants": -1}, "selection.elite_mutants"),
     ({"variant": "dsage", "selection.elite_mutants": 10, "qd.emitter": "random"}, "selection.elite_mutants"),
