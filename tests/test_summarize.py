@@ -42,9 +42,10 @@ def run_experiment(root: Path, name: str, param_space: dict, scripts: dict) -> P
     """Runs a Tune experiment of :class:`ScriptedTrial` s; returns its folder."""
     trainable = tune.with_parameters(ScriptedTrial, scripts=scripts, marker_dir=str(root / f"{name}_markers"))
     (root / f"{name}_markers").mkdir(parents=True)
-    results = tune.Tuner(trainable, param_space=param_space, run_config=tune.RunConfig(
-        name=name, storage_path=str(root), verbose=0, failure_config=tune.FailureConfig(max_failures=1),
-    )).fit()
+    # Trials reuse their actors (ScriptedTrial.reset_config): a process start costs more than a scripted trial.
+    results = tune.Tuner(trainable, param_space=param_space, tune_config=tune.TuneConfig(reuse_actors=True),
+                         run_config=tune.RunConfig(name=name, storage_path=str(root), verbose=0,
+                                                   failure_config=tune.FailureConfig(max_failures=1))).fit()
     assert not results.errors
     return Path(results.experiment_path)
 
@@ -55,10 +56,15 @@ class ScriptedTrial(tune.Trainable):
     crashes; Tune restores it from that checkpoint and it reports the true rows."""
 
     def setup(self, config, scripts, marker_dir):
-        script = scripts[script_key(config)]
+        self.scripts, self.marker_dir = scripts, Path(marker_dir)
+        self.reset_config(config)
+
+    def reset_config(self, new_config):
+        script = self.scripts[script_key(new_config)]
         self.rows, self.repeat_from = script["rows"], script["repeat_from"]
-        self.marker = Path(marker_dir) / "".join(c if c.isalnum() else "_" for c in script_key(config))
+        self.marker = self.marker_dir / "".join(c if c.isalnum() else "_" for c in script_key(new_config))
         self.row = 0
+        return True
 
     def step(self):
         stale = self.repeat_from is not None and not self.marker.exists()
@@ -97,13 +103,19 @@ def maze_experiment(root: Path) -> Path:
     return run_experiment(root, "ablation_maze_tiny", space, scripts)
 
 
+@pytest.fixture(scope="module")
+def maze_tune(ray_session, tmp_path_factory) -> Path:
+    """One :func:`maze_experiment` for the tests that read it (a Tune experiment costs seconds)."""
+    return maze_experiment(tmp_path_factory.mktemp("maze"))
+
+
 def rows(markdown: str) -> dict[str, list[str]]:
     lines = [line for line in markdown.splitlines() if line.startswith("| ")]
     return {cells[0]: cells[1:] for cells in ([c.strip() for c in line.strip("|").split("|")] for line in lines[1:])}
 
 
-def test_maze_table_uses_the_papers_target_and_counts_never_as_the_budget(summarize, ray_session, tmp_path, capsys):
-    experiment = maze_experiment(tmp_path)
+def test_maze_table_uses_the_papers_target_and_counts_never_as_the_budget(summarize, maze_tune, capsys):
+    experiment = maze_tune
     stale = [json.loads(line)["qd_score"] for result in experiment.glob("*seed=1*variant=dsage*/result.json")
              for line in result.read_text().splitlines()]
     assert -1.0 in stale, "no iteration was re-reported: the restore case is not exercised"
@@ -206,8 +218,8 @@ def test_mean_curve_is_a_step_function_of_evaluations_with_a_standard_error_band
     np.testing.assert_allclose(single_mean, [0, 10, 10, 10, 30, 30]) and not single_se.any()
 
 
-def test_rows_from_two_experiments_with_a_variant_filter(summarize, ray_session, tmp_path, capsys):
-    old = maze_experiment(tmp_path / "old")
+def test_rows_from_two_experiments_with_a_variant_filter(summarize, maze_tune, tmp_path, capsys):
+    old = maze_tune
     evals = [100, 200, 300]
     scripts = dict([trial(variant="dsage", seed=0, qd_scores=[60, 150, 200], evals=evals),
                     trial(variant="dsage", seed=1, qd_scores=[60, 160, 220], evals=evals)])
