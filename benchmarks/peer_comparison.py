@@ -53,6 +53,18 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from metrics import format_mean_se, mean_se  # noqa: E402  (this folder's helpers)
 
 OURS = ("dsage", "map_elites", "cross_entropy", "halton")
+
+#: The peers' tasks: the shipped space, the agent (read at run time, never committed) and the peers' mutation
+#: intensity (in the parameters' units). LunarLander: Mazouni et al.'s QD task (AST 2024); the zoo's PPO never
+#: crashes on it under Gymnasium 1.x, the zoo's DQN does (docs/results/peers/record.md). CartPole: MDPFuzz's, as
+#: their replication study (Mazouni et al., 2025) runs it, with its own DQN (replication/cart/models/10140000.zip of
+#: QuentinMaz/MDPFuzz_Replicability_Study_Artifact; the record says how to take it out).
+TASKS: dict[str, dict[str, Any]] = {
+    "lunarlander": {"space": "lunarlander_fault", "agent": "sb3:../shared/models/rl_zoo/dqn/LunarLander-v2_1",
+                    "mdpfuzz_intensity": 5.0},
+    "cartpole": {"space": "cartpole_initial_state", "agent": "sb3:/tmp/cart_dqn/10140000.zip?greedy=1",
+                 "mdpfuzz_intensity": 0.01},
+}
 PEERS = ("rt", "fuzzer", "mdpfuzz", "tpe", "indago")
 
 
@@ -60,8 +72,10 @@ PEERS = ("rt", "fuzzer", "mdpfuzz", "tpe", "indago")
 class Config:
     """One invocation: which arms on which seeds, the budgets, and each arm's hyper-parameters."""
 
-    agent: str = "sb3:/work/shared/models/rl_zoo/ppo/LunarLander-v2_1"
-    space: str = "lunarlander_fault"
+    #: One of :data:`TASKS`: the defaults of ``space``, ``agent`` and ``mdpfuzz_intensity``.
+    task: str = "lunarlander"
+    agent: str = TASKS["lunarlander"]["agent"]
+    space: str = TASKS["lunarlander"]["space"]
     arms: tuple[str, ...] = ("dsage",)
     seeds: tuple[int, ...] = (100, 101, 102, 103, 104)
     #: The equal-episodes budget: every run plays at least this many episodes.
@@ -76,8 +90,8 @@ class Config:
     out: Path = Path("peer_runs.jsonl")
     #: A tag kept in each record (``tuning``, ``fresh``), so tuning runs and published runs never mix.
     tag: str = "fresh"
-    # mdpfuzz (its LunarLander protocol: 1000 of 5000 episodes to initialise the pool, k = 10, tau = gamma = 0.01,
-    # a Gaussian mutation of 5 N; local sensitivity).
+    # mdpfuzz (its protocol: 1000 of 5000 episodes to initialise the pool, k = 10, tau = gamma = 0.01, a Gaussian
+    # mutation of the task's intensity, 5 N for LunarLander's force; local sensitivity).
     mdpfuzz_init_share: float = 0.2
     mdpfuzz_intensity: float = 5.0
     mdpfuzz_k: int = 10
@@ -222,29 +236,33 @@ def run_mdpfuzz(arm: str, ledger: Ledger, *, seed: int, config: Config) -> None:
     from mdpfuzz.executor import Executor
     from mdpfuzz.mdpfuzz import Fuzzer
 
-    force = 1000.0  # the box's half-width in N: a level is force / 1000
+    # The peers' executors draw and mutate inputs in the parameters' own units (N, m, rad); a level is the input
+    # mapped onto the domain's box [-1, 1]^P.
+    low = np.array([p.low for p in ledger.domain.space.params], dtype=float)
+    high = np.array([p.high for p in ledger.domain.space.params], dtype=float)
 
     class LedgerExecutor(Executor):
         def generate_input(self, rng):
-            return rng.uniform(-force, force, size=2)
+            return rng.uniform(low, high)
 
         def generate_inputs(self, rng, n=1):
-            return self.generate_input(rng) if n == 1 else rng.uniform(-force, force, size=(n, 2))
+            return self.generate_input(rng) if n == 1 else rng.uniform(low, high, size=(n, len(low)))
 
         def mutate(self, input, rng, **kwargs):
-            return np.clip(rng.normal(input, config.mdpfuzz_intensity), -force, force)
+            return np.clip(rng.normal(input, config.mdpfuzz_intensity), low, high)
 
         def load_policy(self, **kwargs):
             return None
 
         def execute_policy(self, input, policy):
             tic = time.time()
-            result = ledger.play(np.asarray(input) / force)
+            result = ledger.play(2.0 * (np.asarray(input) - low) / (high - low) - 1.0)
             observations = ledger.domain.last_observations
             return result.info["mean_return"], bool(ledger.trace[-1]["fault"]), observations, time.time() - tic
 
     fuzzer = Fuzzer(random_seed=seed, k=config.mdpfuzz_k, tau=config.mdpfuzz_tau, gamma=config.mdpfuzz_gamma,
-                    executor=LedgerExecutor(sim_steps=1000, env_seed=0))
+                    executor=LedgerExecutor(sim_steps=ledger.domain.space.max_episode_steps or 1000,
+                                                   env_seed=0))
     init = max(1, int(config.mdpfuzz_init_share * config.episodes))
     with tempfile.TemporaryDirectory() as folder:
         try:
@@ -443,11 +461,16 @@ def parse_args(argv: list[str] | None = None) -> tuple[Config, list[Path] | None
     parser.add_argument("--table", nargs="+", type=Path, help="print the table of these record files and stop")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="a Config field (mdpfuzz_intensity=20) or ours.KEY=VALUE for the DSAGE arms' config")
+    parser.add_argument("--task", choices=sorted(TASKS), default=defaults.task,
+                        help="the peers' task: its space, agent and mutation intensity (each overridable)")
     for name in ("agent", "space", "episodes", "cpu_from", "cpu", "min_episodes", "out", "tag"):
         kind = {"cpu_from": Path, "cpu": float, "min_episodes": int}.get(name) or type(getattr(defaults, name))
-        parser.add_argument(f"--{name.replace('_', '-')}", type=kind, default=getattr(defaults, name))
+        parser.add_argument(f"--{name.replace('_', '-')}", type=kind,
+                            default=None if name in ("agent", "space") else getattr(defaults, name))
     args = parser.parse_args(argv)
-    config = Config(agent=args.agent, space=args.space, arms=tuple(args.arms), seeds=tuple(args.seeds),
+    task = TASKS[args.task]
+    config = Config(task=args.task, agent=args.agent or task["agent"], space=args.space or task["space"],
+                    mdpfuzz_intensity=task["mdpfuzz_intensity"], arms=tuple(args.arms), seeds=tuple(args.seeds),
                     episodes=args.episodes, cpu_from=args.cpu_from, cpu=args.cpu,
                     min_episodes=args.min_episodes, out=args.out, tag=args.tag)
     types = {f.name: f.type for f in dataclasses.fields(Config)}
