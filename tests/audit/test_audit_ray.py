@@ -8,6 +8,7 @@ import os
 import numpy as np
 import pytest
 
+from dsage_ray.audit import compare as compare_module
 from dsage_ray.audit.collection import audit_config, build_collection
 from dsage_ray.audit.collection_file import load_collection
 from dsage_ray.audit.compare import compare_agents
@@ -69,20 +70,27 @@ def test_a_dying_simulator_loses_no_level(ray_session, search):
     assert [{k: lv[k] for k in keys} for lv in got["levels"]] == [{k: lv[k] for k in keys} for lv in expected["levels"]]
 
 
-def test_compare_on_the_pool_equals_in_process(ray_session, search, capsys):
+def test_compare_on_the_pool_equals_in_process(ray_session, search, capsys, monkeypatch):
     config, archive, folder = search
     collection = folder / "in_process"
     if not collection.exists():
         build_collection(archive, config=config, out_dir=collection)
     serial = compare_agents(AUDITED, "builtin:wall_follower", collection_dir=collection)
-    pooled = compare_agents(AUDITED, "builtin:wall_follower", collection_dir=collection, workers=2)
-    assert pooled["levels"] == serial["levels"] and pooled["summary"] == serial["summary"]
-    recorded = {lv["id"]: lv["success_rate"] for lv in load_collection(collection)["levels"]}
-    assert {r["id"]: r["success_a"] for r in pooled["levels"]} == recorded
+    # The command's own comparison is the pooled one: one pool start, not two (each costs seconds).
+    pooled_runs = []
 
+    def recording(*args, **kwargs):
+        pooled_runs.append(compare_agents(*args, **kwargs))
+        return pooled_runs[-1]
+
+    monkeypatch.setattr(compare_module, "compare_agents", recording)
     html = folder / "compare.html"
     assert main(["compare", "--agent", AUDITED, "--agent", "builtin:wall_follower", "--collection", str(collection),
                  "--workers", "2", "--html", str(html)]) == 0
+    (pooled,) = pooled_runs
+    assert pooled["levels"] == serial["levels"] and pooled["summary"] == serial["summary"]
+    recorded = {lv["id"]: lv["success_rate"] for lv in load_collection(collection)["levels"]}
+    assert {r["id"]: r["success_a"] for r in pooled["levels"]} == recorded
     captured = capsys.readouterr()
     assert f"{len(recorded)} levels; mean success A" in captured.out and html.is_file()
     assert "comparing" in captured.err  # the progress bar
