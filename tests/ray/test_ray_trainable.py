@@ -22,10 +22,15 @@ from tests.ray.helpers import (CrashOnceTrainable, archive_snapshot, bitmap_doma
 pytestmark = pytest.mark.usefixtures("ray_session")
 
 
+#: The restore tests compare archives only: no images (they cost seconds an iteration and change no archive),
+#: and three outer iterations (the crash test's trial dies in the second).
+RESTORED = {"image_every": 0, "budget": 90}
+
+
 @pytest.fixture(scope="module")
 def uninterrupted():
     """The reference: the same config run in-process without Ray."""
-    runner = DSAGE(config=small_config(), domain=BitmapDomain())
+    runner = DSAGE(config=small_config(**RESTORED), domain=BitmapDomain())
     runner.run()
     return runner
 
@@ -40,7 +45,7 @@ def test_resource_request_has_a_bundle_per_simulator():
 
 
 def test_step_save_restore_continues_exactly(tmp_path, uninterrupted):
-    config = small_config()
+    config = small_config(**RESTORED)
     first = make_trainable(config)
     try:
         result = first.train()
@@ -63,7 +68,8 @@ def test_step_save_restore_continues_exactly(tmp_path, uninterrupted):
 
 
 def test_a_trial_killed_mid_run_restores_and_ends_with_the_uninterrupted_archive(tmp_path, uninterrupted):
-    config = small_config()
+    config = small_config(**RESTORED)
+    assert len(uninterrupted.history) > 2  # the crash after step 2 comes before the last step
     trainable = tune.with_parameters(CrashOnceTrainable, domain_factory=bitmap_domain,
                                      crash_marker=str(tmp_path / "crashed"), crash_after=2)
     results = tune.Tuner(
@@ -97,7 +103,8 @@ def test_an_impossible_trial_request_fails_with_a_clear_message(tmp_path):
 def test_tune_run_grid_writes_tensorboard_scalars_and_images(tmp_path, capsys):
     """``tune.run`` here; the Tuner path is exercised by the crash test and the ablation test."""
 
-    config = small_config(budget=70)
+    # Images once, when the budget is spent: each set costs seconds, and once shows they reach TensorBoard.
+    config = small_config(budget=70, image_every=100)
     space = {**config.to_flat(), "seed": tune.grid_search([0, 1])}
     for api in ("run",):
         experiment = run_experiment(space, name=f"tb_{api}", storage_path=tmp_path, api=api, max_failures=0,
