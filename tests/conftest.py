@@ -82,20 +82,28 @@ def agent_plugin(agent_plugin_site):
         yield plugin_package.KIND
 
 
-#: Files whose tests take most of the suite's time (Tune experiments, Ray pools, JVM runs). ``make test`` runs
-#: two pytest workers that take whole files in collection order; handing these out first keeps both busy to the
-#: end instead of leaving one worker alone with the slowest files.
+#: Files whose tests take most of the suite's time (Tune experiments, Ray pools, JVM runs, subprocess runs), the
+#: slowest first (``--durations`` of a ``make test`` run). ``make test`` runs two pytest workers that take whole files
+#: in collection order (``--no-loadscope-reorder``); handing these out first keeps both busy to the end instead of
+#: leaving one worker alone with a slow file. The files after them take under 30 s each.
 SLOW_FILES_FIRST = (
-    "tests/ray/test_ray_trainable.py",
     "tests/ray/test_mode_equality.py",
-    "tests/ray/test_ray_mario.py",
+    "tests/ray/test_ray_trainable.py",
     "tests/test_api.py",
-    "tests/audit/test_mario_audit.py",
-    "tests/ray/test_ray_progress.py",
+    "tests/audit/test_audit.py",
+    "tests/examples/test_gridpath.py",
+    "tests/core/test_runner.py",
+    "tests/ray/test_ray_mario.py",
     "tests/audit/test_audit_ray.py",
+    "tests/ray/test_ray_progress.py",
     "tests/test_summarize.py",
-    "tests/ray/test_storage.py",
+    "tests/ray/test_ray_pool.py",
+    "tests/core/test_warm_start.py",
     "tests/domains/maze/agents/test_rllib.py",
+    "tests/audit/test_report_browser.py",
+    "tests/ray/test_storage.py",
+    "tests/benchmarks/test_surrogate_benchmark.py",
+    "tests/audit/test_mario_audit.py",
 )
 
 
