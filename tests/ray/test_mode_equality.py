@@ -5,7 +5,8 @@ In-process (``dsage-ray run --local``), one Tune trial with 1 simulator actor an
 files and the same metrics, for DSAGE and MAP-Elites (the other DSAGE variants differ from DSAGE only in
 keys the runner reads, not in how the modes drive it). DSAGE's two-actor trial runs
 pipelined (``pipeline = true``: the surrogate trains while the pool evaluates) and is compared with a
-pipelined in-process run. The in-process run is
+pipelined in-process run; the one-actor trials screen their candidates (``selection.screen_episodes``), as
+their in-process twins do. The in-process run is
 started with a torch thread count other than the config's, as a user's shell would have it.
 """
 
@@ -41,25 +42,48 @@ CONFIG = {
 }
 VARIANTS = ("dsage", "map_elites")
 WORKERS = (1, 2)
+#: What the one-actor trials add: a screen of one episode a candidate. It plays where the proposer runs (the trial's
+#: process) and draws its seeds from the run's stream, so it must not make the modes differ.
+SCREEN = {"selection.screen_episodes": 1}
+#: MAP-Elites screens only once its random batches are done: its screened runs go on to this budget (DSAGE screens
+#: from its first surrogate iteration on, and each of its screened iterations picks only a few levels).
+MAP_ELITES_SCREENED_BUDGET = 100
+
+
+def screened(workers: int) -> bool:
+    """The one-actor trials screen; the two-actor trials do not (and DSAGE's runs pipelined)."""
+    return workers == 1
+
+
+def pipelined(variant: str, workers: int) -> bool:
+    return variant == "dsage" and workers == 2
+
+
+def case_config(variant: str, workers: int) -> dict:
+    """The keys of trial ``(variant, workers)`` beyond :data:`CONFIG`, which its in-process twin runs with."""
+    keys = {"variant": variant, "pipeline": pipelined(variant, workers)}
+    if screened(workers):
+        keys |= {**SCREEN, **({"budget": MAP_ELITES_SCREENED_BUDGET} if variant == "map_elites" else {})}
+    return keys
 
 
 @pytest.fixture(scope="module")
 def tune_trials(tmp_path_factory) -> dict[tuple[str, int], dict]:
-    """``(variant, ray.num_workers)`` → the trial's resolved config, archive.csv and metrics."""
+    """``(variant, ray.num_workers)`` → the trial's resolved config, archive.csv and metrics.
+
+    One Tune experiment for every case: a Tune start costs more than any of these runs.
+    """
     base = RunConfig.build({**CONFIG, "variant": "dsage"})
     space = grid_param_space(base, {"variant": list(VARIANTS), "ray.num_workers": list(WORKERS)})
-    # DSAGE with two actors runs pipelined: its next picks are chosen while its batch is out in the pool.
-    space["pipeline"] = tune.sample_from(lambda spec: pipelined(spec.config["variant"], spec.config["ray.num_workers"]))
+    for key in ("pipeline", *SCREEN, "budget"):
+        space[key] = tune.sample_from(lambda spec, key=key: RunConfig.build(
+            {**CONFIG, **case_config(spec.config["variant"], spec.config["ray.num_workers"])}).to_flat()[key])
     experiment = run_experiment(space, name="modes", storage_path=tmp_path_factory.mktemp("tune"), max_failures=0)
     trials = {}
     for trial in experiment.trials:
         trials[trial.config.variant, trial.config.ray.num_workers] = outputs(trial.path, trial.config)
     assert sorted(trials) == sorted((v, w) for v in VARIANTS for w in WORKERS)
     return trials
-
-
-def pipelined(variant: str, workers: int) -> bool:
-    return variant == "dsage" and workers == 2
 
 
 def outputs(run_dir, config: RunConfig) -> dict:
@@ -76,9 +100,9 @@ def outputs(run_dir, config: RunConfig) -> dict:
     }
 
 
-@pytest.mark.parametrize("variant, pipeline", [(variant, False) for variant in VARIANTS] + [("dsage", True)])
-def test_in_process_and_tune_with_one_or_two_actors_write_the_same_archive(variant, pipeline, tune_trials, tmp_path):
-    config = RunConfig.build({**CONFIG, "variant": variant, "pipeline": pipeline})
+@pytest.mark.parametrize("variant, workers", [(variant, workers) for variant in VARIANTS for workers in WORKERS])
+def test_in_process_and_tune_with_one_or_two_actors_write_the_same_archive(variant, workers, tune_trials, tmp_path):
+    config = RunConfig.build({**CONFIG, **case_config(variant, workers)})
     assert config.torch_threads == 1
     caller_threads = torch.get_num_threads()
     torch.set_num_threads(2)  # not the config's count: the runner pins it during each step
@@ -91,35 +115,12 @@ def test_in_process_and_tune_with_one_or_two_actors_write_the_same_archive(varia
     assert len(local["metrics"]) >= 3  # a surrogate variant trains at least twice
     if config.uses_surrogate:
         assert "surrogate_loss" in local["metrics"][-1]
-    for workers in [w for w in WORKERS if pipelined(variant, w) == pipeline]:
-        trial = tune_trials[variant, workers]
-        assert trial["config"] == local["config"], workers
-        assert trial["metrics"] == local["metrics"], workers
-        assert trial["archive.csv"] == local["archive.csv"], workers
-        if pipeline:  # the surrogate worked while each batch after the first was out
-            overlapped = [row.get("time_overlapped", 0.0) for row in trial["history"]]
-            assert overlapped[0] == 0.0 and all(seconds > 0 for seconds in overlapped[1:-1])
-
-
-
-def test_a_screened_search_writes_the_same_archive_in_process_and_through_tune(tmp_path):
-    # The screen plays its episodes where the proposer runs (the trial's process) and draws its seeds from the
-    # run's stream, so it must not make the modes differ. MAP-Elites screens once its random batches are done.
-    # One Tune experiment for both variants: a Tune start costs more than either run.
-    screened = {"selection.screen_episodes": 1, "budget": 100, "ray.num_workers": 1}
-    local = {}
-    for variant in VARIANTS:
-        config = RunConfig.build({**CONFIG, "variant": variant, **screened})
-        run_locally(config, out_dir=tmp_path / variant)
-        local[variant] = outputs(tmp_path / variant, config)
-        assert sum(row.get("selection_screened", 0) for row in local[variant]["metrics"]) > 0, variant
-    base = RunConfig.build({**CONFIG, "variant": "dsage", **screened})
-    experiment = run_experiment(grid_param_space(base, {"variant": list(VARIANTS)}), name="screened",
-                                storage_path=tmp_path / "tune", max_failures=0)
-    assert sorted(trial.config.variant for trial in experiment.trials) == sorted(VARIANTS)
-    for trial in experiment.trials:
-        tuned = outputs(trial.path, trial.config)
-        expected = local[trial.config.variant]
-        assert tuned["config"] == expected["config"], trial.config.variant
-        assert tuned["metrics"] == expected["metrics"], trial.config.variant
-        assert tuned["archive.csv"] == expected["archive.csv"], trial.config.variant
+    if screened(workers):
+        assert sum(row.get("selection_screened", 0) for row in local["metrics"]) > 0
+    trial = tune_trials[variant, workers]
+    assert trial["config"] == local["config"]
+    assert trial["metrics"] == local["metrics"]
+    assert trial["archive.csv"] == local["archive.csv"]
+    if pipelined(variant, workers):  # the surrogate worked while each batch after the first was out
+        overlapped = [row.get("time_overlapped", 0.0) for row in trial["history"]]
+        assert overlapped[0] == 0.0 and all(seconds > 0 for seconds in overlapped[1:-1])
