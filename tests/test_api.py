@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -48,18 +49,29 @@ def test_resolve_config_reads_files_dicts_and_configs_like_the_command_line():
         dsage_ray.resolve_config({"surogate.epochs": 3})
 
 
-def test_run_returns_its_folder_metrics_archive_and_checkpoint_as_the_cli_writes_them(tmp_path, capsys):
+#: The command line of the local run of :data:`SMALL` (``--out`` to add).
+SMALL_RUN_ARGS = ["run", str(CONFIG), "--preset", "tiny", *(f"--set={key}={value}" for key, value in SMALL.items()),
+                  "--local"]
+
+
+@pytest.fixture(scope="module")
+def cli_run(tmp_path_factory) -> Path:
+    """The folder of :data:`SMALL_RUN_ARGS`'s run, for the tests that read it (a test that changes it copies it)."""
+    out = tmp_path_factory.mktemp("cli") / "run"
+    assert main([*SMALL_RUN_ARGS, "--out", str(out)]) == 0
+    return out
+
+
+def test_run_returns_its_folder_metrics_archive_and_checkpoint_as_the_cli_writes_them(tmp_path, cli_run):
     result = dsage_ray.run(CONFIG, preset="tiny", overrides=SMALL, local=True, out=tmp_path / "api")
     assert isinstance(result, dsage_ray.RunResult) and result.path == tmp_path / "api"
     assert result.checkpoint.is_file() and result.metrics[-1]["evals"] == 60
     assert result.metrics == json.loads((result.path / "metrics.json").read_text())
     # The same run from the command line: same metrics (but the timings) and the same archive.
-    args = [f"--set={key}={value}" for key, value in SMALL.items()]
-    assert main(["run", str(CONFIG), "--preset", "tiny", *args, "--local", "--out", str(tmp_path / "cli")]) == 0
-    cli = json.loads((tmp_path / "cli" / "metrics.json").read_text())
+    cli = json.loads((cli_run / "metrics.json").read_text())
     untimed = lambda rows: [{k: v for k, v in row.items() if "time" not in k} for row in rows]  # noqa: E731
     assert untimed(cli) == untimed(result.metrics)
-    assert (tmp_path / "cli" / "archive.csv").read_text() == (result.path / "archive.csv").read_text()
+    assert (cli_run / "archive.csv").read_text() == (result.path / "archive.csv").read_text()
     assert len(result.archive) == len(result.archive.data()["index"]) > 0
 
 
@@ -101,13 +113,12 @@ def test_the_api_example_runs_and_returns_levels_with_seeds_and_a_report(tmp_pat
     assert "run: 60 evaluations, QD-score" in proc.stdout and (tmp_path / "run" / "checkpoint.dsage").is_file()
 
 
-def test_a_run_resumes_as_it_began_when_a_default_changed_since(tmp_path, monkeypatch, capsys):
+def test_a_run_resumes_as_it_began_when_a_default_changed_since(tmp_path, cli_run, monkeypatch, capsys):
     import dsage_ray.config.layering as config_module  # the presets RunConfig.build layers
 
     out = tmp_path / "run"
-    args = ["run", str(CONFIG), "--preset", "tiny", *(f"--set={key}={value}" for key, value in SMALL.items()),
-            "--local", "--out", str(out)]
-    assert main(args) == 0
+    shutil.copytree(cli_run, out)  # a run of these arguments, as this test's own
+    args = [*SMALL_RUN_ARGS, "--out", str(out)]
     began = json.loads((out / "config.json").read_text())["qd"]["exploit_iterations"]
     # As if a later version changed the tiny preset's inner loop.
     presets = config_module.presets
