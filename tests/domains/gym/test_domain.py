@@ -130,8 +130,9 @@ def test_an_audit_ends_with_a_collection_a_report_and_reproducible_entries(polic
     from dsage_ray.audit.run import run_audit
     from dsage_ray.cli import main
 
-    collection = run_audit(domain="gym", agent=policy_file, preset="tiny", local=True, out=tmp_path / "audit",
-                           overrides={"gym.episodes": 3})
+    # One random iteration (the budget is the tiny preset's n_rand): the search's levels are all this reads.
+    collection = run_audit(domain="gym", agent=policy_file, preset="tiny", budget=20, local=True,
+                           out=tmp_path / "audit", overrides={"gym.episodes": 3})
     assert collection.levels and collection.report_path.is_file()
     assert (tmp_path / "audit" / "collection" / "heatmap.png").is_file()
     worst = collection.levels[0]
