@@ -174,7 +174,8 @@ def test_a_dsage_maze_audit_mutates_its_best_elites_and_other_searches_do_not():
 
 def test_an_audit_resumes_with_the_defaults_it_began_with_and_names_a_changed_key(tmp_path, capsys):
     # An audit begun before the mutants became the default (as if) continues without them.
-    args = ["audit", "--agent", AUDITED, "--preset", "tiny", "--budget", "24", "--set", "n_rand=24",
+    # 8 random levels: the test reads the config the resume records, not the levels.
+    args = ["audit", "--agent", AUDITED, "--preset", "tiny", "--budget", "8", "--set", "n_rand=8",
             "--set", "maze.episodes=4", "--local", "--out", str(tmp_path)]
     assert main([*args, "--set", "selection.elite_mutants=0"]) == 0
     (tmp_path / "search" / "config.json").unlink()  # as an interrupted search, which has written only its checkpoint
@@ -190,8 +191,9 @@ def test_a_gym_audit_resumes_with_the_preset_values_it_began_with(tmp_path):
     # begun then continues as it began, not with today's values, and not with an error.
     # A random agent never balances CartPole's 475 steps: its nominal check fails by rights, and this test is about
     # the resume, so it goes on.
+    # One random iteration of 8 levels (no surrogate trained): the test reads the config the resume records.
     args = ["audit", "--domain", "gym", "--space", "cartpole", "--agent", "random", "--preset", "tiny", "--budget",
-            "24", "--local", "--out", str(tmp_path), "--allow-failing-nominal"]
+            "8", "--set", "n_rand=8", "--local", "--out", str(tmp_path), "--allow-failing-nominal"]
     assert main([*args, "--set", "qd.sigma0=0.3", "--set", "selection.elite_mutants=3"]) == 0
     (tmp_path / "search" / "config.json").unlink()  # as an interrupted search, which has written only its checkpoint
     assert main([*args, "--resume"]) == 0
