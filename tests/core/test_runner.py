@@ -199,28 +199,38 @@ def test_selection_config_is_checked(overrides, key):
         RunConfig.build({**SMALL, **overrides})
 
 
+#: The screened runs' budget: 60 evaluations after the 40 random ones hold about ten screened iterations (the
+#: rest fall back), and the later iterations, with a larger archive to screen against, cost the most.
+SCREENED_BUDGET = 100
+
+
 def _screening_runner(**overrides) -> DSAGE:
     from tests.fakes import ScreeningBitmapDomain
 
-    return DSAGE(config=RunConfig.build({**SMALL, "budget": 160, "selection.screen_episodes": 1, **overrides}),
-                 domain=ScreeningBitmapDomain())
+    config = RunConfig.build({**SMALL, "budget": SCREENED_BUDGET, "selection.screen_episodes": 1, **overrides})
+    return DSAGE(config=config, domain=ScreeningBitmapDomain())
 
 
-def test_with_an_exact_screen_every_screened_pick_fills_a_new_cell_and_the_screen_is_timed():
+@pytest.fixture(scope="module")
+def screened_run() -> tuple[DSAGE, list[dict]]:
+    """One screened DSAGE run to its budget and its history, read by the tests of what it did and of its resume."""
     runner = _screening_runner()
-    history = runner.run()
+    return runner, runner.run()
+
+
+def test_with_an_exact_screen_every_screened_pick_fills_a_new_cell_and_the_screen_is_timed(screened_run):
+    runner, history = screened_run
     screened = [h for h in history[1:] if not h["selection_screen_fallback"]]
     assert screened and runner.domain.screened == sum(h["selection_screened"] for h in history[1:])
     assert all(h["new_cell_share"] == 1.0 for h in screened)
     assert all(0 < h["time_screen"] <= h["time_select"] for h in history[1:])
     # Without the screen the same search spends picks on cells it already holds.
-    plain = make_runner(budget=160)
+    plain = make_runner(budget=SCREENED_BUDGET)
     assert min(h["new_cell_share"] for h in plain.run()[1:]) < 1.0
 
 
-def test_a_screened_run_resumes_exactly():
-    reference = _screening_runner()
-    reference.run()
+def test_a_screened_run_resumes_exactly(screened_run):
+    reference, _ = screened_run
     resumed = resumed_after(_screening_runner, 2)
     assert archive_snapshot(resumed.archive) == archive_snapshot(reference.archive)
 
@@ -228,7 +238,7 @@ def test_a_screened_run_resumes_exactly():
 def test_screened_map_elites_evaluates_only_mutants_whose_screen_fills_a_new_cell_after_its_random_start():
     runner = _screening_runner(variant="map_elites")
     history = runner.run()
-    assert runner.evals == 160
+    assert runner.evals == SCREENED_BUDGET
     from dsage_ray.qd.optimizer import MAP_ELITES_RANDOM_BATCHES as start
 
     assert all("selection_screened" not in h for h in history[:start])  # the random start-up is not screened
@@ -236,7 +246,7 @@ def test_screened_map_elites_evaluates_only_mutants_whose_screen_fills_a_new_cel
     assert screened and runner.domain.screened == sum(h["selection_screened"] for h in history[start:])
     assert all(h["new_cell_share"] == 1.0 for h in screened)
     assert all(h["selection_screened"] == 4 * 20 for h in history[start:])  # screen_pool × the batch of 2 × 10
-    plain = make_runner(variant="map_elites", budget=160)
+    plain = make_runner(variant="map_elites", budget=SCREENED_BUDGET)
     assert min(h["new_cell_share"] for h in plain.run()[start:]) < 1.0
 
 
