@@ -214,3 +214,39 @@ def test_the_nominal_level_is_the_environment_as_registered_or_the_spaces_nomina
     heavy = build_domain(config(**{"gym.agent": policy_file, "gym.space_set": ("nominal.length = 2.0",)}))
     long_pole = heavy.play_nominal(seed=4)
     assert long_pole.level == "CartPole-v1 with length=2.0" and long_pole.mean_return != registered.mean_return
+
+
+def test_with_a_floor_dsage_picks_predicted_faults_that_would_enter_even_where_cells_are_predicted():
+    """``selection.min_predicted``: of the surrogate elites that would enter, only those predicted at least the floor
+    are picked (each block's largest gain), where any is; a fault space takes 0.5 unless the user sets it."""
+    from dsage_ray.core.proposers import SurrogateAssisted, domain_archive
+    from dsage_ray.core.seeds import RunSeeds
+    from dsage_ray.qd.selection import adds_to
+
+    assert config(**{"gym.space": "lunarlander_fault"}).selection.min_predicted == 0.5
+    assert config(**{"gym.space": "lunarlander_fault", "selection.min_predicted": -1.0}).selection.min_predicted == -1
+    assert config().selection.min_predicted is None  # cartpole declares success, not a fault
+    run = config(**{"gym.measures": ("param.length", "length"), "selection.min_predicted": 0.5})
+    domain = build_domain(run)
+    archive = domain_archive(domain, with_occupancy=False, seed=0)
+    proposer = SurrogateAssisted(config=run, domain=domain, archive=archive, seeds=RunSeeds(seed=0), evaluator=None)
+    assert not proposer.cells_known
+    rng = np.random.default_rng(0)
+    played = domain.random_solutions(100, rng)
+    archive.add(played, np.full(100, 0.1), proposer.surrogate.predict(domain.encode(played)).measures)
+    surrogate_archive = domain_archive(domain, with_occupancy=False, seed=1)
+    candidates = domain.random_solutions(300, rng)
+    # Predicted faults (0.9) in some cells only: elsewhere the elites would still enter (0.2 > 0.1), below the floor.
+    predicted = rng.choice([0.2, 0.9], size=300, p=[0.9, 0.1])
+    surrogate_archive.add(candidates, predicted, proposer.surrogate.predict(domain.encode(candidates)).measures)
+
+    metrics = {}
+    among, gain = proposer._picks_that_add(surrogate_archive, metrics)
+    elites = surrogate_archive.data()
+    adding = adds_to(archive, elites["objective"], elites["measures"])
+    wanted = adding & (elites["objective"] >= 0.5)
+    assert 0 < wanted.sum() < adding.sum() and metrics["selection_elites_that_add"] == wanted.sum()
+    np.testing.assert_array_equal(np.sort(among), np.sort(elites["index"][wanted]))
+    picks, _ = proposer._select(surrogate_archive, {}, {})
+    allowed = {tuple(row) for row in elites["solution"][wanted]}
+    assert len(picks) and all(tuple(row) in allowed for row in picks)
