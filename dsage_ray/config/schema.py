@@ -136,12 +136,6 @@ class SelectionConfig:
     #: cannot predict within a cell. 0 (the paper): only the surrogate's picks.
     elite_mutants: int = key(0, status="default-on", values=">= 0",
                              note="mutants of the best elites beside the picks (audits; docs/DECISIONS.md)")
-    #: Pick only surrogate elites predicted at least this good (where any is), each block's pick the one predicted
-    #: to add most to the ground truth in its predicted cell (not in the paper). A gym space that declares a
-    #: ``[fault]`` takes 0.5, a predicted fault: on the peers' LunarLander task (tuning seed 1) it raised DSAGE's
-    #: fault cells from 14 to 24 in 200 episodes (docs/results/peers). None: every elite, uniformly per block.
-    min_predicted: float | None = key(None, status="default-on", values="a number, or none",
-                                      note="pick only elites predicted at least this good (gym [fault] spaces: 0.5)")
     #: Before the real evaluation, screen the picks and more candidates with this many episodes each (the domain's
     #: ``screen``: Maze only) and evaluate, up to the selection's size, those whose screened result adds to the
     #: ground truth (not in the paper; :mod:`dsage_ray.qd.screen`). MAP-Elites (``qd.emitter = "map_elites"``
@@ -206,6 +200,13 @@ class ExperimentalConfig:
     #: ``selection.screen_gain``: how many of them, nearest in screened measures, lend a candidate their errors.
     gain_neighbours: int = key(64, status="experimental", values=">= 1",
                                note="screen_gain: nearest levels lending a candidate their errors (not tuned)")
+    #: Pick only surrogate elites predicted at least this good (where any is), each block's pick the one predicted
+    #: to add most to the ground truth in its predicted cell (not in the paper). A gym space that declares a
+    #: ``[fault]`` takes 0.5, a predicted fault, unless set: on the peers' LunarLander task (tuning seed 1) it raised
+    #: DSAGE's fault cells from 14 to 24 in 200 episodes (docs/results/peers). 0: off (every elite, uniformly per
+    #: block, unless the cells are known).
+    min_predicted: float = key(0.0, status="experimental", values="a number; 0: off",
+                               note="pick only elites predicted at least this good; on (0.5) for gym [fault] spaces")
     #: Solutions per pool task; 0 picks ~8 chunks per actor per batch, 1 spreads uneven episodes best, larger
     #: amortises Ray's per-task round trip.
     chunk_size: int = key(0, status="experimental", values=">= 0 (0: automatic)",

@@ -308,16 +308,16 @@ class SurrogateAssisted(Proposer):
 
     def _picks_that_add(self, surrogate_archive: "GridArchive",
                         metrics: dict[str, float]) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """With known cells, or a ``selection.min_predicted`` floor: the surrogate elites whose predicted objective
+        """With known cells, or an ``experimental.min_predicted`` floor: the surrogate elites whose predicted objective
         would enter the ground-truth archive (a new cell, or more than its elite; of those at least the floor, where
         any is) and what each would add to its QD-score, so that each block's pick is its largest gain.
         ``(None, None)`` (every elite, uniformly) when cells are predicted without a floor, or none would enter."""
-        floor = self.config.selection.min_predicted
-        if not self.cells_known and floor is None:
+        floor = self.config.experimental.min_predicted
+        if not self.cells_known and floor == 0.0:
             return None, None
         data = surrogate_archive.data()
         adding, gain = additions(self.archive, data["objective"], data["measures"])
-        if floor is not None and (good := adding & (np.asarray(data["objective"]) >= floor)).any():
+        if floor != 0.0 and (good := adding & (np.asarray(data["objective"]) >= floor)).any():
             adding = good
         metrics["selection_elites_that_add"] = float(adding.sum())
         if not adding.any():

@@ -55,7 +55,7 @@ class GymConfig:
     def complete(self, run: Any) -> None:
         """Reads the space and fills what was left to it: the measures (its ``[audit] measures``, else its first two
         declared ones), their cells, one downsampling block size per measure, and, where the space declares a
-        ``[fault]``, picks of predicted faults only (``selection.min_predicted = 0.5``).
+        ``[fault]``, picks of predicted faults only (``experimental.min_predicted = 0.5``).
 
         Raises:
             SpaceError: A space that does not load, or a measure it does not declare.
@@ -73,9 +73,9 @@ class GymConfig:
             self.archive_dims = tuple(space.measures[name].cells for name in self.measures)
         if len(run.selection.block) != len(self.measures):
             run.selection.block = tuple(min(4, cells) for cells in self.archive_dims)
-        if space.fault is not None and run.selection.min_predicted is None:
+        if space.fault is not None and run.experimental.min_predicted == 0.0:
             # A fault is a yes or no: pick the levels predicted to be faults (docs/DECISIONS.md).
-            run.selection.min_predicted = 0.5
+            run.experimental.min_predicted = 0.5
 
     def validate(self, need: Callable[[bool, str, str], None]) -> None:
         need(self.episodes >= 1, "episodes", "must be positive")

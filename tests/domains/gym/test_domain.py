@@ -217,16 +217,16 @@ def test_the_nominal_level_is_the_environment_as_registered_or_the_spaces_nomina
 
 
 def test_with_a_floor_dsage_picks_predicted_faults_that_would_enter_even_where_cells_are_predicted():
-    """``selection.min_predicted``: of the surrogate elites that would enter, only those predicted at least the floor
+    """``experimental.min_predicted``: of the surrogate elites that would enter, only those predicted at least the floor
     are picked (each block's largest gain), where any is; a fault space takes 0.5 unless the user sets it."""
     from dsage_ray.core.proposers import SurrogateAssisted, domain_archive
     from dsage_ray.core.seeds import RunSeeds
     from dsage_ray.qd.selection import adds_to
 
-    assert config(**{"gym.space": "lunarlander_fault"}).selection.min_predicted == 0.5
-    assert config(**{"gym.space": "lunarlander_fault", "selection.min_predicted": -1.0}).selection.min_predicted == -1
-    assert config().selection.min_predicted is None  # cartpole declares success, not a fault
-    run = config(**{"gym.measures": ("param.length", "length"), "selection.min_predicted": 0.5})
+    assert config(**{"gym.space": "lunarlander_fault"}).experimental.min_predicted == 0.5
+    assert config(**{"gym.space": "lunarlander_fault", "experimental.min_predicted": -1.0}).experimental.min_predicted == -1
+    assert config().experimental.min_predicted == 0.0  # cartpole declares success, not a fault
+    run = config(**{"gym.measures": ("param.length", "length"), "experimental.min_predicted": 0.5})
     domain = build_domain(run)
     archive = domain_archive(domain, with_occupancy=False, seed=0)
     proposer = SurrogateAssisted(config=run, domain=domain, archive=archive, seeds=RunSeeds(seed=0), evaluator=None)
