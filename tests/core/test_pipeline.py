@@ -98,7 +98,8 @@ def test_elite_mutants_are_chosen_alike_whether_or_not_the_evaluations_overlap()
 def test_a_screen_ranked_by_its_errors_learns_each_batch_against_its_own_screen_and_resumes_when_pipelined():
     from tests.fakes import ScreeningBitmapDomain
 
-    keys = {**PIPELINED, "selection.screen_episodes": 1, "selection.screen_gain": True}
+    # 80 evaluations: the 40 after the random ones still hold screened batches, and the later ones cost the most.
+    keys = {**PIPELINED, "budget": 80, "selection.screen_episodes": 1, "selection.screen_gain": True}
 
     def screening(evaluator_factory=None) -> DSAGE:
         domain = ScreeningBitmapDomain()
