@@ -18,8 +18,9 @@ def tiny_run(tmp_path: Path, **overrides) -> Path:
     from dsage_ray.config import RunConfig
     from dsage_ray.core.loop import run_locally
 
+    # One random iteration of 30 levels: the benchmark reads only the run's ground-truth archive.
     config = RunConfig.build({"domain": "maze", "preset": "tiny", "maze.agent": "builtin:wall_follower",
-                              "maze.episodes": 2, "budget": 60, "n_rand": 30, "surrogate.epochs": 1,
+                              "maze.episodes": 2, "budget": 30, "n_rand": 30, "surrogate.epochs": 1,
                               "qd.exploit_iterations": 2, "image_every": 1000, **overrides})
     return run_locally(config, out_dir=tmp_path / "run", console=False)
 
