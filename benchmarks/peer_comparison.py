@@ -90,6 +90,9 @@ class Config:
     out: Path = Path("peer_runs.jsonl")
     #: A tag kept in each record (``tuning``, ``fresh``), so tuning runs and published runs never mix.
     tag: str = "fresh"
+    #: The table's row for these runs (default: the arm), e.g. a DSAGE setting beside the default; the equal-CPU
+    #: budgets come from the rows labelled ``dsage``.
+    label: str = ""
     # mdpfuzz (its protocol: 1000 of 5000 episodes to initialise the pool, k = 10, tau = gamma = 0.01, a Gaussian
     # mutation of the task's intensity, 5 N for LunarLander's force; local sensitivity).
     mdpfuzz_init_share: float = 0.2
@@ -410,7 +413,12 @@ def load_records(paths: Sequence[Path], *, tag: str | None = None) -> list[dict[
 
 def dsage_cpu(records: Sequence[dict[str, Any]]) -> dict[int, float]:
     """The CPU seconds each seed's dsage run spent (its whole run)."""
-    return {r["seed"]: r["trace"][-1]["cpu"] for r in records if r["arm"] == "dsage"}
+    return {r["seed"]: r["trace"][-1]["cpu"] for r in records if row_of(r) == "dsage"}
+
+
+def row_of(record: dict[str, Any]) -> str:
+    """The table row of a record: its label, else its arm."""
+    return record.get("label") or record["arm"]
 
 
 def table(records: Sequence[dict[str, Any]]) -> str:
@@ -418,7 +426,7 @@ def table(records: Sequence[dict[str, Any]]) -> str:
     cpu = dsage_cpu(records)
     by_arm: dict[str, list[dict[str, Any]]] = defaultdict(list)
     for record in records:
-        by_arm[record["arm"]].append(record)
+        by_arm[row_of(record)].append(record)
     episodes = {r["episodes"] for r in records}
     if len(episodes) != 1:
         raise SystemExit(f"records of different episode budgets: {sorted(episodes)}")
@@ -428,7 +436,8 @@ def table(records: Sequence[dict[str, Any]]) -> str:
              "| search | seeds | faults | fault cells | cells covered | lowest return | CPU s "
              "| faults @ CPU | fault cells @ CPU | cells @ CPU | episodes @ CPU |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for arm in [a for a in OURS + PEERS if a in by_arm]:
+    for arm in [a for a in OURS if a in by_arm] + sorted(set(by_arm) - set(OURS + PEERS)) + \
+            [a for a in PEERS if a in by_arm]:
         runs = sorted(by_arm[arm], key=lambda r: r["seed"])
         at = [count(r["trace"], episodes=budget) for r in runs]
         cells = [arm, ",".join(str(r["seed"]) for r in runs)]
@@ -463,7 +472,7 @@ def parse_args(argv: list[str] | None = None) -> tuple[Config, list[Path] | None
                         help="a Config field (mdpfuzz_intensity=20) or ours.KEY=VALUE for the DSAGE arms' config")
     parser.add_argument("--task", choices=sorted(TASKS), default=defaults.task,
                         help="the peers' task: its space, agent and mutation intensity (each overridable)")
-    for name in ("agent", "space", "episodes", "cpu_from", "cpu", "min_episodes", "out", "tag"):
+    for name in ("agent", "space", "episodes", "cpu_from", "cpu", "min_episodes", "out", "tag", "label"):
         kind = {"cpu_from": Path, "cpu": float, "min_episodes": int}.get(name) or type(getattr(defaults, name))
         parser.add_argument(f"--{name.replace('_', '-')}", type=kind,
                             default=None if name in ("agent", "space") else getattr(defaults, name))
@@ -472,7 +481,7 @@ def parse_args(argv: list[str] | None = None) -> tuple[Config, list[Path] | None
     config = Config(task=args.task, agent=args.agent or task["agent"], space=args.space or task["space"],
                     mdpfuzz_intensity=task["mdpfuzz_intensity"], arms=tuple(args.arms), seeds=tuple(args.seeds),
                     episodes=args.episodes, cpu_from=args.cpu_from, cpu=args.cpu,
-                    min_episodes=args.min_episodes, out=args.out, tag=args.tag)
+                    min_episodes=args.min_episodes, out=args.out, tag=args.tag, label=args.label)
     types = {f.name: f.type for f in dataclasses.fields(Config)}
     for item in args.set:
         key, _, value = item.partition("=")
@@ -505,7 +514,8 @@ def main(argv: list[str] | None = None) -> None:
                 raise SystemExit(f"{config.cpu_from} holds no dsage run of seed {seed}")
             ledger = Ledger(domain=domain, episodes=config.min_episodes or config.episodes, cpu=budget)
             run_arm(arm, ledger, seed=seed, config=config)
-            record = {"arm": arm, "seed": seed, "tag": config.tag, "episodes": config.episodes, "cpu_budget": budget,
+            record = {"arm": arm, "label": config.label or arm, "seed": seed, "tag": config.tag,
+                      "episodes": config.episodes, "cpu_budget": budget,
                       "config": {k: v for k, v in dataclasses.asdict(config).items()
                                  if k not in ("arms", "seeds", "out", "cpu_from")}, "trace": ledger.trace}
             with config.out.open("a") as out:
