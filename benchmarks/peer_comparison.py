@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import gzip
 import json
 import os
 import sys
@@ -407,7 +408,10 @@ def make_domain(config: Config) -> Any:
 
 
 def load_records(paths: Sequence[Path], *, tag: str | None = None) -> list[dict[str, Any]]:
-    records = [json.loads(line) for path in paths for line in path.read_text().splitlines() if line.strip()]
+    def text(path: Path) -> str:  # the committed records are gzipped
+        return gzip.decompress(path.read_bytes()).decode() if path.suffix == ".gz" else path.read_text()
+
+    records = [json.loads(line) for path in paths for line in text(path).splitlines() if line.strip()]
     return [r for r in records if tag is None or r["tag"] == tag]
 
 
