@@ -96,6 +96,9 @@ def test_run_audit_refuses_bad_arguments_before_searching(tmp_path):
     assert not (tmp_path / "a").exists()
 
 
+# 37 s: run_audit and Collection through the CLI's audits (tests/audit/test_audit.py), run() in
+# test_run_returns_its_folder_metrics_archive_and_checkpoint_as_the_cli_writes_them; this runs the example script.
+@pytest.mark.slow
 def test_the_api_example_runs_and_returns_levels_with_seeds_and_a_report(tmp_path):
     """``examples/api_quickstart.py``, as a user runs it from the project root."""
     proc = subprocess.run([sys.executable, "examples/api_quickstart.py", str(tmp_path)], cwd=ROOT,

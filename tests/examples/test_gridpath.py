@@ -119,6 +119,9 @@ def test_config_shows_the_plugins_section(gridpath, capsys):
     assert not any(key.startswith(("maze.", "mario.")) for key in flat)
 
 
+# 29 s: the plug-in's runs in process (the tests above) and Ray's pool and trials in tests/ray/; this adds the two
+# together through `dsage-ray ablate`.
+@pytest.mark.slow
 def test_ablate_grids_a_key_of_the_plugins_section_on_ray(gridpath, tmp_path):
     # In a process of its own: the Ray cluster it starts passes PYTHONPATH on to its actors, where this
     # session's cluster, started before the install, would not. One random iteration a trial (the budget is the

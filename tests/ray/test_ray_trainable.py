@@ -102,6 +102,9 @@ def test_an_impossible_trial_request_fails_with_a_clear_message(tmp_path):
         check_resources(config)
 
 
+# 38 s: Tune runs with our TensorBoard scalars and images in tests/ray/test_ray_progress.py and test_mode_equality.py;
+# this adds tune.run's API, a grid's labelled progress lines and the predicted-vs-true image.
+@pytest.mark.slow
 def test_tune_run_grid_writes_tensorboard_scalars_and_images(tmp_path, capsys):
     """``tune.run`` here; the Tuner path is exercised by the crash test and the ablation test."""
 
