@@ -318,3 +318,11 @@ def test_a_cycle_of_type_only_imports_is_found_in_the_typed_graph_alone(tmp_path
     loop = ["dsage_ray.core.outputs", "dsage_ray.core.snapshot", "dsage_ray.core.tensorboard_log"]
     assert import_cycles(import_graph(root)) == []
     assert import_cycles(import_graph(root, type_checking=True)) == [loop]
+
+
+def test_the_package_cites_decisions_not_the_records_sections():
+    # The package points at docs/DECISIONS.md for why a default is what it is, not at a record's sections.
+    citing = [str(path.relative_to(PACKAGE)) for path in sorted(PACKAGE.rglob("*"))
+              if path.suffix in (".py", ".toml", ".md", ".css", ".js")
+              and ("§" in (text := path.read_text()) or "equal_compute" in text)]
+    assert citing == []

@@ -14,7 +14,7 @@ from dsage_ray.config.parsing import shown_value
 from dsage_ray.config.schema import ConfigError
 
 #: Keys moved into the ``experimental`` section (old name → new name), under their old names in the records'
-#: commands (docs/results/equal_compute/record.md §1–§17, docs/results/surrogate_accuracy/record.md).
+#: commands (the Maze's equal-compute record and the surrogate accuracy record; docs/DECISIONS.md links both).
 RENAMED_KEYS: dict[str, str] = {
     "surrogate.holdout_levels": "experimental.holdout_levels",
     "selection.screen_pool": "experimental.screen_pool",
@@ -31,9 +31,8 @@ class RemovedKey:
 
 
 _COST_MODEL = "the screen's cost model is the domain's"
-#: Removed keys that a record's command sets to a value that runs as today (the screened design of
-#: docs/results/equal_compute/record.md §16–§17: ``selection.cost_offset=200``; the audit_during_training
-#: record: ``image_levels=0``). Such a value loads as before; any other is refused with the reason, since today's
+#: Removed keys that a record's command sets to a value that runs as today (the screened design in the Maze's
+#: equal-compute record: ``selection.cost_offset=200``; the audit_during_training record: ``image_levels=0``). Such a value loads as before; any other is refused with the reason, since today's
 #: code would run something else.
 REMOVED_KEYS: dict[str, RemovedKey] = {
     # The screen's cost model is the domain's now (the Maze's: the mean path length plus 200).
