@@ -71,7 +71,9 @@ def markdown() -> str:
              "paper, measured to help where the note says, not yet on in a preset; **experimental** — beyond the paper, "
              "off, measured as the note says; **domain** — a key of the domain's own section.", "",
              f"## Run keys ({len(run)})", "", _table(run)]
-    for name in domain_names():
+    # The page documents the package: plug-in domains installed beside it document their own sections.
+    shipped = [name for name in domain_names() if get_domain(name).domain.startswith("dsage_ray.")]
+    for name in shipped:
         section = key_lines(domain=name)[len(run):]
         parts += ["", f"## The `{name}` section ({len(section)}, with `--domain {name}`)", "", _table(section)]
     experimental = key_lines(experimental=True)[len(run):]
