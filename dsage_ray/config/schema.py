@@ -202,7 +202,8 @@ class ExperimentalConfig:
                                note="screen_gain: nearest levels lending a candidate their errors (not tuned)")
     #: Pick only surrogate elites predicted at least this good (where any is), each block's pick the one predicted
     #: to add most to the ground truth in its predicted cell (not in the paper). A gym space that declares a
-    #: ``[fault]`` takes 0.5, a predicted fault, unless set: on the peers' LunarLander task (tuning seed 1) it raised
+    #: ``[fault]`` takes 0.5, a predicted fault, unless set to another value (there a negative one keeps every
+    #: elite, ranked by gain): on the peers' LunarLander task (tuning seed 1) it raised
     #: DSAGE's fault cells from 14 to 24 in 200 episodes (docs/results/peers). 0: off (every elite, uniformly per
     #: block, unless the cells are known).
     min_predicted: float = key(0.0, status="experimental", values="a number; 0: off",
