@@ -37,7 +37,11 @@ JSIG := $(shell j=$$(readlink -f $$(command -v java) 2>/dev/null) && ls $$(dirna
 # (measured). --no-loadscope-reorder: files go out in collection order, which tests/conftest.py begins with the
 # slowest (xdist would hand them out by test count, the one-test Tune files last, one worker alone with them).
 # --durations: every CI log lists the slowest tests, to keep the suite under its 10 minutes.
+# compileall first: where the environment forbids writing bytecode (PYTHONDONTWRITEBYTECODE, set on the development
+# machine), every process the suite starts (Tune trials, actors, command runs) would compile the package's sources
+# again, half a second each (pip compiled the installed libraries already).
 test: $(STAMP)
+	$(BIN)/python -m compileall -q -j 0 dsage_ray tests examples > /dev/null
 	RAY_AUTH_MODE=disabled LD_PRELOAD=$(JSIG) $(BIN)/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder --durations=20
 
 # The long tests the default suite leaves out (marked slow: end-to-end script runs and long checks whose parts the

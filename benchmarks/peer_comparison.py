@@ -220,14 +220,15 @@ class LedgerDomain:
 
 
 def run_ours(arm: str, ledger: Ledger, *, seed: int, config: Config) -> None:
-    """DSAGE or one of the gym domain's variants, the ``demo`` preset at the episode budget, stepped until the
-    ledger is spent (a step's batch may overshoot; the counts read the trace's prefix)."""
+    """DSAGE or one of the gym domain's variants, the ``demo`` preset, stepped until the ledger is spent (a step's
+    batch may overshoot; the counts read the trace's prefix). ``dsage`` stops at the episode budget unless the ledger
+    has a CPU budget (a DSAGE setting measured beside the default, ``--label``), like every other arm."""
     from dsage_ray.audit.collection import audit_config
     from dsage_ray.core.runner import DSAGE
 
     run_config = audit_config(domain="gym", agent=config.agent, preset="demo", variant=arm, seed=seed,
                               budget=10 ** 6, overrides={"gym.space": config.space, **config.ours_set})
-    if arm == "dsage":
+    if arm == "dsage" and ledger.cpu is None:
         run_config = run_config.replace(budget=config.episodes)
     run = DSAGE(config=run_config, domain=LedgerDomain(ledger.domain, ledger))
     while not ledger.spent and not run.done:
@@ -513,8 +514,10 @@ def main(argv: list[str] | None = None) -> None:
     # Arm by arm, so that every arm finished has all its seeds.
     for arm in config.arms:
         for seed in config.seeds:
-            budget = None if arm == "dsage" else cpu.get(seed, config.cpu)
-            if config.cpu_from and arm != "dsage" and budget is None:
+            # The default's dsage runs set the equal-CPU budgets; a labelled DSAGE setting runs to them, as the peers do.
+            reference = arm == "dsage" and config.label in ("", "dsage")
+            budget = None if reference else cpu.get(seed, config.cpu)
+            if config.cpu_from and not reference and budget is None:
                 raise SystemExit(f"{config.cpu_from} holds no dsage run of seed {seed}")
             ledger = Ledger(domain=domain, episodes=config.min_episodes or config.episodes, cpu=budget)
             run_arm(arm, ledger, seed=seed, config=config)

@@ -26,7 +26,7 @@ from tests.fakes import SMALL_RUN
 pytestmark = pytest.mark.usefixtures("ray_session")
 
 #: The shared small run on the real Maze (its archive and blocks, not the bitmap's) with the fast
-#: deterministic agent: 11 outer iterations of DSAGE. A checkpoint and images at the end only, as
+#: deterministic agent: MAP-Elites' random batches and iterations; DSAGE's run (:data:`DSAGE_RUN`) shorter. A checkpoint and images at the end only, as
 #: they cost time and change nothing. Small CPU reservations, so that the trials share the 2-CPU
 #: test cluster (their processes mostly wait on each other's start-up).
 CONFIG = {
@@ -41,6 +41,9 @@ CONFIG = {
     "experimental.chunk_size": 1,
 }
 VARIANTS = ("dsage", "map_elites")
+#: DSAGE's runs: 20 random levels and about a dozen outer iterations of one to four picks (SMALL_RUN's 40 random
+#: levels only made each run twice as long).
+DSAGE_RUN = {"n_rand": 20, "budget": 38}
 WORKERS = (1, 2)
 #: What the one-actor trials add: a screen of one episode a candidate. It plays where the proposer runs (the trial's
 #: process) and draws its seeds from the run's stream, so it must not make the modes differ.
@@ -61,7 +64,7 @@ def pipelined(variant: str, workers: int) -> bool:
 
 def case_config(variant: str, workers: int) -> dict:
     """The keys of trial ``(variant, workers)`` beyond :data:`CONFIG`, which its in-process twin runs with."""
-    keys = {"variant": variant, "pipeline": pipelined(variant, workers)}
+    keys = {"variant": variant, "pipeline": pipelined(variant, workers), **(DSAGE_RUN if variant == "dsage" else {})}
     if screened(workers):
         keys |= {**SCREEN, **({"budget": MAP_ELITES_SCREENED_BUDGET} if variant == "map_elites" else {})}
     return keys
@@ -75,7 +78,7 @@ def tune_trials(tmp_path_factory) -> dict[tuple[str, int], dict]:
     """
     base = RunConfig.build({**CONFIG, "variant": "dsage"})
     space = grid_param_space(base, {"variant": list(VARIANTS), "ray.num_workers": list(WORKERS)})
-    for key in ("pipeline", *SCREEN, "budget"):
+    for key in ("pipeline", *SCREEN, *DSAGE_RUN):
         space[key] = tune.sample_from(lambda spec, key=key: RunConfig.build(
             {**CONFIG, **case_config(spec.config["variant"], spec.config["ray.num_workers"])}).to_flat()[key])
     experiment = run_experiment(space, name="modes", storage_path=tmp_path_factory.mktemp("tune"), max_failures=0)
