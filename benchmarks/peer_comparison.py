@@ -224,15 +224,19 @@ def run_ours(arm: str, ledger: Ledger, *, seed: int, config: Config) -> None:
     batch may overshoot; the counts read the trace's prefix). ``dsage`` stops at the episode budget unless the ledger
     has a CPU budget (a DSAGE setting measured beside the default, ``--label``), like every other arm."""
     from dsage_ray.audit.collection import audit_config
-    from dsage_ray.core.runner import DSAGE
+    from dsage_ray.core.runner import DSAGE, EvaluationsFailed
 
     run_config = audit_config(domain="gym", agent=config.agent, preset="demo", variant=arm, seed=seed,
                               budget=10 ** 6, overrides={"gym.space": config.space, **config.ours_set})
     if arm == "dsage" and ledger.cpu is None:
         run_config = run_config.replace(budget=config.episodes)
     run = DSAGE(config=run_config, domain=LedgerDomain(ledger.domain, ledger))
-    while not ledger.spent and not run.done:
-        run.step()
+    try:
+        while not ledger.spent and not run.done:
+            run.step()
+    except EvaluationsFailed:
+        if not ledger.spent:  # a batch played after the budget fails as a whole: the arm is done
+            raise
 
 
 def run_mdpfuzz(arm: str, ledger: Ledger, *, seed: int, config: Config) -> None:

@@ -30,14 +30,14 @@ def add_config_arguments(parser: argparse.ArgumentParser | argparse._ArgumentGro
                         help="also stop once the run has stepped this long (sets time_budget): 90, 90s, 10m or "
                              "1.5h; the evaluation budget still applies, whichever comes first ends the run")
     parser.add_argument("--search", choices=("fixed", "auto"),
-                        help="auto: run DSAGE, and continue with the domain's direct search (maze MAP-Elites, "
-                             "mario CMA-ME, gym cross-entropy) on the same archive where the surrogate costs more "
-                             "than it buys: with --time-budget, at once if fewer than 3 surrogate iterations fit in "
-                             "the time left after the random levels; else at its first picks, after playing 8 of "
-                             "them, if a pick costs over 3x a random level, surrogate time included. Audits with "
-                             "--time-budget search with auto unless told; Maze audits keep DSAGE (their picks cost "
-                             "past 3x, yet DSAGE finds the most failures in the same time). The choice and why are "
-                             "printed. The same as --set search=...")
+                        help="auto: run DSAGE, and continue with the domain's direct search (the one "
+                             "the domain names) on the same archive where the surrogate "
+                             "costs more than it buys: with --time-budget, at once if fewer than 3 surrogate "
+                             "iterations fit in the time left after the random levels; else at its first picks, "
+                             "after playing 8 of them, if a pick costs over 3x a random level, surrogate time "
+                             "included. Audits with --time-budget search with auto unless told, but in a domain "
+                             "whose audits keep DSAGE (they say why). The choice and why are printed. The same as "
+                             "--set search=...")
     parser.add_argument("--surrogate-init", metavar="PATH",
                         help="warm-start the surrogate (sets surrogate.init): a file of `dsage-ray surrogate "
                              "pretrain`, or an earlier run or audit folder of the same network and encoding")
