@@ -129,7 +129,7 @@ class RunConfig:
         # A section whose keys depend on each other fills in what was left to it (the gym domain's measures
         # come from its space file), before validation sees them.
         if isinstance(config.domain_config, CompletingSection):
-            config.domain_config.complete(config)
+            config.domain_config.complete(config, given=frozenset(explicit))
         if config.surrogate.init:
             config.surrogate.init = str(Path(config.surrogate.init).expanduser().resolve())
         config.validate()

@@ -183,6 +183,9 @@ class ExperimentalConfig:
     #: the best by objective (ties with the last one included).
     elite_share: float = key(0.05, status="experimental", values="(0, 1]",
                              note="share of best elites the mutants' parents come from (tuned on one seed)")
+    #: ``selection.elite_mutants`` of continuous vectors: their Gaussian step (0: ``qd.sigma0``, the inner loop's).
+    mutant_sigma: float = key(0.0, status="experimental", values=">= 0 (0: qd.sigma0)",
+                              note="the elite mutants' Gaussian step (0: qd.sigma0); 0.01 for gym [fault] spaces")
     #: ``selection.screen_episodes``: candidates screened per pick (the picks, then other elites predicted to add),
     #: or per level of a MAP-Elites batch.
     screen_pool: float = key(4.0, status="experimental", values=">= 1",
@@ -201,11 +204,11 @@ class ExperimentalConfig:
     gain_neighbours: int = key(64, status="experimental", values=">= 1",
                                note="screen_gain: nearest levels lending a candidate their errors (not tuned)")
     #: Pick only surrogate elites predicted at least this good (where any is), each block's pick the one predicted
-    #: to add most to the ground truth in its predicted cell (not in the paper). A gym space that declares a
-    #: ``[fault]`` takes 0.5, a predicted fault, unless set to another value (there a negative one keeps every
-    #: elite, ranked by gain): on the peers' LunarLander task (tuning seed 1) it raised
-    #: DSAGE's fault cells from 14 to 24 in 200 episodes (docs/results/peers). 0: off (every elite, uniformly per
-    #: block, unless the cells are known).
+    #: to add most to the ground truth in its predicted cell (not in the paper); a negative floor keeps every elite,
+    #: ranked by gain. A gym space that declares a ``[fault]`` takes 0.5, a predicted fault, unless the key is set
+    #: (domains/gym/plugin.py's FAULT_SEARCH): on the peers' LunarLander task (tuning seed 1) it raised DSAGE's
+    #: fault cells from 14 to 24 in 200 episodes (docs/results/peers). 0: off (every elite, uniformly per block,
+    #: unless the cells are known).
     min_predicted: float = key(0.0, status="experimental", values="a number; 0: off",
                                note="pick only elites predicted at least this good; on (0.5) for gym [fault] spaces")
     #: Solutions per pool task; 0 picks ~8 chunks per actor per batch, 1 spreads uneven episodes best, larger

@@ -74,6 +74,7 @@ def validate(config: Any) -> None:
          f"mutates with qd.emitter's operator; {config.qd.emitter!r} has none (use "
          f"{' or '.join(typing.get_args(MutatingEmitter))})")
     need(0.0 < config.experimental.elite_share <= 1.0, "experimental.elite_share", "must be in (0, 1]")
+    need(config.experimental.mutant_sigma >= 0.0, "experimental.mutant_sigma", "must be >= 0 (0: qd.sigma0)")
     need(config.selection.screen_episodes >= 0, "selection.screen_episodes", "must be >= 0 (0: no screen)")
     # The screening keys apply only to a domain that can screen (types.ScreenableDomain), which its registration
     # declares: the check imports no domain.

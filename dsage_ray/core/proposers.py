@@ -16,6 +16,8 @@ optimizer's ``tell`` does it; DSAGE adds, then grows its dataset).
 
 from __future__ import annotations
 
+import dataclasses
+
 import time
 from typing import TYPE_CHECKING, Any
 
@@ -326,8 +328,11 @@ class SurrogateAssisted(Proposer):
 
     def _add_elite_mutants(self, proposal: Proposal) -> None:
         """Mutants of the ground truth's best elites beside the picks (``selection.elite_mutants``), unscreened."""
+        qd = self.config.qd
+        if self.config.experimental.mutant_sigma:
+            qd = dataclasses.replace(qd, sigma0=self.config.experimental.mutant_sigma)
         mutants = elite_mutants(self.archive, count=self.config.selection.elite_mutants,
-                                share=self.config.experimental.elite_share, qd=self.config.qd, rng=self.seeds.rng,
+                                share=self.config.experimental.elite_share, qd=qd, rng=self.seeds.rng,
                                 bounds=solution_bounds(self.domain))
         proposal.solutions = np.concatenate([proposal.solutions, mutants])
         if proposal.screened is not None:

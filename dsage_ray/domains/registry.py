@@ -192,7 +192,7 @@ class DomainSpec:
         config: The config section, a dataclass whose fields all have defaults. It must have
             ``measures``, ``archive_dims`` and ``measure_ranges`` (checked generically), and may
             define ``validate(need)`` for its own keys: ``need(condition, key, why)`` with ``key``
-            relative to the section (``"episodes"``), and ``complete(run_config)``, called once every key is
+            relative to the section (``"episodes"``), and ``complete(run_config, given=keys)``, called once every key is
             assigned and before validation, to fill keys that follow from others (the gym domain's measures
             from its space file): :class:`CheckedSection` and :class:`CompletingSection`.
         domain: The domain class as ``"module:Class"``, imported only when a domain is built; it is
@@ -276,8 +276,14 @@ class CompletingSection(Protocol):
     """A domain's config section some of whose keys follow from others (the gym domain's measures from its space
     file), filled in once every key is assigned, before validation."""
 
-    def complete(self, config: Any) -> None:
-        """Fills in the section's keys that follow from the run config ``config``'s others."""
+    def complete(self, config: Any, *, given: frozenset[str]) -> None:
+        """Fills in the section's keys that follow from the run config ``config``'s others.
+
+        Args:
+            config: The run config, every key assigned (defaults, preset, variant, then the caller's).
+            given: The dotted keys the caller set (``RunConfig.build``'s values): a key filled in here only where
+                it is not among them is one the caller can still set to any value, its default included.
+        """
 
 
 def _import(path: str) -> Any:

@@ -225,6 +225,8 @@ def test_with_a_floor_dsage_picks_predicted_faults_that_would_enter_even_where_c
 
     assert config(**{"gym.space": "lunarlander_fault"}).experimental.min_predicted == 0.5
     assert config(**{"gym.space": "lunarlander_fault", "experimental.min_predicted": -1.0}).experimental.min_predicted == -1
+    # Set to its default, the key stays: 0 is off (every elite, uniformly per block), as on any other space.
+    assert config(**{"gym.space": "lunarlander_fault", "experimental.min_predicted": 0.0}).experimental.min_predicted == 0
     assert config().experimental.min_predicted == 0.0  # cartpole declares success, not a fault
     run = config(**{"gym.measures": ("param.length", "length"), "experimental.min_predicted": 0.5})
     domain = build_domain(run)
@@ -250,3 +252,34 @@ def test_with_a_floor_dsage_picks_predicted_faults_that_would_enter_even_where_c
     picks, _ = proposer._select(surrogate_archive, {}, {})
     allowed = {tuple(row) for row in elites["solution"][wanted]}
     assert len(picks) and all(tuple(row) in allowed for row in picks)
+
+
+def test_a_fault_spaces_dsage_plays_mutants_of_its_faults_one_small_step_away():
+    """A ``[fault]`` space's DSAGE adds 20 mutants of the faults found to each outer iteration's picks, each at most a
+    few steps of ``experimental.mutant_sigma`` from its parent; a key the caller sets stays, and a search without a
+    surrogate gets none."""
+    from dsage_ray.core.proposal import Proposal
+    from dsage_ray.core.proposers import SurrogateAssisted, domain_archive
+    from dsage_ray.core.seeds import RunSeeds
+
+    run = config(**{"gym.space": "lunarlander_fault"})
+    assert (run.selection.elite_mutants, run.experimental.mutant_sigma) == (20, 0.01)
+    assert config(**{"gym.space": "lunarlander_fault", "selection.elite_mutants": 0}).selection.elite_mutants == 0
+    assert config(**{"gym.space": "lunarlander_fault", "experimental.mutant_sigma": 0.3}).experimental.mutant_sigma == 0.3
+    assert config(**{"gym.space": "lunarlander_fault", "variant": "map_elites"}).selection.elite_mutants == 0
+    assert config().selection.elite_mutants == 0  # cartpole declares success, not a fault
+
+    domain = build_domain(run)
+    archive = domain_archive(domain, with_occupancy=False, seed=0)
+    proposer = SurrogateAssisted(config=run, domain=domain, archive=archive, seeds=RunSeeds(seed=0), evaluator=None)
+    rng = np.random.default_rng(0)
+    faults = domain.random_solutions(30, rng)
+    archive.add(faults, np.ones(30), rng.uniform(size=(30, 2)) * np.ptp(domain.measure_ranges, axis=1)
+                + np.min(domain.measure_ranges, axis=1))
+    proposal = Proposal(np.empty((0, domain.solution_dim), dtype=np.float32))
+    proposer._add_elite_mutants(proposal)  # what propose adds beside the picks
+    mutants = proposal.solutions
+    assert proposal.metrics["selection_elite_mutants"] == 20
+    parents = archive.data("solution")
+    nearest = np.abs(mutants[:, None, :] - parents[None]).max(axis=2).min(axis=1)
+    assert 0 < nearest.max() <= 5 * 0.01  # within 5 sigma of a fault: a near copy, not a fresh level
