@@ -192,9 +192,10 @@ class DomainSpec:
         config: The config section, a dataclass whose fields all have defaults. It must have
             ``measures``, ``archive_dims`` and ``measure_ranges`` (checked generically), and may
             define ``validate(need)`` for its own keys: ``need(condition, key, why)`` with ``key``
-            relative to the section (``"episodes"``), and ``complete(run_config, given=keys)``, called once every key is
-            assigned and before validation, to fill keys that follow from others (the gym domain's measures
-            from its space file): :class:`CheckedSection` and :class:`CompletingSection`.
+            relative to the section (``"episodes"``), and ``complete(run_config, given=keys)``, called once every
+            key is assigned and before validation, to fill keys that follow from others and that the caller did
+            not give (the gym domain's measures from its space file): :class:`CheckedSection` and
+            :class:`CompletingSection`.
         domain: The domain class as ``"module:Class"``, imported only when a domain is built; it is
             called as ``Class(config=section)`` and implements :class:`dsage_ray.types.Domain`.
         presets: Keys per preset name (dotted, over the dataclass defaults); ``tiny`` is the one
