@@ -75,6 +75,8 @@ def validate(config: Any) -> None:
          f"{' or '.join(typing.get_args(MutatingEmitter))})")
     need(0.0 < config.experimental.elite_share <= 1.0, "experimental.elite_share", "must be in (0, 1]")
     need(config.experimental.mutant_sigma >= 0.0, "experimental.mutant_sigma", "must be >= 0 (0: qd.sigma0)")
+    need(not config.experimental.mutant_sigma or config.qd.emitter != "map_elites", "experimental.mutant_sigma",
+         "is the Gaussian step of continuous mutants; qd.emitter 'map_elites' mutates bitmaps (qd.mutation_cells)")
     need(config.selection.screen_episodes >= 0, "selection.screen_episodes", "must be >= 0 (0: no screen)")
     # The screening keys apply only to a domain that can screen (types.ScreenableDomain), which its registration
     # declares: the check imports no domain.

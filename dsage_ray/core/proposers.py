@@ -17,7 +17,6 @@ optimizer's ``tell`` does it; DSAGE adds, then grows its dataset).
 from __future__ import annotations
 
 import dataclasses
-
 import time
 from typing import TYPE_CHECKING, Any
 

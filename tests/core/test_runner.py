@@ -191,6 +191,8 @@ def test_a_run_with_elite_mutants_spends_its_budget_and_resumes_exactly():
     ({"variant": "dsage", "selection.elite_mutants": 10, "qd.emitter": "random"}, "selection.elite_mutants"),
     ({"variant": "dsage", "experimental.elite_share": 0.0}, "experimental.elite_share"),
     ({"variant": "dsage", "experimental.elite_share": 1.5}, "experimental.elite_share"),
+    ({"variant": "dsage", "experimental.mutant_sigma": -0.1}, "experimental.mutant_sigma: must be >= 0"),
+    ({"variant": "dsage", "experimental.mutant_sigma": 0.01}, "experimental.mutant_sigma: is the Gaussian step"),
 ])
 def test_selection_config_is_checked(overrides, key):
     from dsage_ray.config import ConfigError
