@@ -74,8 +74,11 @@ class GymConfig:
         if len(run.selection.block) != len(self.measures):
             run.selection.block = tuple(min(4, cells) for cells in self.archive_dims)
         if space.fault is not None:
+            # Mutants only where the search makes them; their Gaussian step only where they are continuous.
+            applies = {"experimental.min_predicted": True, "selection.elite_mutants": run.mutates_elites,
+                       "experimental.mutant_sigma": run.mutates_elites and run.qd.emitter != "map_elites"}
             for key, value in FAULT_SEARCH.items():
-                if key not in given and (key == "experimental.min_predicted" or run.mutates_elites):
+                if key not in given and applies[key]:
                     section, name = key.split(".")
                     setattr(getattr(run, section), name, value)
 

@@ -267,6 +267,8 @@ def test_a_fault_spaces_dsage_plays_mutants_of_its_faults_one_small_step_away():
     assert config(**{"gym.space": "lunarlander_fault", "selection.elite_mutants": 0}).selection.elite_mutants == 0
     assert config(**{"gym.space": "lunarlander_fault", "experimental.mutant_sigma": 0.3}).experimental.mutant_sigma == 0.3
     assert config(**{"gym.space": "lunarlander_fault", "variant": "map_elites"}).selection.elite_mutants == 0
+    bitmaps = config(**{"gym.space": "lunarlander_fault", "qd.emitter": "map_elites"})  # no Gaussian step to set
+    assert (bitmaps.selection.elite_mutants, bitmaps.experimental.mutant_sigma) == (20, 0.0)
     assert config().selection.elite_mutants == 0  # cartpole declares success, not a fault
 
     domain = build_domain(run)
