@@ -160,6 +160,11 @@ class RunConfig:
         """Dotted-key form, e.g. for ``tune.Tuner(param_space=...)``."""
         return flatten(self.to_dict())
 
+    def assign(self, values: Mapping[str, Any]) -> None:
+        """Sets dotted keys in place, each coerced and its name checked as :meth:`build` does (a completing section
+        fills in keys with it); nothing is validated until :meth:`validate`."""
+        _assign(self, values)
+
     def replace(self, **dotted: Any) -> "RunConfig":
         values = self.to_flat()
         values.update({k.replace("__", "."): v for k, v in dotted.items()})

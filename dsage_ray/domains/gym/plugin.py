@@ -77,10 +77,7 @@ class GymConfig:
             # Mutants only where the search makes them; their Gaussian step only where they are continuous.
             applies = {"experimental.min_predicted": True, "selection.elite_mutants": run.mutates_elites,
                        "experimental.mutant_sigma": run.mutates_elites and run.qd.emitter != "map_elites"}
-            for key, value in FAULT_SEARCH.items():
-                if key not in given and applies[key]:
-                    section, name = key.split(".")
-                    setattr(getattr(run, section), name, value)
+            run.assign({key: value for key, value in FAULT_SEARCH.items() if key not in given and applies[key]})
 
     def validate(self, need: Callable[[bool, str, str], None]) -> None:
         need(self.episodes >= 1, "episodes", "must be positive")
