@@ -39,7 +39,7 @@ JSIG := $(shell j=$$(readlink -f $$(command -v java) 2>/dev/null) && ls $$(dirna
 # --durations: every CI log lists the slowest tests, to keep the suite under its 10 minutes.
 # compileall first: where the environment forbids writing bytecode (PYTHONDONTWRITEBYTECODE, set on the development
 # machine), every process the suite starts (Tune trials, actors, command runs) would compile the package's sources
-# again, half a second each (pip compiled the installed libraries already).
+# again: 0.2-0.5 s of CPU a process on the package's imports, measured (pip compiled the installed libraries).
 test: $(STAMP)
 	$(BIN)/python -m compileall -q -j 0 dsage_ray tests examples > /dev/null
 	RAY_AUTH_MODE=disabled LD_PRELOAD=$(JSIG) $(BIN)/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder --durations=20

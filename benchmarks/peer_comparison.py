@@ -518,7 +518,8 @@ def main(argv: list[str] | None = None) -> None:
     # Arm by arm, so that every arm finished has all its seeds.
     for arm in config.arms:
         for seed in config.seeds:
-            # The default's dsage runs set the equal-CPU budgets; a labelled DSAGE setting runs to them, as the peers do.
+            # The default's dsage runs set the equal-CPU budgets; a labelled DSAGE setting runs to them, as the
+            # peers do.
             reference = arm == "dsage" and config.label in ("", "dsage")
             budget = None if reference else cpu.get(seed, config.cpu)
             if config.cpu_from and not reference and budget is None:

@@ -32,7 +32,8 @@ class RemovedKey:
 
 _COST_MODEL = "the screen's cost model is the domain's"
 #: Removed keys that a record's command sets to a value that runs as today (the screened design in the Maze's
-#: equal-compute record: ``selection.cost_offset=200``; the audit_during_training record: ``image_levels=0``). Such a value loads as before; any other is refused with the reason, since today's
+#: equal-compute record: ``selection.cost_offset=200``; the audit_during_training record: ``image_levels=0``).
+#: Such a value loads as before; any other is refused with the reason, since today's
 #: code would run something else.
 REMOVED_KEYS: dict[str, RemovedKey] = {
     # The screen's cost model is the domain's now (the Maze's: the mean path length plus 200).

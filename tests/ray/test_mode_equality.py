@@ -26,8 +26,8 @@ from tests.fakes import SMALL_RUN
 pytestmark = pytest.mark.usefixtures("ray_session")
 
 #: The shared small run on the real Maze (its archive and blocks, not the bitmap's) with the fast
-#: deterministic agent: MAP-Elites' random batches and iterations; DSAGE's run (:data:`DSAGE_RUN`) shorter. A checkpoint and images at the end only, as
-#: they cost time and change nothing. Small CPU reservations, so that the trials share the 2-CPU
+#: deterministic agent: MAP-Elites' random batches and iterations; DSAGE's run (:data:`DSAGE_RUN`) shorter. A
+#: checkpoint and images at the end only, as they cost time and change nothing. Small CPU reservations, so that the trials share the 2-CPU
 #: test cluster (their processes mostly wait on each other's start-up).
 CONFIG = {
     **{key: value for key, value in SMALL_RUN.items() if key not in ("maze.archive_dims", "selection.block")},

@@ -44,7 +44,8 @@ def test_resource_request_has_a_bundle_per_simulator():
     assert request.bundles == [{"CPU": 0.5}, {"CPU": 0.5}, {"CPU": 0.5}, {"CPU": 0.5}]
 
 
-# Covered by the crash test below (save each step, restore, the uninterrupted archive); result keys: test_gridpath's ablate
+# Covered by the crash test below (save each step, restore, the uninterrupted archive); result keys: test_gridpath's
+# ablate
 @pytest.mark.slow
 def test_step_save_restore_continues_exactly(tmp_path, uninterrupted):
     config = small_config(**RESTORED)

@@ -99,7 +99,8 @@ def test_training_is_float32_and_unchanged_by_precision(kind):
     assert losses[0] == losses[1]
 
 
-# bf16 within 1% of fp32: test_auto_without_native_bf16_predicts_exactly_as_fp32; its predict: test_surrogate.py's bf16 cases
+# bf16 within 1% of fp32: test_auto_without_native_bf16_predicts_exactly_as_fp32; its predict: test_surrogate.py's
+# bf16 cases
 @pytest.mark.slow
 def test_bf16_keeps_a_trained_maze_surrogate_in_the_same_cells():
     """A surrogate trained on real Maze evaluations, on the Maze archive (256x162 cells over 0-256 walls and

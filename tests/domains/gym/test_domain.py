@@ -226,7 +226,8 @@ def test_with_a_floor_dsage_picks_predicted_faults_that_would_enter_even_where_c
     assert config(**{"gym.space": "lunarlander_fault"}).experimental.min_predicted == 0.5
     assert config(**{"gym.space": "lunarlander_fault", "experimental.min_predicted": -1.0}).experimental.min_predicted == -1
     # Set to its default, the key stays: 0 is off (every elite, uniformly per block), as on any other space.
-    assert config(**{"gym.space": "lunarlander_fault", "experimental.min_predicted": 0.0}).experimental.min_predicted == 0
+    off = config(**{"gym.space": "lunarlander_fault", "experimental.min_predicted": 0.0})
+    assert off.experimental.min_predicted == 0
     assert config().experimental.min_predicted == 0.0  # cartpole declares success, not a fault
     run = config(**{"gym.measures": ("param.length", "length"), "experimental.min_predicted": 0.5})
     domain = build_domain(run)
@@ -265,7 +266,8 @@ def test_a_fault_spaces_dsage_plays_mutants_of_its_faults_one_small_step_away():
     run = config(**{"gym.space": "lunarlander_fault"})
     assert (run.selection.elite_mutants, run.experimental.mutant_sigma) == (20, 0.01)
     assert config(**{"gym.space": "lunarlander_fault", "selection.elite_mutants": 0}).selection.elite_mutants == 0
-    assert config(**{"gym.space": "lunarlander_fault", "experimental.mutant_sigma": 0.3}).experimental.mutant_sigma == 0.3
+    stepped = config(**{"gym.space": "lunarlander_fault", "experimental.mutant_sigma": 0.3})
+    assert stepped.experimental.mutant_sigma == 0.3
     assert config(**{"gym.space": "lunarlander_fault", "variant": "map_elites"}).selection.elite_mutants == 0
     bitmaps = config(**{"gym.space": "lunarlander_fault", "qd.emitter": "map_elites"})  # no Gaussian step to set
     assert (bitmaps.selection.elite_mutants, bitmaps.experimental.mutant_sigma) == (20, 0.0)
