@@ -43,10 +43,10 @@ def dying_domain(config, *, marker: str) -> DyingMazeDomain:
 
 @pytest.fixture(scope="module")
 def search(tmp_path_factory):
-    """A small 'search archive' of 12 valid levels and the audit config that goes with it."""
+    """A small "search archive" of 6 valid levels and the audit config that goes with it."""
     config = audit_config(agent=AUDITED, preset="tiny", seed=7, overrides={"maze.episodes": 4, "ray.num_workers": 2})
     domain = build_domain(config)
-    levels = random_valid_levels(12, seed=1)
+    levels = random_valid_levels(6, seed=1)
     archive = make_archive(solution_dim=domain.solution_dim, dims=domain.archive_dims, ranges=domain.measure_ranges,
                            solution_dtype=domain.solution_dtype)
     archive.add(np.array([level.walls.ravel() for level in levels], dtype=np.int8), np.full(len(levels), 0.5),

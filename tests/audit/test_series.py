@@ -21,7 +21,6 @@ from dsage_ray.audit.series import (SERIES_FILE, SERIES_REPORT, AuditSeries, Ser
                                     fixed_and_regressed, is_failing)
 from dsage_ray.cli import main
 
-from .test_report_browser import browser  # noqa: F401 - the headless Chromium fixture (skips where it is missing)
 
 #: One outer iteration of 6 random 8x8 mazes, 4 episodes per level: a few seconds per checkpoint.
 TINY = {"n_rand": 6, "image_every": 0, "maze.height": 8, "maze.width": 8}

@@ -3,7 +3,8 @@
 In-process (``dsage-ray run --local``), one Tune trial with 1 simulator actor and one with 2 actors
 (results arriving out of order, one solution per task) must write byte-identical ``archive.csv``
 files and the same metrics, for DSAGE and MAP-Elites (the other DSAGE variants differ from DSAGE only in
-keys the runner reads, not in how the modes drive it). DSAGE's two-actor trial runs
+keys the runner reads, not in how the modes drive it). MAP-Elites' cases are ``slow``: the runner drives its direct
+search through the same pool and screen as DSAGE's, and its two trials cost the default suite about 45 s. DSAGE's two-actor trial runs
 pipelined (``pipeline = true``: the surrogate trains while the pool evaluates) and is compared with a
 pipelined in-process run; the one-actor trials screen their candidates (``selection.screen_episodes``), as
 their in-process twins do. The in-process run is
@@ -41,6 +42,8 @@ CONFIG = {
     "experimental.chunk_size": 1,
 }
 VARIANTS = ("dsage", "map_elites")
+#: The variants outside the default suite (``-m slow`` runs them).
+SLOW_VARIANTS = ("map_elites",)
 #: DSAGE's runs: 20 random levels and about a dozen outer iterations of one to four picks (SMALL_RUN's 40 random
 #: levels only made each run twice as long).
 DSAGE_RUN = {"n_rand": 20, "budget": 38}
@@ -70,14 +73,26 @@ def case_config(variant: str, workers: int) -> dict:
     return keys
 
 
+CASES = [pytest.param(variant, workers, marks=[pytest.mark.slow] if variant in SLOW_VARIANTS else [])
+         for variant in VARIANTS for workers in WORKERS]
+
+
+def selected_variants(session) -> list[str]:
+    """The variants whose cases this session runs (``-m`` and ``-k`` deselect before fixtures start)."""
+    chosen = {item.callspec.params["variant"] for item in session.items
+              if item.path.name == "test_mode_equality.py" and hasattr(item, "callspec")}
+    return [variant for variant in VARIANTS if variant in chosen]
+
+
 @pytest.fixture(scope="module")
-def tune_trials(tmp_path_factory) -> dict[tuple[str, int], dict]:
+def tune_trials(request, tmp_path_factory) -> dict[tuple[str, int], dict]:
     """``(variant, ray.num_workers)`` → the trial's resolved config, archive.csv and metrics.
 
-    One Tune experiment for every case: a Tune start costs more than any of these runs.
+    One Tune experiment for every selected case: a Tune start costs more than any of these runs.
     """
+    variants = selected_variants(request.session)
     base = RunConfig.build({**CONFIG, "variant": "dsage"})
-    space = grid_param_space(base, {"variant": list(VARIANTS), "ray.num_workers": list(WORKERS)})
+    space = grid_param_space(base, {"variant": variants, "ray.num_workers": list(WORKERS)})
     for key in ("pipeline", *SCREEN, *DSAGE_RUN):
         space[key] = tune.sample_from(lambda spec, key=key: RunConfig.build(
             {**CONFIG, **case_config(spec.config["variant"], spec.config["ray.num_workers"])}).to_flat()[key])
@@ -85,7 +100,7 @@ def tune_trials(tmp_path_factory) -> dict[tuple[str, int], dict]:
     trials = {}
     for trial in experiment.trials:
         trials[trial.config.variant, trial.config.ray.num_workers] = outputs(trial.path, trial.config)
-    assert sorted(trials) == sorted((v, w) for v in VARIANTS for w in WORKERS)
+    assert sorted(trials) == sorted((v, w) for v in variants for w in WORKERS)
     return trials
 
 
@@ -103,7 +118,7 @@ def outputs(run_dir, config: RunConfig) -> dict:
     }
 
 
-@pytest.mark.parametrize("variant, workers", [(variant, workers) for variant in VARIANTS for workers in WORKERS])
+@pytest.mark.parametrize("variant, workers", CASES)
 def test_in_process_and_tune_with_one_or_two_actors_write_the_same_archive(variant, workers, tune_trials, tmp_path):
     config = RunConfig.build({**CONFIG, **case_config(variant, workers)})
     assert config.torch_threads == 1

@@ -14,7 +14,8 @@ from tests.ray.helpers import tensorboard_tags
 @needs_java
 def test_tiny_mario_dsage_through_tune_and_the_pool(ray_session, tmp_path):
     # Images once, when the budget is spent: rendering Mario's levels costs seconds, and once shows they arrive.
-    config = RunConfig.build(domain="mario", variant="dsage", preset="tiny", image_every=100,
+    # 8 evaluations: the 6 random levels and two surrogate iterations (each outer iteration costs about 3 s).
+    config = RunConfig.build(domain="mario", variant="dsage", preset="tiny", image_every=100, budget=8,
                              **{"ray.num_workers": 2, "ray.cpus_per_worker": 0.5, "ray.trial_cpus": 0.5})
     (trial,) = run_experiment(config.to_flat(), name="mario_tiny", storage_path=tmp_path, max_failures=0,
                               verbose=0).trials
