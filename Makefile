@@ -40,14 +40,17 @@ JSIG := $(shell j=$$(readlink -f $$(command -v java) 2>/dev/null) && ls $$(dirna
 # compileall first: where the environment forbids writing bytecode (PYTHONDONTWRITEBYTECODE, set on the development
 # machine), every process the suite starts (Tune trials, actors, command runs) would compile the package's sources
 # again: 0.2-0.5 s of CPU a process on the package's imports, measured (pip compiled the installed libraries).
+# The Maze's numba kernels likewise: on a clean clone each process that evaluated a maze before one had written the
+# kernel cache compiled them (about 4 s each; tests/audit/test_audit.py alone took 14 s longer, measured).
 test: $(STAMP)
 	$(BIN)/python -m compileall -q -j 0 dsage_ray tests examples > /dev/null
+	$(BIN)/python -c "from dsage_ray.domains.maze.paths import compile_kernels; compile_kernels()"
 	RAY_AUTH_MODE=disabled LD_PRELOAD=$(JSIG) $(BIN)/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder --durations=20
 
 # The long tests the default suite leaves out (marked slow: end-to-end script runs and long checks whose parts the
-# default suite covers, runs of the real ACCEL agent, and the 4-node cluster); about 5 minutes on 2 cores (13 tests
-# in about 300 s: the sum of their measured durations, the 8 earlier ones' 158 s, and 23 + 16 + 37 + 38 + 29 s for the
-# five added by issue 63 to keep make test, venv included, under 10 minutes on a clean clone).
+# default suite covers, runs of the real ACCEL agent, and the 4-node cluster); about 6 minutes on 2 cores (16 tests
+# in about 380 s: the sum of their measured durations, the 8 earlier ones' 158 s, 23 + 16 + 37 + 38 + 29 s for the
+# five added by issue 63, and 79 s for the three mode-equality cases beside DSAGE's pipelined one).
 test-slow: $(STAMP)
 	RAY_AUTH_MODE=disabled LD_PRELOAD=$(JSIG) $(BIN)/python -m pytest -q -m slow
 

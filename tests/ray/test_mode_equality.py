@@ -3,13 +3,14 @@
 In-process (``dsage-ray run --local``), one Tune trial with 1 simulator actor and one with 2 actors
 (results arriving out of order, one solution per task) must write byte-identical ``archive.csv``
 files and the same metrics, for DSAGE and MAP-Elites (the other DSAGE variants differ from DSAGE only in
-keys the runner reads, not in how the modes drive it). MAP-Elites' cases are ``slow``: the runner drives its direct
-search through the same pool and screen as DSAGE's, and its two trials cost the default suite about 45 s. DSAGE's two-actor trial runs
+keys the runner reads, not in how the modes drive it). DSAGE's two-actor trial runs
 pipelined (``pipeline = true``: the surrogate trains while the pool evaluates) and is compared with a
-pipelined in-process run; the one-actor trials screen their candidates (``selection.screen_episodes``), as
-their in-process twins do. The in-process run is
+pipelined in-process run; DSAGE's trials and MAP-Elites' one-actor trial screen their candidates
+(``selection.screen_episodes``), as their in-process twins do. The in-process run is
 started with a torch thread count other than the config's, as a user's shell would have it.
-"""
+
+The default suite runs DSAGE's two-actor case, which has all of it: actors out of order, the pipeline and the
+screen. The other three are ``slow`` (``-m slow``): each adds a Tune trial and an in-process twin (about 25 s)."""
 
 from __future__ import annotations
 
@@ -42,13 +43,11 @@ CONFIG = {
     "experimental.chunk_size": 1,
 }
 VARIANTS = ("dsage", "map_elites")
-#: The variants outside the default suite (``-m slow`` runs them).
-SLOW_VARIANTS = ("map_elites",)
 #: DSAGE's runs: 20 random levels and about a dozen outer iterations of one to four picks (SMALL_RUN's 40 random
 #: levels only made each run twice as long).
 DSAGE_RUN = {"n_rand": 20, "budget": 38}
 WORKERS = (1, 2)
-#: What the one-actor trials add: a screen of one episode a candidate. It plays where the proposer runs (the trial's
+#: What the screened trials add: a screen of one episode a candidate. It plays where the proposer runs (the trial's
 #: process) and draws its seeds from the run's stream, so it must not make the modes differ.
 SCREEN = {"selection.screen_episodes": 1}
 #: MAP-Elites screens only once its random batches are done: its screened runs go on to this budget (DSAGE screens
@@ -56,9 +55,9 @@ SCREEN = {"selection.screen_episodes": 1}
 MAP_ELITES_SCREENED_BUDGET = 100
 
 
-def screened(workers: int) -> bool:
-    """The one-actor trials screen; the two-actor trials do not (and DSAGE's runs pipelined)."""
-    return workers == 1
+def screened(variant: str, workers: int) -> bool:
+    """DSAGE's trials and the one-actor trials screen; MAP-Elites' two-actor trial does not."""
+    return variant == "dsage" or workers == 1
 
 
 def pipelined(variant: str, workers: int) -> bool:
@@ -68,20 +67,21 @@ def pipelined(variant: str, workers: int) -> bool:
 def case_config(variant: str, workers: int) -> dict:
     """The keys of trial ``(variant, workers)`` beyond :data:`CONFIG`, which its in-process twin runs with."""
     keys = {"variant": variant, "pipeline": pipelined(variant, workers), **(DSAGE_RUN if variant == "dsage" else {})}
-    if screened(workers):
+    if screened(variant, workers):
         keys |= {**SCREEN, **({"budget": MAP_ELITES_SCREENED_BUDGET} if variant == "map_elites" else {})}
     return keys
 
 
-CASES = [pytest.param(variant, workers, marks=[pytest.mark.slow] if variant in SLOW_VARIANTS else [])
+#: The case of the default suite; the others are ``slow``.
+DEFAULT_CASE = ("dsage", 2)
+CASES = [pytest.param(variant, workers, marks=[] if (variant, workers) == DEFAULT_CASE else [pytest.mark.slow])
          for variant in VARIANTS for workers in WORKERS]
 
 
-def selected_variants(session) -> list[str]:
-    """The variants whose cases this session runs (``-m`` and ``-k`` deselect before fixtures start)."""
-    chosen = {item.callspec.params["variant"] for item in session.items
-              if item.path.name == "test_mode_equality.py" and hasattr(item, "callspec")}
-    return [variant for variant in VARIANTS if variant in chosen]
+def selected_cases(session) -> list[tuple[str, int]]:
+    """The cases this session runs (``-m`` and ``-k`` deselect before fixtures start)."""
+    return sorted({(item.callspec.params["variant"], item.callspec.params["workers"]) for item in session.items
+                   if item.path.name == "test_mode_equality.py" and hasattr(item, "callspec")})
 
 
 @pytest.fixture(scope="module")
@@ -90,9 +90,10 @@ def tune_trials(request, tmp_path_factory) -> dict[tuple[str, int], dict]:
 
     One Tune experiment for every selected case: a Tune start costs more than any of these runs.
     """
-    variants = selected_variants(request.session)
+    cases = selected_cases(request.session)
     base = RunConfig.build({**CONFIG, "variant": "dsage"})
-    space = grid_param_space(base, {"variant": variants, "ray.num_workers": list(WORKERS)})
+    space = grid_param_space(base, {"variant": sorted({v for v, _ in cases}),
+                                    "ray.num_workers": sorted({w for _, w in cases})})
     for key in ("pipeline", *SCREEN, *DSAGE_RUN):
         space[key] = tune.sample_from(lambda spec, key=key: RunConfig.build(
             {**CONFIG, **case_config(spec.config["variant"], spec.config["ray.num_workers"])}).to_flat()[key])
@@ -100,7 +101,7 @@ def tune_trials(request, tmp_path_factory) -> dict[tuple[str, int], dict]:
     trials = {}
     for trial in experiment.trials:
         trials[trial.config.variant, trial.config.ray.num_workers] = outputs(trial.path, trial.config)
-    assert sorted(trials) == sorted((v, w) for v in variants for w in WORKERS)
+    assert set(cases) <= set(trials)
     return trials
 
 
@@ -133,7 +134,7 @@ def test_in_process_and_tune_with_one_or_two_actors_write_the_same_archive(varia
     assert len(local["metrics"]) >= 3  # a surrogate variant trains at least twice
     if config.uses_surrogate:
         assert "surrogate_loss" in local["metrics"][-1]
-    if screened(workers):
+    if screened(variant, workers):
         assert sum(row.get("selection_screened", 0) for row in local["metrics"]) > 0
     trial = tune_trials[variant, workers]
     assert trial["config"] == local["config"]

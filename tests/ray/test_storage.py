@@ -1,4 +1,8 @@
-"""A Tune run's storage as a URI: written and read back through Tune's storage layer, resumable by the same URI."""
+"""A Tune run's storage as a URI: locations, and trials on a remote filesystem read from a local copy.
+
+A run stored at a file URI, read back and resumed by the same URI, is
+``tests/ray/test_ray_progress.py``'s Tune run (a Tune start costs more than the run).
+"""
 
 from __future__ import annotations
 
@@ -15,9 +19,6 @@ from dsage_ray.ray.experiment import _run_result
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = ROOT / "experiments" / "configs" / "maze_dsage.toml"
-#: One random iteration (the budget is the tiny preset's n_rand): these tests are about where a run is stored.
-SMALL = {"maze.agent": "builtin:wall_follower", "budget": 50, "maze.episodes": 2, "ray.num_workers": 1,
-         "ray.cpus_per_worker": 0.5, "ray.trial_cpus": 0.5}
 
 
 def test_locations_paths_and_uris():
@@ -26,16 +27,6 @@ def test_locations_paths_and_uris():
     assert storage.local_folder("s3://bucket/runs") is None
     assert storage.storage_location("s3://bucket/runs") == "s3://bucket/runs"
     assert Path(storage.storage_location("tb_logs")).is_absolute()
-
-
-def test_a_run_stored_at_a_file_uri_outside_the_working_directory_reads_back_and_resumes(ray_session, tmp_path):
-    uri = f"file://{tmp_path}/storage"
-    result = dsage_ray.run(CONFIG, preset="tiny", overrides=SMALL, out=uri)
-    assert result.path.is_relative_to(tmp_path / "storage" / "maze_dsage") and result.checkpoint.is_file()
-    assert result.metrics[-1]["evals"] == 50 and len(result.archive) > 0
-    assert not Path("file:").exists()  # the URI was not taken for a relative folder of the working directory
-    again = dsage_ray.run(CONFIG, preset="tiny", overrides=SMALL, out=uri, resume=True)
-    assert again.checkpoint == result.checkpoint and again.metrics == result.metrics
 
 
 def test_a_trial_on_a_remote_filesystem_is_read_from_a_local_copy(tmp_path):

@@ -240,3 +240,17 @@ def distances_from(walls: np.ndarray, cell: tuple[int, int]) -> np.ndarray:
     """
     empty = np.ascontiguousarray(~np.asarray(walls, dtype=bool))
     return _distances_from(empty, int(cell[0]) * empty.shape[1] + int(cell[1]))
+
+
+def compile_kernels() -> None:
+    """Compiles every kernel into numba's on-disk cache, so that later processes load them.
+
+    A cold kernel cache costs each process that evaluates mazes about 4 s of compiling until one of them has
+    written it. ``make test`` calls this before its parallel workers start.
+    """
+    walls = np.ones((1, 3, 3), dtype=bool)
+    walls[0, 1, 1] = False
+    pairs = furthest_pairs(walls)
+    path_masks(walls, pairs)
+    pair_distances(walls, pairs[:, 0], pairs[:, 1])
+    distances_from(walls[0], (1, 1))

@@ -1,3 +1,6 @@
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from scipy.sparse import csr_matrix
@@ -96,3 +99,14 @@ def test_distances_from_match_scipy(density):
         reached = shortest_path(graph, directed=False, unweighted=True, indices=int(np.searchsorted(flat, source)))
         expected.flat[flat] = np.where(np.isfinite(reached), reached, -1)
         assert np.array_equal(distances_from(walls, divmod(source, walls.shape[1])), expected)
+
+
+
+def test_compile_kernels_compiles_the_kernel_behind_each_public_function():
+    # A fresh process: this one's kernels were compiled by the tests above. (The kernels those four call are compiled
+    # into them.)
+    code = ("from dsage_ray.domains.maze import paths; paths.compile_kernels(); "
+            "print(*(bool(paths._furthest_pairs.signatures), bool(paths._path_masks.signatures), "
+            "bool(paths._pair_distances.signatures), bool(paths._distances_from.signatures)))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.split() == ["True"] * 4
