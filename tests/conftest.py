@@ -85,7 +85,7 @@ def agent_plugin(agent_plugin_site):
 #: Files whose tests take most of the suite's time (Tune experiments, Ray pools, JVM runs, subprocess runs), the
 #: slowest first (``--durations`` of a ``make test`` run). ``make test`` runs two pytest workers that take whole files
 #: in collection order (``--no-loadscope-reorder``); handing these out first keeps both busy to the end instead of
-#: leaving one worker alone with a slow file. The files after them take under 30 s each.
+#: leaving one worker alone with a slow file. The files after them take under 20 s each.
 SLOW_FILES_FIRST = (
     "tests/ray/test_ray_trainable.py",
     "tests/ray/test_ray_mario.py",
