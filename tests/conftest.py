@@ -88,7 +88,6 @@ def agent_plugin(agent_plugin_site):
 #: leaving one worker alone with a slow file. The files after them take under 20 s each.
 SLOW_FILES_FIRST = (
     "tests/ray/test_ray_trainable.py",
-    "tests/ray/test_ray_mario.py",
     "tests/ray/test_ray_pool.py",
     "tests/ray/test_mode_equality.py",
     "tests/ray/test_ray_progress.py",
@@ -103,6 +102,7 @@ SLOW_FILES_FIRST = (
     "tests/integrations/test_rllib.py",
     "tests/test_errors.py",
     "tests/core/test_golden.py",
+    "tests/ray/test_ray_mario.py",
     "tests/examples/test_gridpath.py",
     "tests/audit/test_report_browser.py",
     "tests/audit/test_mario_audit.py",
