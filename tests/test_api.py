@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import shutil
 import subprocess
@@ -12,6 +14,8 @@ import pytest
 
 import dsage_ray
 from dsage_ray.cli import main
+from dsage_ray.core.tensorboard_log import tensorboard_hint
+from tests.ray.helpers import tensorboard_scalars, tensorboard_tags
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "experiments" / "configs" / "maze_dsage.toml"
@@ -56,10 +60,32 @@ SMALL_RUN_ARGS = ["run", str(CONFIG), "--preset", "tiny", *(f"--set={key}={value
 
 @pytest.fixture(scope="module")
 def cli_run(tmp_path_factory) -> Path:
-    """The folder of :data:`SMALL_RUN_ARGS`'s run, for the tests that read it (a test that changes it copies it)."""
+    """The folder of :data:`SMALL_RUN_ARGS`'s run, for the tests that read it (a test that changes it copies it).
+
+    What the command printed is beside it, in ``stdout.txt``.
+    """
     out = tmp_path_factory.mktemp("cli") / "run"
-    assert main([*SMALL_RUN_ARGS, "--out", str(out)]) == 0
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        assert main([*SMALL_RUN_ARGS, "--out", str(out)]) == 0
+    (out.parent / "stdout.txt").write_text(printed.getvalue())
     return out
+
+
+def test_a_local_run_prints_its_progress_and_points_at_its_folder_and_tensorboard(cli_run):
+    stdout = (cli_run.parent / "stdout.txt").read_text()
+    *_, folder_line, tensorboard_line = stdout.rstrip().splitlines()
+    assert folder_line == f"run folder: {cli_run}"
+    assert tensorboard_line == f"open it in TensorBoard: {tensorboard_hint(cli_run)}"
+    history = json.loads((cli_run / "metrics.json").read_text())
+    ours = tensorboard_scalars(cli_run, prefix="dsage/")
+    assert [step for step, _ in ours["dsage/outer_iteration"]] == [int(m["evals"]) for m in history]
+    # The archive's numbers also within each iteration (qd.growth.growth_curve).
+    assert {int(m["evals"]) for m in history} < {step for step, _ in ours["dsage/coverage"]}
+    _, images = tensorboard_tags(cli_run)
+    assert "archive/heatmap" in images
+    progress = [line for line in stdout.splitlines() if line.startswith("iter ")]
+    assert len(progress) == len(history) and progress[-1].endswith("ETA done")
 
 
 def test_run_returns_its_folder_metrics_archive_and_checkpoint_as_the_cli_writes_them(tmp_path, cli_run):

@@ -19,7 +19,10 @@ from dsage_ray.domains.maze.generator import random_valid_levels
 from dsage_ray.qd.archives import make_archive
 from dsage_ray.ray.pool import SimulatorPool
 
-AUDITED = "builtin:random"
+#: The wall follower: its episodes end at the goal, where the random agent's run to the step limit.
+AUDITED = "builtin:wall_follower"
+#: The other agent of ``compare``.
+OTHER = "builtin:random"
 
 
 class DyingMazeDomain(MazeDomain):
@@ -75,7 +78,7 @@ def test_compare_on_the_pool_equals_in_process(ray_session, search, capsys, monk
     collection = folder / "in_process"
     if not collection.exists():
         build_collection(archive, config=config, out_dir=collection)
-    serial = compare_agents(AUDITED, "builtin:wall_follower", collection_dir=collection)
+    serial = compare_agents(AUDITED, OTHER, collection_dir=collection)
     # The command's own comparison is the pooled one: one pool start, not two (each costs seconds).
     pooled_runs = []
 
@@ -85,7 +88,7 @@ def test_compare_on_the_pool_equals_in_process(ray_session, search, capsys, monk
 
     monkeypatch.setattr(compare_module, "compare_agents", recording)
     html = folder / "compare.html"
-    assert main(["compare", "--agent", AUDITED, "--agent", "builtin:wall_follower", "--collection", str(collection),
+    assert main(["compare", "--agent", AUDITED, "--agent", OTHER, "--collection", str(collection),
                  "--workers", "2", "--html", str(html)]) == 0
     (pooled,) = pooled_runs
     assert pooled["levels"] == serial["levels"] and pooled["summary"] == serial["summary"]

@@ -20,8 +20,8 @@ TINY = RunConfig.build(domain="mario", variant="dsage", preset="tiny")
 @needs_java
 def test_levels_played_by_two_pool_actors_equal_the_in_process_results(ray_session):
     domain = build_domain(TINY)
-    solutions = domain.random_solutions(4, np.random.default_rng(3))
-    seeds = [11, 12, 13, 14]
+    solutions = domain.random_solutions(2, np.random.default_rng(3))  # one level an actor
+    seeds = [11, 12]
     expected = InProcessEvaluator(domain=domain)(solutions, seeds)
     with SimulatorPool(config=TINY, num_workers=2, cpus_per_worker=0.5) as pool:
         results = pool(solutions, seeds)

@@ -1,4 +1,6 @@
-"""What a run prints and where it points: progress lines, no Ray TensorBoard hint, our command last."""
+"""What a run through Tune prints and where it points: progress lines, no Ray TensorBoard hint, our command last.
+
+A local run's lines are ``tests/test_api.py``'s (its command-line run)."""
 
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ import pytest
 import dsage_ray
 from dsage_ray.cli import main
 from dsage_ray.core.tensorboard_log import tensorboard_hint
-from tests.ray.helpers import tensorboard_scalars, tensorboard_tags
+from tests.ray.helpers import tensorboard_tags
 
 MAZE_CONFIG = "experiments/configs/maze_dsage.toml"
 MAZE_OVERRIDES = {"maze.agent": "builtin:wall_follower", "budget": 30, "n_rand": 20, "selection.count": 10,
@@ -64,24 +66,6 @@ def test_run_through_tune_prints_our_progress_lines_not_tunes_hint_and_ends_with
     again = dsage_ray.run(MAZE_CONFIG, preset="tiny", overrides=MAZE_OVERRIDES, out=uri, resume=True)
     assert again.path == run_dir and again.checkpoint.is_file() and len(again.archive) > 0
     assert again.metrics == json.loads((run_dir / "metrics.json").read_text())
-
-
-def test_a_local_run_writes_the_same_tensorboard_events_and_points_at_them(tmp_path, capsys):
-    out = tmp_path / "local"
-    assert main([*MAZE_RUN, "--local", "--out", str(out)]) == 0
-    stdout = capsys.readouterr().out
-    folder_line, tensorboard_line = _pointer_lines(stdout)
-    assert folder_line == f"run folder: {out}"
-    assert _logdir(tensorboard_line).resolve() == out.resolve()
-    history = json.loads((out / "metrics.json").read_text())
-    ours = tensorboard_scalars(out, prefix="dsage/")
-    assert [step for step, _ in ours["dsage/outer_iteration"]] == [int(m["evals"]) for m in history]
-    # The archive's numbers also within each iteration (qd.growth.growth_curve).
-    assert {int(m["evals"]) for m in history} < {step for step, _ in ours["dsage/coverage"]}
-    _, images = tensorboard_tags(out)
-    assert "archive/heatmap" in images
-    progress = [line for line in stdout.splitlines() if line.startswith("iter ")]
-    assert len(progress) == len(history) and progress[-1].endswith("ETA done")
 
 
 def test_trials_done_counts_a_trial_that_said_done_while_tune_still_shows_it_running(capsys):
