@@ -153,9 +153,16 @@ def grid_configs(base: RunConfig, axes: Mapping[str, Sequence[Any]]) -> tuple[di
             raise ConfigError(f"--grid {key}: unknown config key ({key_hint(key, known)})")
         if not values:
             raise ConfigError(f"--grid {key}: no values")
-    defaults = RunConfig.build({"domain": base.domain, "preset": base.preset, "variant": base.variant}).to_flat()
-    explicit = {key: value for key, value in base.to_flat().items() if defaults.get(key) != value}
-    explicit.update(domain=base.domain, preset=base.preset)
+    layers = {"domain": base.domain, "preset": base.preset, "variant": base.variant}
+    flat = base.to_flat()
+    plain = RunConfig.build(layers).to_flat()
+    section = {key: value for key, value in flat.items()
+               if key.startswith(f"{base.domain}.") and plain.get(key) != value}
+    # The defaults given the base's domain section: keys its section fills in from the others (a gym [fault]
+    # space's search keys) are the base's defaults too, and each point's rebuild fills them in for its own variant.
+    defaults = RunConfig.build({**layers, **section}).to_flat()
+    explicit = {key: value for key, value in flat.items() if defaults.get(key) != value}
+    explicit.update(section, domain=base.domain, preset=base.preset)
     configs = []
     for point in itertools.product(*axes.values()):
         values = dict(zip(axes, point))

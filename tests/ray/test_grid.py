@@ -25,6 +25,17 @@ def test_values_are_read_like_set_values_and_commas_inside_brackets_or_quotes_st
     assert parse_grid("selection.screen_gain=true,false") == ("selection.screen_gain", [True, False])
 
 
+def test_a_fault_spaces_search_keys_are_each_points_own_and_a_key_the_caller_set_stays():
+    # The space fills them in for DSAGE (mutants, their step); a MAP-Elites point gets none and is not refused.
+    space = {"domain": "gym", "gym.space": "lunarlander_fault", "gym.agent": "builtin:random"}
+    explicit, (dsage, map_elites) = grid_configs(RunConfig.build(space), {"variant": ["dsage", "map_elites"]})
+    assert not {"selection.elite_mutants", "experimental.mutant_sigma", "experimental.min_predicted"} & set(explicit)
+    assert (dsage.selection.elite_mutants, dsage.experimental.mutant_sigma) == (20, 0.01)
+    assert (map_elites.selection.elite_mutants, map_elites.experimental.mutant_sigma) == (0, 0.0)
+    explicit, configs = grid_configs(RunConfig.build({**space, "selection.elite_mutants": 5}), {"seed": [1, 2]})
+    assert explicit["selection.elite_mutants"] == 5 and [c.selection.elite_mutants for c in configs] == [5, 5]
+
+
 @pytest.mark.parametrize("text, message", [
     ("seed", "expected KEY=V1,V2"),
     ("seed=", "no empty value"),
