@@ -37,10 +37,10 @@ def run_eval(args: argparse.Namespace) -> int:
     if args.episodes < 1:
         raise InputError(f"--episodes must be positive, got {args.episodes}")
     space, values = read_level(args.level)
-    if space.setup:  # a level file received from someone else may name one: say so before it runs
-        from dsage_ray.domains.gym.setup_hook import user_code_notice
+    from dsage_ray.domains.gym.setup_hook import user_code_notices
 
-        print(user_code_notice(space.setup), file=sys.stderr)
+    for notice in user_code_notices(space):  # a level file received from someone else may run code: say so first
+        print(notice, file=sys.stderr)
     env = make_env(space, values)
     try:
         agent = load_agent(args.agent, observation_space=env.observation_space, action_space=env.action_space,

@@ -158,18 +158,18 @@ class GymDomain:
         """Checks everything before the search: the environment and its parameters (one reset at each corner of
         the box and its centre), the agent against the environment's spaces, and the measures (one episode); a
         space declared deterministic plays that episode again with another seed, which must give the same return
-        and length. A space with a setup hook prints that it runs user code.
+        and length. A space that runs user code (a setup hook, a ``MODULE:ENV`` id) says so first.
 
         Raises:
             SpaceError, AgentError: What is wrong, in one line.
             ResourceError: ``episodes`` side by side would not fit in memory.
         """
-        if self.space.setup:
-            import sys
+        import sys
 
-            from dsage_ray.domains.gym.setup_hook import user_code_notice
+        from dsage_ray.domains.gym.setup_hook import user_code_notices
 
-            print(user_code_notice(self.space.setup), file=sys.stderr)
+        for notice in user_code_notices(self.space):
+            print(notice, file=sys.stderr)
         check_episode_memory(self.config.episodes)
         for corner in (-1.0, 0.0, 1.0):
             values = self.space.values(np.full(self.solution_dim, corner))

@@ -21,10 +21,18 @@ from dsage_ray.domains.gym.errors import SpaceError
 _LOADED: dict[str, Callable[..., Any]] = {}
 
 
-def user_code_notice(spec: str) -> str:
-    """The line an audit or ``gym eval`` prints before it plays a space that names a setup hook."""
-    return (f"note: this space runs user code: its setup hook {spec!r} is imported and called after every reset "
-            f"(docs/TRUST.md)")
+def user_code_notices(space: Any) -> list[str]:
+    """The lines an audit or ``gym eval`` prints before it plays a space that runs user code: its setup hook, and an
+    environment id naming a module (``MODULE:ENV``: ``gym.make`` imports the module first)."""
+    notices = []
+    if ":" in space.env_id:
+        module = space.env_id.split(":", 1)[0]
+        notices.append(f"note: this space runs user code: its environment id {space.env_id!r} imports the module "
+                       f"{module!r} (docs/TRUST.md)")
+    if space.setup:
+        notices.append(f"note: this space runs user code: its setup hook {space.setup!r} is imported and called "
+                       f"after every reset (docs/TRUST.md)")
+    return notices
 
 
 def load_setup(spec: str) -> Callable[..., Any]:
