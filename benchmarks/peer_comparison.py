@@ -65,8 +65,15 @@ TASKS: dict[str, dict[str, Any]] = {
                     "mdpfuzz_intensity": 5.0},
     "cartpole": {"space": "cartpole_initial_state", "agent": "sb3:/tmp/cart_dqn/10140000.zip?greedy=1",
                  "mdpfuzz_intensity": 0.01},
+    # Mazouni et al.'s Taxi task (AST 2024): their Q-table on their map (experiments/taxi_large_map_qtable.npy and
+    # map_large.txt of QuentinMaz/QD_Based_Testing_RL, taken out at run time as record.md says); their mutation
+    # redraws one coordinate, nearer values likelier.
+    "taxi": {"space": "taxi_large_fault", "agent": "qtable:/tmp/taxi/qtable.npy",
+             "env_args": ("map_file=/tmp/taxi/map_large.txt",), "mdpfuzz_mutation": "one_coordinate"},
 }
 PEERS = ("rt", "fuzzer", "mdpfuzz", "tpe", "indago")
+#: Episodes of each arm's untimed warm-up run: past the demo preset's 60 random levels, so DSAGE's surrogate trains.
+WARM_UP_EPISODES = 90
 
 
 @dataclass
@@ -77,6 +84,8 @@ class Config:
     task: str = "lunarlander"
     agent: str = TASKS["lunarlander"]["agent"]
     space: str = TASKS["lunarlander"]["space"]
+    #: Fixed ``gym.make`` keywords (``--env-arg KEY=VALUE`` strings), e.g. Taxi's map file.
+    env_args: tuple[str, ...] = ()
     arms: tuple[str, ...] = ("dsage",)
     seeds: tuple[int, ...] = (100, 101, 102, 103, 104)
     #: The equal-episodes budget: every run plays at least this many episodes.
@@ -98,6 +107,9 @@ class Config:
     # mutation of the task's intensity, 5 N for LunarLander's force; local sensitivity).
     mdpfuzz_init_share: float = 0.2
     mdpfuzz_intensity: float = 5.0
+    #: ``gaussian``: N(input, intensity) on every coordinate; ``one_coordinate`` (integer levels, their Taxi
+    #: executor's): one coordinate redrawn among its other values, each weighted by how near it is.
+    mdpfuzz_mutation: str = "gaussian"
     mdpfuzz_k: int = 10
     mdpfuzz_tau: float = 0.01
     mdpfuzz_gamma: float = 0.01
@@ -188,11 +200,20 @@ class Ledger:
             return False
         return self.cpu is None or self.clock() - self.started >= self.cpu
 
+    def canonical(self, level: np.ndarray) -> np.ndarray:
+        """``level`` clipped to the box, each integer or choice coordinate moved to its value's own point, so that
+        the points of one level are one level (a fault is a distinct level)."""
+        level = np.clip(np.asarray(level, dtype=np.float32), -1.0, 1.0)
+        for i, parameter in enumerate(self.domain.space.params):
+            if parameter.kind != "float":
+                level[i] = parameter.unit(parameter.value(float(level[i])))
+        return level
+
     def play(self, level: np.ndarray, seed: int = 0) -> Any:
         """Plays ``level`` (a point of the domain's box [-1, 1]^P) and returns its evaluation result."""
         if self.spent:
             raise BudgetSpent
-        level = np.clip(np.asarray(level, dtype=np.float32), -1.0, 1.0)
+        level = self.canonical(level)
         result = self.domain.evaluate(level, seed)
         fault = bool(result.objective >= 0.5)  # one deterministic episode: 1.0 is a fault, 0.0 none
         self.trace.append({"level": level.tolist(), "fault": fault, "return": float(result.info["mean_return"]),
@@ -227,7 +248,8 @@ def run_ours(arm: str, ledger: Ledger, *, seed: int, config: Config) -> None:
     from dsage_ray.core.runner import DSAGE, EvaluationsFailed
 
     run_config = audit_config(domain="gym", agent=config.agent, preset="demo", variant=arm, seed=seed,
-                              budget=10 ** 6, overrides={"gym.space": config.space, **config.ours_set})
+                              budget=10 ** 6,
+                              overrides={"gym.space": config.space, "gym.env_args": config.env_args, **config.ours_set})
     if arm == "dsage" and ledger.cpu is None:
         run_config = run_config.replace(budget=config.episodes)
     run = DSAGE(config=run_config, domain=LedgerDomain(ledger.domain, ledger))
@@ -237,6 +259,21 @@ def run_ours(arm: str, ledger: Ledger, *, seed: int, config: Config) -> None:
     except EvaluationsFailed:
         if not ledger.spent:  # a batch played after the budget fails as a whole: the arm is done
             raise
+
+
+def redraw_one_coordinate(level: np.ndarray, rng: np.random.Generator, *, low: np.ndarray,
+                          high: np.ndarray) -> np.ndarray:
+    """Their Taxi executor's mutation, over integer levels: one coordinate, drawn uniformly, takes another of its
+    values, each with weight (its farthest value's distance) - (its distance), so nearer values are likelier."""
+    mutant = np.array(level, dtype=float)
+    i = int(rng.integers(len(mutant)))
+    values = np.arange(low[i], high[i] + 1)
+    distance = np.abs(values - mutant[i])
+    weights = np.where(distance == 0, 0.0, distance.max() - distance)
+    if weights.sum() == 0:  # two values: the other one
+        weights = (distance > 0).astype(float)
+    mutant[i] = rng.choice(values, p=weights / weights.sum())
+    return mutant
 
 
 def run_mdpfuzz(arm: str, ledger: Ledger, *, seed: int, config: Config) -> None:
@@ -249,15 +286,23 @@ def run_mdpfuzz(arm: str, ledger: Ledger, *, seed: int, config: Config) -> None:
     # mapped onto the domain's box [-1, 1]^P.
     low = np.array([p.low for p in ledger.domain.space.params], dtype=float)
     high = np.array([p.high for p in ledger.domain.space.params], dtype=float)
+    integers = np.array([p.kind != "float" for p in ledger.domain.space.params])
+
+    def draw(rng: np.random.Generator, size: Any) -> np.ndarray:
+        """Uniform inputs; integer coordinates uniform over their values (their Taxi executor's ``integers``)."""
+        x = rng.uniform(low, high, size=size)
+        return np.where(integers, np.floor(rng.uniform(low, high + 1, size=size)).clip(low, high), x)
 
     class LedgerExecutor(Executor):
         def generate_input(self, rng):
-            return rng.uniform(low, high)
+            return draw(rng, None)
 
         def generate_inputs(self, rng, n=1):
-            return self.generate_input(rng) if n == 1 else rng.uniform(low, high, size=(n, len(low)))
+            return draw(rng, None) if n == 1 else draw(rng, (n, len(low)))
 
         def mutate(self, input, rng, **kwargs):
+            if config.mdpfuzz_mutation == "one_coordinate":
+                return redraw_one_coordinate(np.asarray(input), rng, low=low, high=high)
             return np.clip(rng.normal(input, config.mdpfuzz_intensity), low, high)
 
         def load_policy(self, **kwargs):
@@ -294,14 +339,18 @@ def run_tpe(ledger: Ledger, *, seed: int, config: Config) -> None:
     from ray.tune.search.optuna import OptunaSearch
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    names = [p.name for p in ledger.domain.space.params]
-    space = {name: optuna.distributions.FloatDistribution(-1.0, 1.0) for name in names}
+    params = ledger.domain.space.params
+    # An integer parameter is an integer distribution, as an Optuna user declares one (choices: their indices).
+    space = {p.name: optuna.distributions.FloatDistribution(-1.0, 1.0) if p.kind == "float"
+             else optuna.distributions.IntDistribution(int(p.low), int(p.high)) for p in params}
     searcher = OptunaSearch(space=space, metric="episode_return", mode="min",
                             sampler=optuna.samplers.TPESampler(seed=seed, n_startup_trials=config.tpe_startup))
     trial = 0
     while not ledger.spent:
         suggested = searcher.suggest(str(trial))
-        result = ledger.play(np.array([suggested[name] for name in names]))
+        result = ledger.play(np.array([suggested[p.name] if p.kind == "float"
+                                       else 2.0 * (suggested[p.name] - p.low) / (p.high - p.low) - 1.0
+                                       for p in params]))
         searcher.on_trial_complete(str(trial), {"episode_return": result.info["mean_return"]})
         trial += 1
 
@@ -336,7 +385,7 @@ def run_indago(ledger: Ledger, *, seed: int, config: Config) -> None:
             pool = np.concatenate([population, children])
             population = pool[np.argsort(-fitness(pool), kind="stable")[: config.indago_population]]
         played = {np.asarray(level, dtype=np.float32).tobytes() for level in levels}
-        picks = [x for x in population if x.astype(np.float32).tobytes() not in played][: config.indago_picks]
+        picks = [x for x in population if ledger.canonical(x).tobytes() not in played][: config.indago_picks]
         for level in picks or rng.uniform(-1, 1, size=(config.indago_picks, dim)):
             ledger.play(level)
 
@@ -368,7 +417,7 @@ def make_domain(config: Config) -> Any:
     from dsage_ray.domains import domain_class
 
     run_config = audit_config(domain="gym", agent=config.agent, preset="demo",
-                              overrides={"gym.space": config.space})
+                              overrides={"gym.space": config.space, "gym.env_args": config.env_args})
     base = domain_class(run_config.domain)
 
     class Recorder:
@@ -402,7 +451,8 @@ def make_domain(config: Config) -> Any:
 
         @property
         def last_observations(self) -> np.ndarray:
-            return np.array(self.observations)
+            """The episode's observations, one row each (a Discrete state is a row of one)."""
+            return np.array(self.observations).reshape(len(self.observations), -1)
 
     domain = RecordingDomain(config=run_config.domain_config)
     domain.evaluate(np.zeros(domain.solution_dim, dtype=np.float32), 0)  # loads the agent, warms the caches
@@ -488,7 +538,9 @@ def parse_args(argv: list[str] | None = None) -> tuple[Config, list[Path] | None
     args = parser.parse_args(argv)
     task = TASKS[args.task]
     config = Config(task=args.task, agent=args.agent or task["agent"], space=args.space or task["space"],
-                    mdpfuzz_intensity=task["mdpfuzz_intensity"], arms=tuple(args.arms), seeds=tuple(args.seeds),
+                    env_args=tuple(task.get("env_args", ())),
+                    mdpfuzz_intensity=task.get("mdpfuzz_intensity", Config.mdpfuzz_intensity),
+                    mdpfuzz_mutation=task.get("mdpfuzz_mutation", Config.mdpfuzz_mutation), arms=tuple(args.arms), seeds=tuple(args.seeds),
                     episodes=args.episodes, cpu_from=args.cpu_from, cpu=args.cpu,
                     min_episodes=args.min_episodes, out=args.out, tag=args.tag, label=args.label)
     types = {f.name: f.type for f in dataclasses.fields(Config)}
@@ -515,6 +567,10 @@ def main(argv: list[str] | None = None) -> None:
     # spinning beside a small per-step batch would bill CPU seconds to the arms that play outside the runner.
     torch.set_num_threads(1)
     domain = make_domain(config)
+    # Each arm once on a throwaway ledger first, so that no seed's CPU seconds hold the arm's first imports and
+    # first calls (on Taxi, where an episode costs a millisecond, they were most of DSAGE's first seed).
+    for arm in config.arms:
+        run_arm(arm, Ledger(domain=domain, episodes=WARM_UP_EPISODES), seed=0, config=config)
     # Arm by arm, so that every arm finished has all its seeds.
     for arm in config.arms:
         for seed in config.seeds:

@@ -25,6 +25,7 @@ ENTRY_POINT_GROUP = "dsage_ray.agents"
 #: dsage_ray's own installed metadata still declares (an install older than this table) is left out.
 BUILTIN_KINDS: dict[str, str] = {
     "python": "dsage_ray.agents.kinds:load_python",
+    "qtable": "dsage_ray.agents.kinds:load_qtable",
     "random": "dsage_ray.agents.kinds:load_random",
     "rllib": "dsage_ray.agents.kinds:load_rllib",
     "sb3": "dsage_ray.agents.kinds:load_sb3",

@@ -8,6 +8,7 @@ A factory is ``factory(target, options, *, observation_space, action_space, env=
     rllib:PATH | rllib:NAME                   a new-API-stack TorchRLModule (algorithm or RLModule checkpoint)
     sb3:PATH.zip | sb3:RUN_FOLDER             a Stable-Baselines3 save, or an RL Zoo run folder played as trained
     torchscript:PATH                          forward(obs) -> logits (Discrete) or actions (Box)
+    qtable:PATH.npy                           a (states, actions) table of action values, played greedily
     python:MODULE:FUNCTION | python:FILE.py:FUNCTION   a plain function (``?batch=1``: over the batch)
 
 Options: :mod:`dsage_ray.agents.rllib`, :mod:`dsage_ray.agents.sb3` (``?algo=PPO&greedy=0|1``) and
@@ -37,6 +38,7 @@ FORMS: dict[str, str] = {
     "rllib": "rllib:PATH | rllib:NAME",
     "sb3": "sb3:PATH.zip | sb3:RUN_FOLDER",
     "torchscript": "torchscript:PATH",
+    "qtable": "qtable:PATH.npy",
     "python": "python:MODULE:FUNCTION | python:FILE.py:FUNCTION",
 }
 #: Action spaces some kind can act in; rllib and torchscript act in the first two only.
@@ -84,6 +86,16 @@ def load_torchscript(target: str, options: SpecOptions, *, observation_space: gy
 
     _require_action_space(action_space, options)
     agent, label = torchscript.load_torchscript(target, options, action_space=action_space)
+    return checked(agent, label=label, options=options, observation_space=observation_space,
+                   action_space=action_space, env=env)
+
+
+def load_qtable(target: str, options: SpecOptions, *, observation_space: gymnasium.Space,
+                action_space: gymnasium.Space, env: Any = None) -> Agent:
+    """Factory of ``qtable:PATH.npy``."""
+    from dsage_ray.agents import qtable
+
+    agent, label = qtable.load_qtable(target, options, observation_space=observation_space, action_space=action_space)
     return checked(agent, label=label, options=options, observation_space=observation_space,
                    action_space=action_space, env=env)
 

@@ -26,7 +26,7 @@ from dsage_ray.agents.base import AgentError
 from dsage_ray.agents.loader import LOCAL_COPIES, local_path, parse_spec, shipped_agent_dir
 
 #: Kinds whose target is a file or folder path (``python``: when it names a ``.py`` file).
-FILE_KINDS = ("dcd", "rllib", "torchscript", "sb3", "python")
+FILE_KINDS = ("dcd", "rllib", "torchscript", "sb3", "qtable", "python")
 #: Name of the unpacked file or folder inside its temporary folder.
 _MEMBER = "agent"
 

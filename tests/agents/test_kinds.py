@@ -70,9 +70,10 @@ def assert_valid(actions: np.ndarray, space: gym.Space, n: int) -> None:
 
 
 def test_every_kind_has_a_form_and_says_whether_loading_runs_code():
-    assert set(FORMS) == set(BUILTIN_KINDS) == {"random", "rllib", "sb3", "torchscript", "python"}
+    assert set(FORMS) == set(BUILTIN_KINDS) == {"random", "rllib", "sb3", "torchscript", "qtable", "python"}
     runs_code = {kind: kind in KINDS_RUNNING_CODE for kind in FORMS}
-    assert runs_code == {"random": False, "sb3": False, "rllib": True, "torchscript": True, "python": True}
+    assert runs_code == {"random": False, "sb3": False, "qtable": False, "rllib": True, "torchscript": True,
+                         "python": True}
 
 
 def test_unknown_kind_lists_the_forms():

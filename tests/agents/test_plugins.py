@@ -48,7 +48,7 @@ def with_entry_points(monkeypatch, *entries: metadata.EntryPoint) -> None:
 def test_dsage_ray_declares_its_own_kinds_in_its_table_not_as_entry_points():
     entry_points = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["entry-points"]
     assert loader.ENTRY_POINT_GROUP not in entry_points
-    assert set(agent_registry.BUILTIN_KINDS) == {"python", "random", "rllib", "sb3", "torchscript"}
+    assert set(agent_registry.BUILTIN_KINDS) == {"python", "qtable", "random", "rllib", "sb3", "torchscript"}
     # An older install's metadata may still declare dsage_ray's kinds there: they are not plug-ins.
     assert all(plugins.provider(e) != plugins.OWN_DISTRIBUTION for e in agent_registry.installed_kinds().points.values())
 
@@ -90,7 +90,7 @@ def test_unknown_kind_is_an_input_error_listing_the_known_kinds(monkeypatch):
         load_maze_agent("nonsense:foo")
     message = str(info.value)
     assert isinstance(info.value, InputError) and describe(info.value)[0] == 2
-    assert "unknown kind 'nonsense' (known: builtin, dcd, python, random, rllib, sb3, torchscript, vendor_kind;" in message
+    assert "unknown kind 'nonsense' (known: builtin, dcd, python, qtable, random, rllib, sb3, torchscript, vendor_kind;" in message
     assert "'dsage_ray.agents' entry-point group" in message and "\n" not in message
 
 

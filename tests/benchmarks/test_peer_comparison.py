@@ -11,6 +11,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 import peer_comparison as pc  # noqa: E402
+from dsage_ray.domains.gym.space_model import Parameter  # noqa: E402
 
 
 class FakeDomain:
@@ -19,7 +20,8 @@ class FakeDomain:
     solution_dim = 2
     measure_ranges = ((-1.0, 1.0), (-1.0, 1.0))
     archive_dims = (4, 4)
-    space = SimpleNamespace(params=[SimpleNamespace(name="force_x"), SimpleNamespace(name="force_y")])
+    space = SimpleNamespace(params=[Parameter(name="force_x", low=-1000, high=1000),
+                                    Parameter(name="force_y", low=-1000, high=1000)])
 
     def __init__(self) -> None:
         self.played = 0
@@ -55,6 +57,30 @@ def test_faults_are_distinct_levels_and_cells_distinct_cells():
     assert (counts.faults, counts.fault_cells, counts.cells, counts.episodes) == (3, 2, 3, 5)
     assert counts.lowest_return == pytest.approx(-0.9)
     assert pc.count(ledger.trace, episodes=1).faults == 1
+
+
+def test_the_points_of_one_integer_level_are_one_level_and_one_fault():
+    domain = FakeDomain()
+    domain.space = SimpleNamespace(params=[Parameter(name="row", kind="int", low=0, high=4),
+                                           Parameter(name="force_y", low=-1000, high=1000)])
+    ledger = pc.Ledger(domain=domain, episodes=10)
+    for level in ([1.0, 0.3], [0.9, 0.3], [0.6, 0.3]):  # rows 4, 4 (3.8 rounds up) and 3
+        ledger.play(np.array(level))
+    assert [row["level"][0] for row in ledger.trace] == [1.0, 1.0, 0.5]
+    assert pc.count(ledger.trace, episodes=3).faults == 1  # row 4 twice (x > 0.5 fails here): one fault
+
+
+def test_the_one_coordinate_mutation_redraws_one_integer_nearer_values_likelier():
+    rng = np.random.default_rng(0)
+    low, high = np.array([0.0, 0.0]), np.array([10.0, 1.0])
+    mutants = np.array([pc.redraw_one_coordinate(np.array([5.0, 0.0]), rng, low=low, high=high)
+                        for _ in range(2000)])
+    changed = (mutants != [5.0, 0.0]).sum(axis=1)
+    assert (changed == 1).all()  # always one coordinate, always to another value
+    first = mutants[mutants[:, 1] == 0.0, 0]
+    assert set(first) <= set(range(11)) - {5} and 0.0 not in first and 10.0 not in first  # the farthest: weight 0
+    assert (np.abs(first - 5) == 1).mean() > (np.abs(first - 5) == 4).mean()
+    assert set(mutants[mutants[:, 0] == 5.0, 1]) == {1.0}  # two values: the other one
 
 
 def test_the_cpu_reading_counts_the_episodes_that_ended_within_it():

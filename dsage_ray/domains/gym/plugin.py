@@ -190,7 +190,7 @@ DOMAIN = DomainSpec(
     # dsage_ray's generic kinds (dsage_ray/agents/kinds.py) over the environment's spaces.
     agents=AgentKinds(forms={
         "rllib": "rllib:PATH", "sb3": "sb3:PATH.zip", "torchscript": "torchscript:PATH",
-        "python": "python:MODULE:FUNCTION", "random": "random",
+        "qtable": "qtable:PATH.npy", "python": "python:MODULE:FUNCTION", "random": "random",
     }),
     cli="dsage_ray.domains.gym.cli",
 )

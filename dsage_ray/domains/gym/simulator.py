@@ -52,6 +52,9 @@ def make_env(space: EnvSpace, values: Mapping[str, Any], *, render_mode: str | N
     """
     import gymnasium as gym
 
+    from dsage_ray.domains.gym.envs import register
+
+    register()
     kwargs = {**space.env_args, **{p.key: values[p.name] for p in space.params if p.target == "make"}}
     if space.max_episode_steps:
         kwargs["max_episode_steps"] = space.max_episode_steps
