@@ -259,6 +259,9 @@ def run_ours(arm: str, ledger: Ledger, *, seed: int, config: Config) -> None:
     except EvaluationsFailed:
         if not ledger.spent:  # a batch played after the budget fails as a whole: the arm is done
             raise
+    choice = getattr(run.proposer, "choice", None)  # search = "auto": what it chose, and on which numbers
+    if choice is not None:
+        print(choice.reason, flush=True)
 
 
 def redraw_one_coordinate(level: np.ndarray, rng: np.random.Generator, *, low: np.ndarray,

@@ -60,6 +60,7 @@ def level_picture(space: EnvSpace, values: Mapping[str, Any], *, occupancy: np.n
         result: The evaluation (its failure rate joins the title).
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import PowerNorm
     from matplotlib.figure import Figure
 
     frame = first_frame(space, values)
@@ -76,8 +77,10 @@ def level_picture(space: EnvSpace, values: Mapping[str, Any], *, occupancy: np.n
         elif panel == "occupancy":
             x, y = space.occupancy
             grid = np.asarray(occupancy, dtype=float)
-            image = ax.imshow(grid.T, origin="lower", aspect="auto", cmap="YlOrRd", vmin=0,
-                              vmax=occupancy_max or max(float(grid.max()), 1e-9),
+            # A square-root scale: one collection's scale tops at its busiest level (a taxi circling two cells for
+            # the whole episode), and a short episode's path must still show beside it.
+            image = ax.imshow(grid.T, origin="lower", aspect="auto", cmap="YlOrRd",
+                              norm=PowerNorm(0.5, vmin=0, vmax=occupancy_max or max(float(grid.max()), 1e-9)),
                               extent=(x.low, x.high, y.low, y.high))
             ax.set_xlabel(x.label, fontsize=FONT_SIZE)
             ax.set_ylabel(y.label, fontsize=FONT_SIZE)

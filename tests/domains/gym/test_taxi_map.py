@@ -118,8 +118,9 @@ def test_its_frame_shows_the_map(tmp_path):
     env = TaxiMapEnv(map_file=str(tmp_path / "small.txt"), render_mode="rgb_array")
     env.reset(options={"row": 1, "column": 2, "passenger": 0, "destination": 1})
     frame = env.render()
-    assert frame.shape == (3 * 24 + 2, 4 * 24 + 2, 3) and frame.dtype == np.uint8
-    assert tuple(frame[1 + 24 + 12, 1 + 2 * 24 + 12]) == (240, 200, 0)  # the empty taxi, yellow
+    assert frame.shape == (3 * 24 + 1, 4 * 24 + 1, 3) and frame.dtype == np.uint8
+    assert tuple(frame[24 + 12, 2 * 24 + 12]) == (240, 190, 0)  # the empty taxi, yellow
+    assert tuple(frame[12, 2 * 24]) == (0, 0, 0)  # the wall east of (0, 1)
 
 
 def large_map(path):
@@ -160,3 +161,13 @@ def test_without_the_map_file_the_space_stops_in_one_line_naming_the_map():
     with pytest.raises((SpaceError, ValueError)) as caught:
         domain.preflight()
     assert "Gymnasium's 5 x 5 Taxi map (no map_file given)" in str(caught.value)
+
+
+def test_decode_inverts_encode(tmp_path):
+    (tmp_path / "small.txt").write_text(SMALL)
+    env = TaxiMapEnv(map_file=str(tmp_path / "small.txt"))
+    states = [env.encode(r, c, p, d) for r in range(3) for c in range(4) for p in range(4) for d in range(3)]
+    assert sorted(states) == list(range(env.observation_space.n))
+    assert all(env.encode(*env.decode(s)) == s for s in states)
+    env.set_state(env.encode(2, 1, 3, 0))
+    assert (env.taxi, env.passenger, env.destination) == ((2, 1), 3, 0)

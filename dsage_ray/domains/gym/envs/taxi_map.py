@@ -12,7 +12,8 @@ Q-table agent on an 18 × 13 map with 11 locations, drawn as Taxi draws its own 
 
 What a tester adds, in ``info``: ``crash`` (a move into a wall or the map's edge, which leaves the taxi where it
 is), ``illegal`` (an action rewarded −10), ``fault`` (either), the moves made so far without and with the
-passenger (``moves_empty``, ``moves_loaded``: Mazouni et al.'s behaviour), and the taxi's ``row`` and ``column``.
+passenger (``moves_empty``, ``moves_loaded``: Mazouni et al.'s behaviour), and the taxi's ``row`` and ``column``
+(and ``rows_below`` it, for plots whose y axis points up).
 With ``end_on_fault=True`` (the default) the episode ends at its first fault, as their executor stops it; with
 ``False`` and the default map it is ``Taxi-v3`` (not rainy), checked step by step in the tests.
 
@@ -97,12 +98,25 @@ class TaxiMapEnv(gymnasium.Env):
         """The state index of a taxi position, passenger location and destination (Taxi's encoding)."""
         return ((row * self.columns + column) * (self.in_taxi + 1) + passenger) * self.in_taxi + destination
 
+    def decode(self, state: int) -> tuple[int, int, int, int]:
+        """The taxi's row and column, the passenger's location and the destination of a state index."""
+        state, destination = divmod(int(state), self.in_taxi)
+        state, passenger = divmod(state, self.in_taxi + 1)
+        row, column = divmod(state, self.columns)
+        return row, column, passenger, destination
+
+    def set_state(self, state: int) -> None:
+        """Puts the episode in the state ``state`` (a trainer's or tester's hook), the move counts at zero."""
+        row, column, self.passenger, self.destination = self.decode(state)
+        self.taxi, self.moves = (row, column), [0, 0]
+
     def _state(self) -> int:
         return self.encode(*self.taxi, self.passenger, self.destination)
 
     def _info(self, *, crash: bool = False, illegal: bool = False) -> dict[str, Any]:
         return {"crash": crash, "illegal": illegal, "fault": crash or illegal, "moves_empty": self.moves[0],
-                "moves_loaded": self.moves[1], "row": self.taxi[0], "column": self.taxi[1]}
+                "moves_loaded": self.moves[1], "row": self.taxi[0], "column": self.taxi[1],
+                "rows_below": self.rows - 1 - self.taxi[0]}
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[int, dict[str, Any]]:
         super().reset(seed=seed)
@@ -186,23 +200,24 @@ def draw(desc: np.ndarray, *, locations: Sequence[tuple[int, int]], taxi: tuple[
     """The map as an RGB image: grey locations, walls in black, the destination framed in magenta, the passenger a
     blue square, the taxi yellow (green when it carries the passenger)."""
     rows, columns = desc.shape[0] - 2, (desc.shape[1] - 1) // 2
-    image = np.full((rows * _CELL + 2, columns * _CELL + 2, 3), 255, dtype=np.uint8)
-    image[[0, -1], :] = image[:, [0, -1]] = 0
+    image = np.full((rows * _CELL + 1, columns * _CELL + 1, 3), 255, dtype=np.uint8)
+    image[::_CELL, :] = image[:, ::_CELL] = 225  # the cells' outlines, light
 
     def cell(r: int, c: int, inset: int) -> tuple[slice, slice]:
-        return (slice(1 + r * _CELL + inset, 1 + (r + 1) * _CELL - inset),
-                slice(1 + c * _CELL + inset, 1 + (c + 1) * _CELL - inset))
+        return (slice(r * _CELL + inset, (r + 1) * _CELL + 1 - inset),
+                slice(c * _CELL + inset, (c + 1) * _CELL + 1 - inset))
 
     for r, c in locations:
-        image[cell(r, c, 1)] = (200, 200, 200)
+        image[cell(r, c, 2)] = (190, 190, 190)
     image[cell(*destination, 1)] = (200, 0, 200)
-    image[cell(*destination, 4)] = (200, 200, 200)
+    image[cell(*destination, 5)] = (190, 190, 190)
     if passenger is not None:
-        image[cell(*passenger, 7)] = (30, 90, 220)
-    image[cell(*taxi, 5)] = (40, 170, 40) if loaded else (240, 200, 0)
+        image[cell(*passenger, 8)] = (30, 90, 220)
+    image[cell(*taxi, 5)] = (40, 170, 40) if loaded else (240, 190, 0)
     for r in range(rows):
-        for c in range(columns):
-            if desc[1 + r, 2 * c + 2] == b"|" and c < columns - 1:
-                x = 1 + (c + 1) * _CELL
-                image[1 + r * _CELL: 1 + (r + 1) * _CELL, x - 1: x + 1] = 0
+        for c in range(columns - 1):
+            if desc[1 + r, 2 * c + 2] == b"|":
+                x = (c + 1) * _CELL
+                image[r * _CELL: (r + 1) * _CELL + 1, x - 2: x + 3] = 0
+    image[:3, :] = image[-3:, :] = image[:, :3] = image[:, -3:] = 0  # the map's edge
     return image
