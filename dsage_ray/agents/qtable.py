@@ -16,7 +16,7 @@ import numpy as np
 from gymnasium import spaces
 
 from dsage_ray.agents.base import Agent, AgentError, AgentState
-from dsage_ray.agents.loader import SpecOptions, require_file
+from dsage_ray.agents.loader import SpecOptions, describe_exception, require_file
 
 
 class QTableAgent(Agent):
@@ -45,7 +45,7 @@ def read_table(path: str, *, label: str) -> np.ndarray:
     try:
         table = np.load(path, allow_pickle=False)
     except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
-        raise AgentError(f"{label}: not a NumPy .npy array ({type(exc).__name__}: {str(exc)[:120]})") from None
+        raise AgentError(f"{label}: not a NumPy .npy array ({describe_exception(exc)})") from None
     if isinstance(table, np.lib.npyio.NpzFile):
         names = ", ".join(table.files)
         table.close()
