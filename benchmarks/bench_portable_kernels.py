@@ -8,7 +8,9 @@ alternating them ``--repeats`` times, and prints each one's median wall time and
 * ``native``: torch's choice (AVX-512 and bf16 prediction where the CPU has them);
 * ``native fp32``: the same with ``surrogate.precision = fp32`` (the precision part of the cost);
 * ``aten avx2``: fp32, and only ATen's vectorised loops pinned to AVX2;
-* ``portable``: ``DSAGE_RAY_KERNELS=portable`` (ATen and oneDNN at AVX2, MKL's AVX2 reproducibility mode, fp32).
+* ``avx2 pins``: the first design of portable kernels (ATen and oneDNN at AVX2, MKL's ``AVX2`` branch, fp32), which
+  an Intel Xeon and an AMD EPYC ran differently;
+* ``portable``: ``DSAGE_RAY_KERNELS=portable`` (ATen at AVX2, MKL's ``COMPATIBLE`` branch, oneDNN off, fp32).
 
 Target (issue 46): portable kernels become the default if they cost at most 10% of a run.
 """
@@ -30,6 +32,8 @@ SETTINGS = {
     "native": ({}, []),
     "native fp32": ({}, ["--set", "surrogate.precision=fp32"]),
     "aten avx2": ({"ATEN_CPU_CAPABILITY": "avx2"}, ["--set", "surrogate.precision=fp32"]),
+    "avx2 pins": ({"ATEN_CPU_CAPABILITY": "avx2", "MKL_CBWR": "AVX2", "DNNL_MAX_CPU_ISA": "AVX2"},
+                  ["--set", "surrogate.precision=fp32"]),
     "portable": ({"DSAGE_RAY_KERNELS": "portable"}, []),
 }
 

@@ -11,7 +11,9 @@ per **kernel probe** (:func:`kernel_probe`, a digest of one small training step)
 has none skips them with a message saying how to record them. The variants without a surrogate (MAP-Elites,
 DR) compute nothing in torch and are checked on every machine. With portable kernels (:mod:`dsage_ray.kernels`,
 ``DSAGE_RAY_KERNELS=portable``) the probe is meant to be one for every x86-64 machine with AVX2, so its
-fingerprints are checked everywhere, in a subprocess (the mode is set when a process starts).
+fingerprints are checked everywhere, in a subprocess (the mode is set when a process starts). Where that check
+fails, the portable kernels are not portable to the machine: fix the kernels (as MKL's branch was, 2026-12-02), do
+not record a second portable probe.
 """
 
 from __future__ import annotations

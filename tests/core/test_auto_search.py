@@ -18,7 +18,7 @@ from tests.fakes import SMALL_RUN, BitmapDomain
 AUTO = {**SMALL_RUN, "budget": 200, "search": "auto"}
 
 
-#: A surrogate that picks 5 levels in its first iteration on the fake domain, so that a probe of 2 leaves a rest.
+#: A surrogate that picks 5 or so levels in its first iteration on the fake domain: a probe of 2 leaves a rest.
 PICKING = {"variant": "dsage_only_anc", "surrogate.epochs": 20, "qd.exploit_iterations": 20}
 
 
@@ -155,7 +155,8 @@ def test_below_the_break_even_the_probe_and_the_rest_make_dsages_run_bit_for_bit
     fixed = make_runner(budget=SMALL_RUN["n_rand"] + 10, search="fixed", **PICKING)
     fixed.run()
     assert isinstance(auto.proposer.inner, SurrogateAssisted) and not auto.proposer.choice.direct
-    assert auto.history[1]["evaluated_this_iteration"] == fixed.history[1]["evaluated_this_iteration"] == 5
+    # More picks than the probe's 2 (how many depends on the CPU's kernels): the rest after the probe is DSAGE's too.
+    assert auto.history[1]["evaluated_this_iteration"] == fixed.history[1]["evaluated_this_iteration"] > 2
     assert archive_snapshot(auto.archive) == archive_snapshot(fixed.archive)
 
 
