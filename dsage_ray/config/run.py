@@ -34,7 +34,8 @@ class RunConfig:
     #: :data:`~dsage_ray.core.auto_search.BREAK_EVEN_COST_RATIO` times a random one, surrogate time included.
     search: SearchMode = key("fixed", status="opt-in",
                              note="auto: DSAGE, or the domain's direct search where the surrogate costs more than it "
-                                  "buys (docs/DECISIONS.md); audits with a time budget take it unless told")
+                                  "buys (docs/DECISIONS.md); audits with a time budget and gym [fault] spaces take "
+                                  "it unless told")
     preset: str = key("paper", status="tool", values="a preset of the domain",
                       note="the scale: paper, cpu, demo or tiny (sets other keys)")
     seed: int = key(0, status="tool", note="the run's seed; the same seed and config give the same archive")

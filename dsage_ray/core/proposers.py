@@ -29,8 +29,8 @@ from dsage_ray.core.screening import ScreenStep
 from dsage_ray.qd.archives import make_archive
 from dsage_ray.qd.mutants import elite_mutants
 from dsage_ray.qd.emitters import RandomEmitter
-from dsage_ray.qd.optimizer import (EMITTERS_WITH_OWN_START, MAP_ELITES_RANDOM_BATCHES, make_scheduler,
-                                   reopened_scheduler, run_inner_loop)
+from dsage_ray.qd.optimizer import (EMITTERS_WITH_OWN_START, MAP_ELITES_RANDOM_BATCHES, compile_emitters,
+                                   make_scheduler, reopened_scheduler, run_inner_loop)
 from dsage_ray.qd.selection import additions, gather_elites, select_solutions
 from dsage_ray.surrogate.models import encode_solutions
 from dsage_ray.types import Domain, Evaluator, Solutions, solution_bounds
@@ -202,6 +202,11 @@ class SurrogateAssisted(Proposer):
             tic = time.perf_counter()
             proposal.metrics.update(self.holdout.score(self.surrogate))
             proposal.times["holdout"] = time.perf_counter() - tic
+        tic = time.perf_counter()
+        if compile_emitters(config=self.config.qd, solution_dim=self.domain.solution_dim,
+                            solution_dtype=self.domain.solution_dtype, random_solutions=self.domain.random_solutions,
+                            bounds=solution_bounds(self.domain)):
+            proposal.times["compile"] = time.perf_counter() - tic
         tic = time.perf_counter()
         surrogate_archive = self._exploit()
         proposal.times["exploit"] = time.perf_counter() - tic

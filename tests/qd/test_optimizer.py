@@ -133,3 +133,36 @@ def test_state_round_trip_gives_identical_subsequent_asks(kind, tmp_path):
     assert archive_stats(scheduler.archive) == archive_stats(restored.archive)
     if kind == "cma_me":
         assert sum(e.restarts for e in scheduler.emitters) > 0
+
+
+def _cma_es_signatures() -> dict[str, set[str]]:
+    import numba
+    from ribs.emitters.opt import _cma_es
+
+    return {name: {str(s) for s in function.signatures} for name, function in vars(_cma_es.CMAEvolutionStrategy).items()
+            if isinstance(getattr(_cma_es.CMAEvolutionStrategy, name), numba.core.registry.CPUDispatcher)
+            for function in [getattr(_cma_es.CMAEvolutionStrategy, name)]}
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_after_compile_emitters_an_inner_loop_of_that_solution_type_compiles_nothing_more(dtype):
+    from ribs.archives import GridArchive
+
+    from dsage_ray.qd.optimizer import compile_emitters
+
+    config = QDConfig(emitter="cma_me", num_emitters=2, batch_size=6, sigma0=0.2)
+    compile_emitters(config=config, solution_dim=DIM, solution_dtype=dtype, random_solutions=box_sampler)
+    assert not compile_emitters(config=config, solution_dim=DIM, solution_dtype=dtype, random_solutions=box_sampler)
+    compiled = _cma_es_signatures()
+    assert compiled and all(compiled.values())
+    archive = GridArchive(solution_dim=DIM, dims=(16, 8), ranges=[(0, 16), (0, 8)], seed=1, solution_dtype=dtype)
+    scheduler = make_scheduler(archive, config=config, solution_dim=DIM, random_solutions=box_sampler, seed=1)
+    run_inner_loop(scheduler, lambda x: latent_predict(x)[:2] + ({},), 30)
+    assert _cma_es_signatures() == compiled
+
+
+def test_compile_emitters_leaves_emitters_without_compiled_code_alone():
+    from dsage_ray.qd.optimizer import compile_emitters
+
+    config = QDConfig(emitter="gaussian", num_emitters=1, batch_size=4)
+    assert not compile_emitters(config=config, solution_dim=DIM, solution_dtype=np.float32, random_solutions=box_sampler)

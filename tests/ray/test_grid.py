@@ -26,14 +26,20 @@ def test_values_are_read_like_set_values_and_commas_inside_brackets_or_quotes_st
 
 
 def test_a_fault_spaces_search_keys_are_each_points_own_and_a_key_the_caller_set_stays():
-    # The space fills them in for DSAGE (mutants, their step); a MAP-Elites point gets none and is not refused.
+    # The space fills them in for DSAGE (mutants, their step, auto); a MAP-Elites point gets none and is not refused.
     space = {"domain": "gym", "gym.space": "lunarlander_fault", "gym.agent": "builtin:random"}
     explicit, (dsage, map_elites) = grid_configs(RunConfig.build(space), {"variant": ["dsage", "map_elites"]})
     assert not {"selection.elite_mutants", "experimental.mutant_sigma", "experimental.min_predicted"} & set(explicit)
     assert (dsage.selection.elite_mutants, dsage.experimental.mutant_sigma) == (20, 0.01)
     assert (map_elites.selection.elite_mutants, map_elites.experimental.mutant_sigma) == (0, 0.0)
+    # DSAGE runs as search = auto; MAP-Elites, which auto cannot start from, stays fixed.
+    assert (dsage.search, map_elites.search) == ("auto", "fixed")
     explicit, configs = grid_configs(RunConfig.build({**space, "selection.elite_mutants": 5}), {"seed": [1, 2]})
     assert explicit["selection.elite_mutants"] == 5 and [c.selection.elite_mutants for c in configs] == [5, 5]
+    explicit, configs = grid_configs(RunConfig.build({**space, "search": "fixed"}), {"seed": [1, 2]})
+    assert explicit["search"] == "fixed" and [c.search for c in configs] == ["fixed", "fixed"]
+    # Where auto cannot run (a pipelined run), the space does not ask for it.
+    assert RunConfig.build({**space, "pipeline": True}).search == "fixed"
 
 
 @pytest.mark.parametrize("text, message", [
