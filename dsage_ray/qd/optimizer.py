@@ -160,6 +160,8 @@ def _scheduler(archive: ArchiveBase, emitters: list[EmitterBase], result_archive
     return Scheduler(archive, emitters, result_archive=None if result_archive is archive else result_archive)
 
 
+#: Emitters that run pyribs' just-in-time compiled (numba) CMA-ES code.
+COMPILED_EMITTERS: frozenset[str] = frozenset({"cma_me"})
 #: Ask-tell rounds of :func:`compile_emitters`: enough that CMA-ES has updated its distribution (its ask then mixes
 #: a float64 mean with the solutions' type, a signature numba compiles again; one round leaves it to the run).
 COMPILE_ROUNDS = 10
@@ -180,7 +182,7 @@ def compile_emitters(*, config: QDConfig, solution_dim: int, solution_dtype: Any
         Whether it compiled (False: the emitter has no such code, or this process compiled it already).
     """
     key = (config.emitter, np.dtype(solution_dtype).str, bounds is not None)
-    if config.emitter not in EMITTERS_WITH_OWN_START or key in _COMPILED:
+    if config.emitter not in COMPILED_EMITTERS or key in _COMPILED:
         return False
     from ribs.archives import GridArchive
 
