@@ -555,3 +555,10 @@ def test_region_ranges_are_printed_as_the_filter_takes_them(tmp_path):
         assert [r.split(" – ") for r in ranges] == [[a] if a == b else [a, b] for a, b in zip(lo.split(), hi.split())]
     assert printed_range(1.23456, 2.5, [1.23456, 2.5, 2.6], 3) == ("1.234", "2.500")
     assert printed_range(1.23456, 2.5, [1.2342, 1.23456, 2.5], 3) == ("1.2345", "2.5000")
+
+
+def test_one_episode_is_one_episode_on_the_page():
+    from dsage_ray.audit.report.collection_page import episodes_phrase
+
+    assert (episodes_phrase(1), episodes_phrase(5), episodes_phrase("<2>")) == ("1 episode", "5 episodes",
+                                                                              "&lt;2&gt; episodes")

@@ -49,6 +49,11 @@ from dsage_ray.io import atomic_write_text
 WORST_SHOWN = 12
 
 
+
+def episodes_phrase(count: object) -> str:
+    """``1 episode``, ``5 episodes`` (escaped for the page)."""
+    return f"{esc(count)} episode{'' if str(count) == '1' else 's'}"
+
 def _reference_command(collection: dict[str, Any], entry: dict[str, Any], command: str) -> str | None:
     """The reference agent's command for ``entry``: recorded, or the agent's with the agent spec swapped."""
     reference = entry.get("reference") or {}
@@ -172,7 +177,7 @@ def _card(c: dict[str, Any], lv: dict[str, Any], collection_dir: Path, columns: 
     command = portable_command(lv["reproduce"], lv["level_file"])
     parts = [f"<div class='card'><h3>{headline}</h3><div class='pics'>"
              + "".join(figure(name, file) for name, file in pictures) + "</div>",
-             f"<table>{head}{body}</table>", f"<div>seed {esc(lv['seed'])}, {esc(lv['episodes'])} episodes:</div>",
+             f"<table>{head}{body}</table>", f"<div>seed {esc(lv['seed'])}, {episodes_phrase(lv['episodes'])}:</div>",
              command_block(command)]
     reference_command = _reference_command(c, lv, command) if reference else None
     if reference_command:
@@ -293,9 +298,9 @@ def _regions(c: dict[str, Any], columns: Sequence[ReportField], formats: dict[st
 
 def _glossary(c: dict[str, Any]) -> str:
     """One line per term the page uses, and how the worst levels are ordered."""
-    objective, episodes = objective_label(c), esc(c["episodes"])
+    objective, episodes = objective_label(c), episodes_phrase(c["episodes"])
     cells = " × ".join(str(int(d)) for d in c["archive_dims"])
-    terms = [(FAILURE_RATE, f"the share of a level's {episodes} episodes that the agent failed (1 − success rate), "
+    terms = [(FAILURE_RATE, f"the share of a level's {episodes} that the agent failed (1 − success rate), "
                             "measured again after the search with the level's recorded seed.")]
     if shows_objective(c):
         terms.append((objective, "the audit's objective, which the search maximised to find these levels; "
@@ -362,7 +367,7 @@ def write_report(collection_dir: str | Path) -> Path:
         lead += (" <span class='bad'>The agent failed its nominal check (see Run below): the failures here may be "
                  "artefacts of how it was played.</span>")
     lead += (f" Every number was measured again after the search with the level's recorded seed and "
-             f"{esc(c['episodes'])} episodes; each level's command prints it again. The terms are explained "
+             f"{episodes_phrase(c['episodes'])}; each level's command prints it again. The terms are explained "
              f"<a href='#terms'>below</a>.")
     parts = [f"<h1>{esc(title)}</h1><p class='lead'>{lead}</p>", "<h2>Failure diversity</h2>", _summary(summary),
              "<h2>Run</h2>", _metadata(c, collection_dir), "<h2>Terms</h2>", _glossary(c)]
