@@ -123,8 +123,7 @@ def audit_config(
     config = RunConfig.build(keys)
     if spec.audit.surrogate_keys and config.mutates_elites:
         keys = {**defaults, **spec.audit.surrogate_keys, **values, **(overrides or {})}
-    if ("search" not in (overrides or {}) and config.time_budget > 0 and config.uses_surrogate
-            and not config.pipeline and not config.surrogate.init):
+    if "search" not in (overrides or {}) and config.time_budget > 0 and config.can_search_auto:
         # With a time budget, DSAGE may not have the time to pay for its surrogate: in 5-minute Mario audits it
         # did not get past its random levels, and auto found 1.7x its failing cells (docs/DECISIONS.md).
         keys["search"] = "auto"

@@ -183,6 +183,13 @@ class RunConfig:
         return self.surrogate.kind != "none"
 
     @property
+    def can_search_auto(self) -> bool:
+        """Whether ``search = "auto"`` can run here: it starts as DSAGE (a surrogate), times an iteration that did not
+        overlap the evaluations (no pipeline), and compares with the random first levels (no warm start). What
+        :func:`~dsage_ray.config.validation.validate` checks for ``auto``, but the domain's direct search."""
+        return self.uses_surrogate and not self.pipeline and not self.surrogate.init
+
+    @property
     def mutates_elites(self) -> bool:
         """A surrogate search whose QD emitter has a mutation: ``selection.elite_mutants`` can apply."""
         return self.uses_surrogate and self.qd.emitter in typing.get_args(MutatingEmitter)

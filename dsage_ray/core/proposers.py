@@ -204,8 +204,7 @@ class SurrogateAssisted(Proposer):
             proposal.times["holdout"] = time.perf_counter() - tic
         tic = time.perf_counter()
         if compile_emitters(config=self.config.qd, solution_dim=self.domain.solution_dim,
-                            solution_dtype=self.domain.solution_dtype, random_solutions=self.domain.random_solutions,
-                            bounds=solution_bounds(self.domain)):
+                            solution_dtype=self.domain.solution_dtype, random_solutions=self.domain.random_solutions):
             proposal.times["compile"] = time.perf_counter() - tic
         tic = time.perf_counter()
         surrogate_archive = self._exploit()

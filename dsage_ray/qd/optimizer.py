@@ -165,13 +165,11 @@ COMPILED_EMITTERS: frozenset[str] = frozenset({"cma_me"})
 #: Ask-tell rounds of :func:`compile_emitters`: enough that CMA-ES has updated its distribution (its ask then mixes
 #: a float64 mean with the solutions' type, a signature numba compiles again; one round leaves it to the run).
 COMPILE_ROUNDS = 10
-#: Emitters, by solution type and bounded or not, whose pyribs code this process has compiled
-#: (:func:`compile_emitters`).
-_COMPILED: set[tuple[str, str, bool]] = set()
+#: Emitters, by solution type, whose pyribs code this process has compiled (:func:`compile_emitters`).
+_COMPILED: set[tuple[str, str]] = set()
 
 
-def compile_emitters(*, config: QDConfig, solution_dim: int, solution_dtype: Any, random_solutions: Sampler,
-                     bounds: tuple[float, float] | None = None) -> bool:
+def compile_emitters(*, config: QDConfig, solution_dim: int, solution_dtype: Any, random_solutions: Sampler) -> bool:
     """Compiles, once per process, the just-in-time (numba) code of pyribs' CMA-ES that the configured emitter runs,
     on a throwaway archive: a process's first CMA-ME inner loop otherwise spends seconds compiling (7.3 s of 7.9
     on the CartPole fault task), which is no cost of the search's iterations and made ``search = "auto"`` take
@@ -181,7 +179,7 @@ def compile_emitters(*, config: QDConfig, solution_dim: int, solution_dtype: Any
     Returns:
         Whether it compiled (False: the emitter has no such code, or this process compiled it already).
     """
-    key = (config.emitter, np.dtype(solution_dtype).str, bounds is not None)
+    key = (config.emitter, np.dtype(solution_dtype).str)
     if config.emitter not in COMPILED_EMITTERS or key in _COMPILED:
         return False
     from ribs.archives import GridArchive
@@ -189,7 +187,7 @@ def compile_emitters(*, config: QDConfig, solution_dim: int, solution_dtype: Any
     archive = GridArchive(solution_dim=solution_dim, dims=(2, 2), ranges=[(0.0, 1.0), (0.0, 1.0)], seed=0,
                           solution_dtype=solution_dtype)
     scheduler = make_scheduler(archive, config=dataclasses.replace(config, num_emitters=1), solution_dim=solution_dim,
-                               random_solutions=random_solutions, seed=0, bounds=bounds)
+                               random_solutions=random_solutions, seed=0)
     rng = np.random.default_rng(0)
     for _ in range(COMPILE_ROUNDS):
         count = len(scheduler.ask())

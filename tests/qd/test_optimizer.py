@@ -136,12 +136,13 @@ def test_state_round_trip_gives_identical_subsequent_asks(kind, tmp_path):
 
 
 def _cma_es_signatures() -> dict[str, set[str]]:
+    """The types each of pyribs' compiled CMA-ES functions has been compiled for in this process."""
     import numba
-    from ribs.emitters.opt import _cma_es
+    from ribs.emitters.opt._cma_es import CMAEvolutionStrategy
 
-    return {name: {str(s) for s in function.signatures} for name, function in vars(_cma_es.CMAEvolutionStrategy).items()
-            if isinstance(getattr(_cma_es.CMAEvolutionStrategy, name), numba.core.registry.CPUDispatcher)
-            for function in [getattr(_cma_es.CMAEvolutionStrategy, name)]}
+    functions = {name: getattr(CMAEvolutionStrategy, name) for name in dir(CMAEvolutionStrategy)}
+    return {name: {str(s) for s in function.signatures} for name, function in functions.items()
+            if isinstance(function, numba.core.registry.CPUDispatcher)}
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])

@@ -77,7 +77,7 @@ class GymConfig:
             # Mutants only where the search makes them; their Gaussian step only where they are continuous.
             applies = {"experimental.min_predicted": True, "selection.elite_mutants": run.mutates_elites,
                        "experimental.mutant_sigma": run.mutates_elites and run.qd.emitter != "map_elites",
-                       "search": run.uses_surrogate and not run.pipeline and not run.surrogate.init}
+                       "search": run.can_search_auto}
             run.assign({key: value for key, value in FAULT_SEARCH.items() if key not in given and applies[key]})
 
     def validate(self, need: Callable[[bool, str, str], None]) -> None:
