@@ -38,7 +38,9 @@ class RunConfig:
                                   "it unless told")
     preset: str = key("paper", status="tool", values="a preset of the domain",
                       note="the scale: paper, cpu, demo or tiny (sets other keys)")
-    seed: int = key(0, status="tool", note="the run's seed; the same seed and config give the same archive")
+    seed: int = key(0, status="tool",
+                    note="the run's seed; the same seed and config give the same archive (where search = auto "
+                         "chose by the clock, the same choice)")
     #: Total real evaluations.
     budget: int = key(100_000, status="paper", values=">= 1", note="real evaluations")
     #: Seconds of wall time the run may spend stepping, cumulative across resumes; 0: no limit. Whichever
