@@ -150,6 +150,9 @@ class Counts:
     """What an arm found within a budget."""
 
     faults: int
+    #: Failing levels distinct at 1% of each parameter's range (:data:`LEVEL_BINS` bins a parameter): near-copies of
+    #: one fault, a step of a few newtons apart, count once.
+    separate_faults: int
     fault_cells: int
     #: Cells holding any level played (the behaviour coverage the QD paper reports beside the faults).
     cells: int
@@ -159,18 +162,27 @@ class Counts:
     cpu: float
 
 
+#: Bins per parameter over the box [-1, 1] for :attr:`Counts.separate_faults`: 1% of each parameter's range.
+LEVEL_BINS = 100
+
+
 def count(trace: Sequence[dict[str, Any]], *, episodes: int | None = None, cpu: float | None = None) -> Counts:
     """The counts over the first ``episodes`` episodes of a trace, or over those that ended within ``cpu`` seconds.
 
     A fault is a distinct failing level (its parameter vector as float32), a fault cell a distinct cell holding one.
+    Separate faults are distinct at 1% of each parameter's range: on a continuous box two float vectors always
+    differ, so a search replaying near-copies of one fault would count each copy as a fault.
     """
     if (episodes is None) == (cpu is None):
         raise ValueError("give episodes or cpu")
     rows = list(trace[:episodes]) if episodes is not None else [row for row in trace if row["cpu"] <= cpu]
     failing = [row for row in rows if row["fault"]]
     levels = {np.asarray(row["level"], dtype=np.float32).tobytes() for row in failing}
+    bins = {tuple(np.clip(np.floor((np.asarray(row["level"]) + 1.0) / 2.0 * LEVEL_BINS), 0, LEVEL_BINS - 1)
+                  .astype(int).tolist()) for row in failing}
     cells = {tuple(row["cell"]) for row in failing}
-    return Counts(faults=len(levels), fault_cells=len(cells), cells=len({tuple(row["cell"]) for row in rows}),
+    return Counts(faults=len(levels), separate_faults=len(bins), fault_cells=len(cells),
+                  cells=len({tuple(row["cell"]) for row in rows}),
                   lowest_return=min((row["return"] for row in rows), default=float("nan")), episodes=len(rows),
                   cpu=rows[-1]["cpu"] if rows else 0.0)
 
@@ -473,9 +485,9 @@ def load_records(paths: Sequence[Path], *, tag: str | None = None) -> list[dict[
     return [r for r in records if tag is None or r["tag"] == tag]
 
 
-def dsage_cpu(records: Sequence[dict[str, Any]]) -> dict[int, float]:
-    """The CPU seconds each seed's dsage run spent (its whole run)."""
-    return {r["seed"]: r["trace"][-1]["cpu"] for r in records if row_of(r) == "dsage"}
+def dsage_cpu(records: Sequence[dict[str, Any]], *, reference: str = "dsage") -> dict[int, float]:
+    """The CPU seconds each seed's run of the ``reference`` row spent (its whole run)."""
+    return {r["seed"]: r["trace"][-1]["cpu"] for r in records if row_of(r) == reference}
 
 
 def row_of(record: dict[str, Any]) -> str:
@@ -483,40 +495,49 @@ def row_of(record: dict[str, Any]) -> str:
     return record.get("label") or record["arm"]
 
 
-def table(records: Sequence[dict[str, Any]]) -> str:
-    """The headline table: each arm's counts at equal episodes and at equal CPU time, mean ± s.e. over seeds."""
-    cpu = dsage_cpu(records)
+def table(records: Sequence[dict[str, Any]], *, cpu_budget: float | None = None, reference: str = "dsage") -> str:
+    """The headline table: each arm's counts at equal episodes and at equal CPU time, mean ± s.e. over seeds.
+
+    Equal CPU time is each seed's CPU seconds of the ``reference`` row (the runs that set the other arms' budgets),
+    or ``cpu_budget`` seconds for every run (the tuning runs, each run to a fixed CPU budget). The records are read
+    at the budget they were run to, never at a smaller one: MDPFuzz's arms size their random start from it.
+    """
+    budgets = {r["episodes"] for r in records}
+    if len(budgets) != 1:
+        raise SystemExit(f"records of different episode budgets: {sorted(budgets)}")
+    (budget,) = budgets
+    cpu = dsage_cpu(records, reference=reference)
+    if cpu_budget is not None:
+        cpu = {r["seed"]: cpu_budget for r in records}
     by_arm: dict[str, list[dict[str, Any]]] = defaultdict(list)
     for record in records:
         by_arm[row_of(record)].append(record)
-    episodes = {r["episodes"] for r in records}
-    if len(episodes) != 1:
-        raise SystemExit(f"records of different episode budgets: {sorted(episodes)}")
-    (budget,) = episodes
-    lines = [f"episode budget {budget}; equal CPU: each seed's dsage CPU seconds "
-             f"({format_mean_se(*mean_se(cpu.values()), '.1f') if cpu else 'none'} s); mean ± s.e. over seeds",
-             "| search | seeds | faults | fault cells | cells covered | lowest return | CPU s "
-             "| faults @ CPU | fault cells @ CPU | cells @ CPU | episodes @ CPU |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    equal_cpu = (f"{cpu_budget:g} CPU s a run" if cpu_budget is not None else
+                 f"each seed's CPU seconds of {reference} "
+                 f"({format_mean_se(*mean_se(cpu.values()), '.1f') if cpu else 'none'} s)")
+    lines = [f"episode budget {budget}; equal CPU: {equal_cpu}; mean ± s.e. over seeds",
+             "| search | seeds | faults | faults at 1% | fault cells | cells covered | lowest return | CPU s "
+             "| faults @ CPU | faults at 1% @ CPU | fault cells @ CPU | cells @ CPU | episodes @ CPU |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for arm in [a for a in OURS if a in by_arm] + sorted(set(by_arm) - set(OURS + PEERS)) + \
             [a for a in PEERS if a in by_arm]:
         runs = sorted(by_arm[arm], key=lambda r: r["seed"])
         at = [count(r["trace"], episodes=budget) for r in runs]
         cells = [arm, ",".join(str(r["seed"]) for r in runs)]
         cells += [format_mean_se(*mean_se(getattr(c, name) for c in at), spec)
-                  for name, spec in (("faults", ".1f"), ("fault_cells", ".1f"), ("cells", ".1f"),
-                                     ("lowest_return", ".1f"), ("cpu", ".0f"))]
+                  for name, spec in (("faults", ".1f"), ("separate_faults", ".1f"), ("fault_cells", ".1f"),
+                                     ("cells", ".1f"), ("lowest_return", ".1f"), ("cpu", ".0f"))]
         short = [c.episodes for c in at if c.episodes < budget]
         cells[2] += f" (short: {min(short)}-{max(short)} episodes)" if short else ""
         if all(r["seed"] in cpu for r in runs):
             at = [count(r["trace"], cpu=cpu[r["seed"]]) for r in runs]
             short = sum(r["trace"][-1]["cpu"] < cpu[r["seed"]] for r in runs)
             cells += [format_mean_se(*mean_se(getattr(c, name) for c in at), spec)
-                      for name, spec in (("faults", ".1f"), ("fault_cells", ".1f"), ("cells", ".1f"),
-                                         ("episodes", ".0f"))]
+                      for name, spec in (("faults", ".1f"), ("separate_faults", ".1f"), ("fault_cells", ".1f"),
+                                         ("cells", ".1f"), ("episodes", ".0f"))]
             cells[-1] += f" ({short} short)" if short else ""
         else:
-            cells += ["-"] * 4
+            cells += ["-"] * 5
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -524,12 +545,16 @@ def table(records: Sequence[dict[str, Any]]) -> str:
 # ------------------------------------------------------------------------------------------------- main
 
 
-def parse_args(argv: list[str] | None = None) -> tuple[Config, list[Path] | None]:
+def parse_args(argv: list[str] | None = None) -> tuple[Config, list[Path] | None, str]:
+    """The invocation's config, the record files ``--table`` prints (or None) and the table's reference row."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     defaults = Config()
     parser.add_argument("--arms", nargs="+", default=list(defaults.arms), choices=OURS + PEERS)
     parser.add_argument("--seeds", nargs="+", type=int, default=list(defaults.seeds))
-    parser.add_argument("--table", nargs="+", type=Path, help="print the table of these record files and stop")
+    parser.add_argument("--table", nargs="+", type=Path,
+                        help="print the table of these record files and stop (with --cpu: equal CPU is that budget)")
+    parser.add_argument("--reference", default="dsage",
+                        help="with --table: the row whose CPU seconds are each seed's equal-CPU budget")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="a Config field (mdpfuzz_intensity=20) or ours.KEY=VALUE for the DSAGE arms' config")
     parser.add_argument("--task", choices=sorted(TASKS), default=defaults.task,
@@ -555,13 +580,13 @@ def parse_args(argv: list[str] | None = None) -> tuple[Config, list[Path] | None
             setattr(config, key, type(getattr(config, key))(value))
         else:
             parser.error(f"--set {item}: not a numeric Config field nor ours.KEY")
-    return config, args.table
+    return config, args.table, args.reference
 
 
 def main(argv: list[str] | None = None) -> None:
-    config, tables = parse_args(argv)
+    config, tables, reference_row = parse_args(argv)
     if tables:
-        print(table(load_records(tables, tag=None)))
+        print(table(load_records(tables, tag=None), cpu_budget=config.cpu, reference=reference_row))
         return
     cpu = dsage_cpu(load_records([config.cpu_from])) if config.cpu_from else {}
     import torch
@@ -592,7 +617,8 @@ def main(argv: list[str] | None = None) -> None:
             with config.out.open("a") as out:
                 out.write(json.dumps(record, default=str) + "\n")
             at = count(ledger.trace, episodes=config.episodes)
-            print(f"{arm} seed {seed}: {at.faults} faults in {at.fault_cells} cells in {at.episodes} episodes "
+            print(f"{arm} seed {seed}: {at.faults} faults ({at.separate_faults} at 1%) in {at.fault_cells} cells in "
+                  f"{at.episodes} episodes "
                   f"({at.cpu:.1f} CPU s); the run: {len(ledger.trace)} episodes, {ledger.trace[-1]['cpu']:.1f} CPU s",
                   flush=True)
 

@@ -1,4 +1,6 @@
-"""Portable CPU kernels: meant to give the same surrogate run for a seed on any x86-64 CPU with AVX2, at a cost.
+"""Portable CPU kernels: meant to give the same surrogate run for a seed on any x86-64 CPU with AVX2, at a cost; an
+AMD EPYC and an Intel Xeon still differ (docs/results/portable_kernels/README.md), so today they pin a run to a kind
+of CPU rather than to any one.
 
 torch picks its CPU kernels by the machine: ATen's vectorised loops by the widest instruction set (AVX-512 or AVX2),
 MKL's matrix products by the processor and its vendor, oneDNN's convolutions by the instruction set and the caches,

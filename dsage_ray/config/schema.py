@@ -27,6 +27,10 @@ SelectionMethod = Literal["downsample", "random", "full"]
 SurrogateKind = Literal["two_stage", "one_stage", "none"]
 #: Surrogate prediction arithmetic.
 Precision = Literal["auto", "fp32", "bf16"]
+#: Where ``selection.elite_mutants`` draw their parents: ``elites``, among the ground-truth archive's best elites
+#: (one level a cell); ``evaluated``, among every level evaluated as good as those (a region dense with good
+#: levels, such as a run of faults, parents more mutants).
+MutantParents = Literal["elites", "evaluated"]
 #: ``fixed``: the variant runs as set; ``auto``: DSAGE, then the domain's direct search if the surrogate costs more
 #: than it buys (:mod:`dsage_ray.core.auto_search`).
 SearchMode = Literal["fixed", "auto"]
@@ -186,6 +190,10 @@ class ExperimentalConfig:
     #: ``selection.elite_mutants`` of continuous vectors: their Gaussian step (0: ``qd.sigma0``, the inner loop's).
     mutant_sigma: float = key(0.0, status="experimental", values=">= 0 (0: qd.sigma0)",
                               note="the elite mutants' Gaussian step (0: qd.sigma0); 0.01 for gym [fault] spaces")
+    #: ``selection.elite_mutants``: their parents, :data:`MutantParents`.
+    mutant_parents: MutantParents = key("elites", status="experimental", values="elites or evaluated",
+                                        note="the elite mutants' parents: the best elites, or every level "
+                                             "evaluated as good")
     #: ``selection.screen_episodes``: candidates screened per pick (the picks, then other elites predicted to add),
     #: or per level of a MAP-Elites batch.
     screen_pool: float = key(4.0, status="experimental", values=">= 1",

@@ -36,8 +36,10 @@ def best_elites(archive: ArchiveBase, *, share: float) -> np.ndarray:
 
 
 def elite_mutants(archive: ArchiveBase, *, count: int, share: float, qd: QDConfig,
-                  rng: np.random.Generator, bounds: tuple[float, float] | None = None) -> np.ndarray:
-    """``count`` mutants of parents drawn uniformly (with replacement) among :func:`best_elites`.
+                  rng: np.random.Generator, bounds: tuple[float, float] | None = None,
+                  evaluated: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """``count`` mutants of parents drawn uniformly (with replacement) among :func:`best_elites`, or among every
+    evaluated level at least as good as the worst of them (``evaluated``).
 
     The mutation is the one of the configured direct search: ``qd.mutation_cells`` cells redrawn for
     ``map_elites`` (0/1 bitmaps), Gaussian noise of ``qd.sigma0`` for ``cma_me``, ``gaussian``, ``halton`` and
@@ -50,6 +52,10 @@ def elite_mutants(archive: ArchiveBase, *, count: int, share: float, qd: QDConfi
         qd: The run's QD config (its emitter names the mutation).
         rng: Draws the parents and the mutations.
         bounds: The domain's ``solution_bounds``: the mutants are clipped to them (``None``: not clipped).
+        evaluated: ``(solutions, objective)`` of every level evaluated so far: the parents are those at least as
+            good as the best elites (every fault played, on a fault objective), so a region dense with good levels
+            parents more mutants than a lone one (``experimental.mutant_parents = "evaluated"``). ``None``: the
+            best elites, one level a cell.
 
     Returns:
         ``(count, solution_dim)`` solutions in the archive's solution dtype, or none when the archive is empty.
@@ -60,6 +66,15 @@ def elite_mutants(archive: ArchiveBase, *, count: int, share: float, qd: QDConfi
     dtype = archive.dtypes["solution"]
     if count == 0 or archive.empty:
         return np.empty((0, archive.solution_dim), dtype=dtype)
+    if evaluated is not None:
+        elite_objective = np.asarray(archive.data("objective"))
+        threshold = elite_objective[best_elites(archive, share=share)].min()
+        solutions, objective = evaluated
+        # Compared in the archive's precision: an elite's own evaluation is as good as the elite.
+        parents = np.flatnonzero(np.asarray(objective, dtype=elite_objective.dtype) >= threshold)
+        if parents.size:  # none where the archive holds levels evaluated before the record began (a resume)
+            return mutate(np.asarray(solutions, dtype=dtype)[rng.choice(parents, size=count)], qd=qd, rng=rng,
+                          bounds=bounds)
     solutions = np.asarray(archive.data("solution"), dtype=dtype)
     return mutate(solutions[rng.choice(best_elites(archive, share=share), size=count)], qd=qd, rng=rng,
                   bounds=bounds)

@@ -59,6 +59,15 @@ def test_faults_are_distinct_levels_and_cells_distinct_cells():
     assert pc.count(ledger.trace, episodes=1).faults == 1
 
 
+def test_near_copies_of_a_fault_are_one_separate_fault():
+    ledger = pc.Ledger(domain=FakeDomain(), episodes=10)
+    # 0.6 and 0.605 lie in one 1% bin of the box (0.02 wide), 0.63 in the next; all three fail (x > 0.5).
+    for level in ([0.6, 0.6], [0.605, 0.6], [0.63, 0.6], [0.0, 0.0]):
+        ledger.play(np.array(level))
+    counts = pc.count(ledger.trace, episodes=4)
+    assert (counts.faults, counts.separate_faults) == (3, 2)
+
+
 def test_the_points_of_one_integer_level_are_one_level_and_one_fault():
     domain = FakeDomain()
     domain.space = SimpleNamespace(params=[Parameter(name="row", kind="int", low=0, high=4),
@@ -131,10 +140,11 @@ def test_the_table_reads_each_run_at_equal_episodes_and_at_the_dsage_cpu_of_its_
     records[0]["trace"] = records[0]["trace"][:4]
     records[3]["trace"] = records[3]["trace"][:2]  # stopped at 2 episodes: short of the budget and of dsage's CPU
     lines = {line.split(" | ")[0].lstrip("| "): line for line in pc.table(records).splitlines()}
-    assert lines["rt"].split(" | ")[2:4] == ["0.0", "0.0"]
-    assert lines["rt"].split(" | ")[7:9] == ["0.0", "0.0"]
-    assert lines["tpe"].split(" | ")[2:4] == ["1.0", "1.0"]
-    assert lines["tpe"].split(" | ")[7:9] == ["1.0", "1.0"]
+    # faults, faults at 1% and fault cells: at equal episodes, then at equal CPU
+    assert lines["rt"].split(" | ")[2:5] == ["0.0", "0.0", "0.0"]
+    assert lines["rt"].split(" | ")[8:11] == ["0.0", "0.0", "0.0"]
+    assert lines["tpe"].split(" | ")[2:5] == ["1.0", "1.0", "1.0"]
+    assert lines["tpe"].split(" | ")[8:11] == ["1.0", "1.0", "1.0"]
     assert lines["tpe"].rstrip(" |").split(" | ")[-1] == "4"  # episodes that ended within dsage's 3 s: 0..3
     assert "short: 2-2 episodes" in lines["mdpfuzz"].split(" | ")[2]
     assert lines["mdpfuzz"].rstrip(" |").split(" | ")[-1] == "2 (1 short)"

@@ -40,8 +40,9 @@ def test_the_kernel_probe_is_stable_within_a_machine():
 
 
 def test_with_portable_kernels_every_surrogate_run_matches_on_this_machine_too():
-    """The one probe of portable kernels has fingerprints recorded; a machine that computes another probe (or other
-    runs) under them shows that the kernels are not portable to it, so this fails rather than skips."""
+    """Under portable kernels this machine's probe has fingerprints recorded (an AMD EPYC's and an Intel Xeon's,
+    which differ: docs/results/portable_kernels/README.md) and its runs match them; a machine that computes another
+    probe, or other runs, fails rather than skips."""
     import os
     import subprocess
     import sys

@@ -67,3 +67,29 @@ def test_box_emitters_mutate_with_gaussian_noise_clipped_to_the_bounds(latent_ar
                             bounds=(-1.0, 1.0))
     assert free.max() > 1.0 and clipped.max() == 1.0
     np.testing.assert_array_equal(clipped, np.clip(free, -1.0, 1.0))
+
+
+def test_evaluated_parents_are_every_level_as_good_as_the_best_elites(bitmap_archive):
+    bitmaps = _distinct_bitmaps(4)
+    _add(bitmap_archive, bitmaps, [1.0, 1.0, 0.2, 0.0])
+    # Evaluated: the two elites, five more levels as good as them near the first (one wall apart; the archive kept
+    # one of each cell), and a level worse than them that must never parent.
+    crowd = np.repeat(bitmaps[1:2], 5, axis=0)
+    evaluated = (np.concatenate([bitmaps, crowd]), np.array([1.0, 1.0, 0.2, 0.0] + [1.0] * 5))
+    qd = QDConfig(emitter="map_elites", mutation_cells=1)
+    rng = np.random.default_rng(0)
+    mutants = elite_mutants(bitmap_archive, count=700, share=0.1, qd=qd, rng=rng, evaluated=evaluated)
+    nearest = np.abs(mutants[:, None, :] - bitmaps[None]).sum(axis=2).argmin(axis=1)
+    # Parents: levels 0 and 1 of the elites, level 1 six times in seven draws (its evaluations are six of seven).
+    assert set(nearest) <= {0, 1, 2} and (nearest == 1).mean() > 0.75
+    from_elites = elite_mutants(bitmap_archive, count=700, share=0.1, qd=qd, rng=np.random.default_rng(0))
+    nearest = np.abs(from_elites[:, None, :] - bitmaps[None]).sum(axis=2).argmin(axis=1)
+    assert 0.35 < (nearest == 1).mean() < 0.65  # one elite a cell: an even draw
+
+
+def test_evaluated_parents_fall_back_to_the_elites_when_none_was_recorded(bitmap_archive):
+    _add(bitmap_archive, _distinct_bitmaps(2), [1.0, 0.0])
+    empty = (np.empty((0, DIM), dtype=np.int8), np.empty(0))
+    mutants = elite_mutants(bitmap_archive, count=10, share=0.5, qd=QDConfig(emitter="map_elites"),
+                            rng=np.random.default_rng(0), evaluated=empty)
+    assert mutants.shape == (10, DIM)
