@@ -193,7 +193,7 @@ class ExperimentalConfig:
     #: ``selection.elite_mutants``: their parents, :data:`MutantParents`.
     mutant_parents: MutantParents = key("elites", status="experimental", values="elites or evaluated",
                                         note="the elite mutants' parents: the best elites, or every level "
-                                             "evaluated as good")
+                                             "evaluated as good (more faults, fewer LunarLander fault cells)")
     #: ``selection.screen_episodes``: candidates screened per pick (the picks, then other elites predicted to add),
     #: or per level of a MAP-Elites batch.
     screen_pool: float = key(4.0, status="experimental", values=">= 1",
