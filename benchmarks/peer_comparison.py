@@ -178,8 +178,8 @@ def count(trace: Sequence[dict[str, Any]], *, episodes: int | None = None, cpu: 
     rows = list(trace[:episodes]) if episodes is not None else [row for row in trace if row["cpu"] <= cpu]
     failing = [row for row in rows if row["fault"]]
     levels = {np.asarray(row["level"], dtype=np.float32).tobytes() for row in failing}
-    bins = {tuple(np.clip(np.floor((np.asarray(row["level"]) + 1.0) / 2.0 * LEVEL_BINS), 0, LEVEL_BINS - 1)
-                  .astype(int).tolist()) for row in failing}
+    bins = {cell_of(row["level"], ranges=[(-1.0, 1.0)] * len(row["level"]), dims=[LEVEL_BINS] * len(row["level"]))
+            for row in failing}
     cells = {tuple(row["cell"]) for row in failing}
     return Counts(faults=len(levels), separate_faults=len(bins), fault_cells=len(cells),
                   cells=len({tuple(row["cell"]) for row in rows}),
@@ -485,7 +485,7 @@ def load_records(paths: Sequence[Path], *, tag: str | None = None) -> list[dict[
     return [r for r in records if tag is None or r["tag"] == tag]
 
 
-def dsage_cpu(records: Sequence[dict[str, Any]], *, reference: str = "dsage") -> dict[int, float]:
+def reference_cpu(records: Sequence[dict[str, Any]], *, reference: str = "dsage") -> dict[int, float]:
     """The CPU seconds each seed's run of the ``reference`` row spent (its whole run)."""
     return {r["seed"]: r["trace"][-1]["cpu"] for r in records if row_of(r) == reference}
 
@@ -506,15 +506,14 @@ def table(records: Sequence[dict[str, Any]], *, cpu_budget: float | None = None,
     if len(budgets) != 1:
         raise SystemExit(f"records of different episode budgets: {sorted(budgets)}")
     (budget,) = budgets
-    cpu = dsage_cpu(records, reference=reference)
-    if cpu_budget is not None:
-        cpu = {r["seed"]: cpu_budget for r in records}
+    cpu = (reference_cpu(records, reference=reference) if cpu_budget is None
+           else {r["seed"]: cpu_budget for r in records})
     by_arm: dict[str, list[dict[str, Any]]] = defaultdict(list)
     for record in records:
         by_arm[row_of(record)].append(record)
+    source = "dsage CPU seconds" if reference == "dsage" else f"CPU seconds of {reference}"
     equal_cpu = (f"{cpu_budget:g} CPU s a run" if cpu_budget is not None else
-                 f"each seed's CPU seconds of {reference} "
-                 f"({format_mean_se(*mean_se(cpu.values()), '.1f') if cpu else 'none'} s)")
+                 f"each seed's {source} ({format_mean_se(*mean_se(cpu.values()), '.1f') if cpu else 'none'} s)")
     lines = [f"episode budget {budget}; equal CPU: {equal_cpu}; mean ± s.e. over seeds",
              "| search | seeds | faults | faults at 1% | fault cells | cells covered | lowest return | CPU s "
              "| faults @ CPU | faults at 1% @ CPU | fault cells @ CPU | cells @ CPU | episodes @ CPU |",
@@ -588,7 +587,7 @@ def main(argv: list[str] | None = None) -> None:
     if tables:
         print(table(load_records(tables, tag=None), cpu_budget=config.cpu, reference=reference_row))
         return
-    cpu = dsage_cpu(load_records([config.cpu_from])) if config.cpu_from else {}
+    cpu = reference_cpu(load_records([config.cpu_from])) if config.cpu_from else {}
     import torch
 
     # Every arm plays on one torch thread, as the runner's steps do (config torch_threads = 1): a second thread

@@ -77,6 +77,10 @@ def validate(config: Any) -> None:
     need(config.experimental.mutant_sigma >= 0.0, "experimental.mutant_sigma", "must be >= 0 (0: qd.sigma0)")
     need(not config.experimental.mutant_sigma or config.qd.emitter != "map_elites", "experimental.mutant_sigma",
          "is the Gaussian step of continuous mutants; qd.emitter 'map_elites' mutates bitmaps (qd.mutation_cells)")
+    need(config.experimental.mutant_parents == "elites" or not config.selection.elite_mutants
+         or not (config.surrogate.init and config.experimental.init_prior), "experimental.mutant_parents",
+         "'evaluated' draws parents among the run's evaluated levels, and a warm start's prior levels "
+         "(experimental.init_prior) come without their solutions; set experimental.init_prior = false")
     need(config.selection.screen_episodes >= 0, "selection.screen_episodes", "must be >= 0 (0: no screen)")
     # The screening keys apply only to a domain that can screen (types.ScreenableDomain), which its registration
     # declares: the check imports no domain.

@@ -170,7 +170,10 @@ class SurrogateAssisted(Proposer):
         self.evaluator = evaluator
         self.progress = progress
         self.surrogate = Surrogate.for_domain(domain, config=config.surrogate, seed=seeds.next_qd_seed())
-        self.dataset = self.surrogate.make_dataset()
+        # The dataset keeps each level's solution too where the elite mutants' parents are drawn among them.
+        keep = config.selection.elite_mutants and config.experimental.mutant_parents == "evaluated"
+        self.dataset = self.surrogate.make_dataset(
+            **({"solution_dim": domain.solution_dim, "solution_dtype": domain.solution_dtype} if keep else {}))
         self.holdout = HeldOutLevels(count=config.experimental.holdout_levels, domain=domain, seeds=seeds)
         self.last_predictions: tuple[np.ndarray, np.ndarray] | None = None
         #: Samples of the dataset that came from ``surrogate.init`` (the oldest ones), not from this run.
@@ -180,11 +183,6 @@ class SurrogateAssisted(Proposer):
         #: Every measure is exact, so each pick's cell is known: each block's pick is the elite expected to add most
         #: to the ground-truth archive, not a uniform draw (docs/results/gym_audit).
         self.cells_known = self.surrogate.measures_exact
-        #: ``(solutions, objective)`` of every level this run evaluated, kept where the elite mutants' parents are
-        #: drawn from them (``experimental.mutant_parents = "evaluated"``); else None.
-        self.evaluated: tuple[np.ndarray, np.ndarray] | None = None
-        if config.selection.elite_mutants and config.experimental.mutant_parents == "evaluated":
-            self.evaluated = (np.empty((0, domain.solution_dim), dtype=domain.solution_dtype), np.empty(0))
 
     def propose(self, *, outer_iteration: int) -> Proposal:
         proposal = Proposal(np.empty(0))
@@ -230,11 +228,8 @@ class SurrogateAssisted(Proposer):
             self.screen.learn(batch)
         if batch.ok:
             self.archive.add(batch.solutions[batch.ok], batch.objective, batch.measures, occupancy=batch.occupancy)
-            self.dataset.append(encoded=encoded, results=batch.results)
-            if self.evaluated is not None:
-                solutions, objective = self.evaluated
-                self.evaluated = (np.concatenate([solutions, np.asarray(batch.solutions)[batch.ok]]),
-                                  np.concatenate([objective, batch.objective]))
+            self.dataset.append(encoded=encoded, results=batch.results,
+                                solutions=None if self.dataset.solution_dim is None else batch.solutions)
             # A cold start's first batch is random: nothing was predicted for it.
             if batch.predicted is not None:
                 errors = self.surrogate.mae(encoded, batch.results, prediction=batch.predicted)
@@ -345,7 +340,9 @@ class SurrogateAssisted(Proposer):
             qd = dataclasses.replace(qd, sigma0=self.config.experimental.mutant_sigma)
         mutants = elite_mutants(self.archive, count=self.config.selection.elite_mutants,
                                 share=self.config.experimental.elite_share, qd=qd, rng=self.seeds.rng,
-                                bounds=solution_bounds(self.domain), evaluated=self.evaluated)
+                                bounds=solution_bounds(self.domain),
+                                evaluated=None if self.dataset.solutions is None else (self.dataset.solutions,
+                                                                                       self.dataset.objective))
         proposal.solutions = np.concatenate([proposal.solutions, mutants])
         if proposal.screened is not None:
             proposal.screened = np.concatenate([proposal.screened,
@@ -361,7 +358,7 @@ class SurrogateAssisted(Proposer):
         return {"scheduler": None, "surrogate": self.surrogate.state_dict(), "dataset": self.dataset.state_dict(),
                 "prior_samples": self.prior_samples,
                 "screen_errors": None if self.screen is None else self.screen.state_dict(),
-                "evaluated": self.evaluated, **self.holdout.state_dict()}
+                **self.holdout.state_dict()}
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         self.archive = state["archive"]
@@ -370,7 +367,5 @@ class SurrogateAssisted(Proposer):
         self.prior_samples = state.get("prior_samples", 0)
         if self.screen is not None:
             self.screen.load_state_dict(state.get("screen_errors"))
-        if self.evaluated is not None and state.get("evaluated") is not None:
-            self.evaluated = state["evaluated"]
         self.holdout.load_state_dict(state)
         self.last_predictions = state["last_predictions"]

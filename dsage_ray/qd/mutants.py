@@ -72,7 +72,7 @@ def elite_mutants(archive: ArchiveBase, *, count: int, share: float, qd: QDConfi
         solutions, objective = evaluated
         # Compared in the archive's precision: an elite's own evaluation is as good as the elite.
         parents = np.flatnonzero(np.asarray(objective, dtype=elite_objective.dtype) >= threshold)
-        if parents.size:  # none where the archive holds levels evaluated before the record began (a resume)
+        if parents.size:  # none only where the archive holds levels the record does not
             return mutate(np.asarray(solutions, dtype=dtype)[rng.choice(parents, size=count)], qd=qd, rng=rng,
                           bounds=bounds)
     solutions = np.asarray(archive.data("solution"), dtype=dtype)
